@@ -1,0 +1,1 @@
+//! bench: orchestrator of the FOG thermal-calibration bench.

@@ -1,0 +1,13 @@
+//! Physics of the FOG thermal-calibration bench.
+//!
+//! One place for every physical model bench uses, shared by the simulators (`bench-sim`) and the
+//! analysis: units, Earth rate, the gyro error model, noise processes, rate-table and chamber
+//! dynamics, and the Allan deviation.
+//!
+//! ```
+//! use bench_physics::units::DEG_PER_MIN;
+//! let seed_table_rate_rad_s = 10.0 * DEG_PER_MIN;
+//! assert!((seed_table_rate_rad_s - 2.9089e-3).abs() < 1e-7);
+//! ```
+
+pub mod units;
