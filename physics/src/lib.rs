@@ -10,4 +10,7 @@
 //! assert!((seed_table_rate_rad_s - 2.9089e-3).abs() < 1e-7);
 //! ```
 
+pub mod gyro_model;
 pub mod units;
+
+pub use gyro_model::GyroModel;
