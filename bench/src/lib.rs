@@ -1,1 +1,3 @@
 //! bench: orchestrator of the FOG thermal-calibration bench.
+
+pub mod plan;
