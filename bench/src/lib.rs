@@ -1,3 +1,4 @@
 //! bench: orchestrator of the FOG thermal-calibration bench.
 
 pub mod plan;
+pub mod record;

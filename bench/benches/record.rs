@@ -1,0 +1,2 @@
+//! Recorder throughput (filled in below).
+fn main() {}
