@@ -1,1 +1,2 @@
+//! `bench` CLI (being assembled).
 fn main() {}

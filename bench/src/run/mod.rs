@@ -1,0 +1,404 @@
+//! The orchestrator: device pollers, the step sequencer and the recorder, running as tasks on
+//! one shared [`Clock`].
+//!
+//! ```text
+//!  gyro task ──┐                      ┌─> /gyro/rate
+//!  table poller ├─> Event channel ──> recorder task ─> /table/state, /chamber/state,
+//!  chamber poller┘        ^                           /bench/step, /log  (MCAP)
+//!  sequencer ─────────────┘ (step events; commands devices through their mutexes)
+//! ```
+//!
+//! The same code runs on the virtual-time executor (simulated bench, as fast as the CPU allows)
+//! and on tokio in real time (real devices): it only sleeps through the clock and spawns through
+//! a [`futures::task::Spawn`].
+
+pub mod live;
+pub mod logging;
+mod sequencer;
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use bench_drivers::{
+    Chamber, ChamberReading, Clock, DeviceError, Gyro, GyroSample, RateTable, TableReading,
+};
+use futures::channel::mpsc;
+use futures::future::{AbortHandle, Abortable};
+use futures::lock::Mutex as AsyncMutex;
+use futures::task::{Spawn, SpawnExt};
+use futures::StreamExt;
+use tracing::instrument::WithSubscriber;
+use tracing_subscriber::layer::SubscriberExt;
+
+use crate::plan::RunPlan;
+pub use live::{Live, Snapshot};
+
+/// Everything a run records, in the order it happened per source.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A gyro sample received at bench time `t`.
+    Gyro(Duration, GyroSample),
+    /// A table reading taken at `t`.
+    Table(Duration, TableReading),
+    /// A chamber reading taken at `t`.
+    Chamber(Duration, ChamberReading),
+    /// A step started, ended or aborted.
+    Step {
+        /// Bench time.
+        t: Duration,
+        /// Step index in the plan.
+        index: usize,
+        /// Step kind.
+        name: String,
+        /// `start`, `end` or `abort`.
+        event: StepEvent,
+        /// Step label.
+        label: String,
+    },
+    /// A log message (foxglove.Log).
+    Log {
+        /// Bench time.
+        t: Duration,
+        /// foxglove.Log level: 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
+        level: u8,
+        /// Text.
+        message: String,
+        /// Source (tracing target).
+        name: String,
+        /// Source file.
+        file: String,
+        /// Source line.
+        line: u32,
+    },
+}
+
+/// Step event kinds of `/bench/step`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepEvent {
+    /// The step began.
+    Start,
+    /// The step finished normally.
+    End,
+    /// The step was cut short by an abort.
+    Abort,
+}
+
+impl StepEvent {
+    /// The contract's string.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StepEvent::Start => "start",
+            StepEvent::End => "end",
+            StepEvent::Abort => "abort",
+        }
+    }
+}
+
+/// Where a run's events go: the MCAP recorder, or memory in tests. Errors stop the run (it
+/// aborts to a safe state); the sink keeps what it already has.
+pub trait EventSink: Send + 'static {
+    /// Record one event.
+    fn record(&mut self, event: &Event) -> anyhow::Result<()>;
+}
+
+/// The devices of one run.
+pub struct Devices {
+    /// Rate table.
+    pub table: Box<dyn RateTable>,
+    /// Climatic chamber.
+    pub chamber: Box<dyn Chamber>,
+    /// Gyro.
+    pub gyro: Box<dyn Gyro>,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Outcome {
+    /// Every step ran.
+    Completed,
+    /// The run stopped early; the reason.
+    Aborted(String),
+}
+
+impl std::fmt::Display for Outcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Outcome::Completed => f.write_str("completed"),
+            Outcome::Aborted(r) => write!(f, "aborted: {r}"),
+        }
+    }
+}
+
+/// Result of [`execute`].
+pub struct RunResult<S> {
+    /// How the run ended (`bench.run` `outcome`).
+    pub outcome: Outcome,
+    /// The sink, with everything recorded, to be finished by the caller.
+    pub sink: S,
+    /// Bench time at the end.
+    pub duration: Duration,
+    /// The recorder's error, if recording failed (the run then aborted).
+    pub record_error: Option<String>,
+}
+
+/// Limits of the fault handling.
+#[derive(Debug, Clone)]
+pub struct FaultPolicy {
+    /// Consecutive transient errors (timeouts, CRC) of one device before the run aborts.
+    pub max_consecutive_errors: u32,
+    /// How long a safe-state command may take before it is given up, bench time.
+    pub safe_state_timeout: Duration,
+}
+
+impl Default for FaultPolicy {
+    fn default() -> Self {
+        Self { max_consecutive_errors: 5, safe_state_timeout: Duration::from_secs(10) }
+    }
+}
+
+/// Shared state of one run's tasks.
+pub(crate) struct Ctx {
+    pub clock: Arc<dyn Clock>,
+    pub tx: mpsc::UnboundedSender<Event>,
+    pub live: Arc<Live>,
+    pub table: AsyncMutex<Box<dyn RateTable>>,
+    pub chamber: AsyncMutex<Box<dyn Chamber>>,
+    /// First fatal fault reported by a poller or the recorder.
+    pub fault: Mutex<Option<String>>,
+    pub fault_notify: mpsc::UnboundedSender<()>,
+    pub policy: FaultPolicy,
+}
+
+impl Ctx {
+    pub fn send(&self, e: Event) {
+        // Fails only once the recorder has gone, i.e. after the run has ended.
+        let _ = self.tx.unbounded_send(e);
+    }
+
+    pub fn raise_fault(&self, reason: String) {
+        let mut f = self.fault.lock().unwrap_or_else(|p| p.into_inner());
+        if f.is_none() {
+            tracing::error!("{reason}");
+            *f = Some(reason);
+            let _ = self.fault_notify.unbounded_send(());
+        }
+    }
+
+    pub fn fault(&self) -> Option<String> {
+        self.fault.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
+/// Counts consecutive errors of one device; a fault once the policy's limit is reached or on
+/// the first non-transient error.
+struct ErrorBudget {
+    device: &'static str,
+    consecutive: u32,
+}
+
+impl ErrorBudget {
+    fn ok(&mut self) {
+        self.consecutive = 0;
+    }
+    fn err(&mut self, ctx: &Ctx, e: &DeviceError) -> bool {
+        self.consecutive += 1;
+        if !e.kind().is_transient() || self.consecutive >= ctx.policy.max_consecutive_errors {
+            ctx.raise_fault(format!(
+                "{} failed after {} consecutive error(s): {e}",
+                self.device, self.consecutive
+            ));
+            true
+        } else {
+            tracing::warn!("{}: {e} (retrying)", self.device);
+            false
+        }
+    }
+}
+
+async fn gyro_task(ctx: Arc<Ctx>, mut gyro: Box<dyn Gyro>) {
+    let mut budget = ErrorBudget { device: "gyro", consecutive: 0 };
+    loop {
+        match gyro.next_sample().await {
+            Ok(s) => {
+                budget.ok();
+                let t = ctx.clock.now();
+                ctx.live.set_gyro(s.rate_rad_s, s.temperature_c);
+                ctx.send(Event::Gyro(t, s));
+            }
+            Err(e) => {
+                if budget.err(&ctx, &e) {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+fn period(hz: f64) -> Duration {
+    Duration::from_secs_f64(1.0 / hz)
+}
+
+async fn table_poller(ctx: Arc<Ctx>, hz: f64) {
+    let mut budget = ErrorBudget { device: "rate table", consecutive: 0 };
+    let dt = period(hz);
+    let mut k: u32 = 0;
+    loop {
+        k += 1;
+        ctx.clock.sleep_until(dt * k).await;
+        let r = {
+            let mut table = ctx.table.lock().await;
+            match table.service().await {
+                Ok(()) => table.read().await,
+                Err(e) => Err(e),
+            }
+        };
+        match r {
+            Ok(r) => {
+                budget.ok();
+                let t = ctx.clock.now();
+                ctx.live.set_time(t);
+                ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
+                ctx.send(Event::Table(t, r));
+            }
+            Err(e) => {
+                if budget.err(&ctx, &e) {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+async fn chamber_poller(ctx: Arc<Ctx>, hz: f64) {
+    let mut budget = ErrorBudget { device: "chamber", consecutive: 0 };
+    let dt = period(hz);
+    let mut k: u32 = 0;
+    loop {
+        k += 1;
+        ctx.clock.sleep_until(dt * k).await;
+        let r = {
+            let mut chamber = ctx.chamber.lock().await;
+            match chamber.service().await {
+                Ok(()) => chamber.read().await,
+                Err(e) => Err(e),
+            }
+        };
+        match r {
+            Ok(r) => {
+                budget.ok();
+                let t = ctx.clock.now();
+                ctx.live.set_time(t);
+                ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
+                ctx.send(Event::Chamber(t, r));
+            }
+            Err(e) => {
+                if budget.err(&ctx, &e) {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+/// The recorder task: drains the event channel into the sink until every sender is gone.
+async fn recorder_task<S: EventSink>(
+    mut rx: mpsc::UnboundedReceiver<Event>,
+    mut sink: S,
+    fault: mpsc::UnboundedSender<()>,
+    error: Arc<Mutex<Option<String>>>,
+) -> S {
+    while let Some(ev) = rx.next().await {
+        if let Err(e) = sink.record(&ev) {
+            let msg = format!("recording failed: {e:#}");
+            *error.lock().unwrap_or_else(|p| p.into_inner()) = Some(msg);
+            let _ = fault.unbounded_send(());
+            // Keep draining so senders never block; nothing more can be written.
+            while rx.next().await.is_some() {}
+            break;
+        }
+    }
+    sink
+}
+
+/// Run `plan` on `devices`, recording every stream into `sink`.
+///
+/// `console` is an optional extra tracing layer (e.g. the CLI's terminal output); every event
+/// of the run also goes to the recording's `/log` channel. Returns when the last step has ended
+/// or the run has aborted and the devices were put into their safe state.
+pub async fn execute<S: EventSink>(
+    plan: &RunPlan,
+    devices: Devices,
+    clock: Arc<dyn Clock>,
+    sink: S,
+    spawner: impl Spawn,
+    live: Arc<Live>,
+    console: Option<Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>>,
+) -> RunResult<S> {
+    let (tx, rx) = mpsc::unbounded();
+    let (fault_tx, fault_rx) = mpsc::unbounded();
+    let record_error: Arc<Mutex<Option<String>>> = Default::default();
+
+    let dispatch = tracing::Dispatch::new(
+        tracing_subscriber::Registry::default()
+            .with(console)
+            .with(logging::RecordingLayer::new(tx.clone(), clock.clone())),
+    );
+
+    let ctx = Arc::new(Ctx {
+        clock: clock.clone(),
+        tx,
+        live,
+        table: AsyncMutex::new(devices.table),
+        chamber: AsyncMutex::new(devices.chamber),
+        fault: Mutex::new(None),
+        fault_notify: fault_tx.clone(),
+        policy: FaultPolicy::default(),
+    });
+
+    let recording = recorder_task(rx, sink, fault_tx, record_error.clone());
+
+    let mut aborts: Vec<AbortHandle> = Vec::new();
+    let mut spawn_errors = Vec::new();
+    let device_tasks: [futures::future::BoxFuture<'static, ()>; 3] = [
+        Box::pin(gyro_task(ctx.clone(), devices.gyro)),
+        Box::pin(table_poller(ctx.clone(), plan.table_poll_hz)),
+        Box::pin(chamber_poller(ctx.clone(), plan.chamber_poll_hz)),
+    ];
+    for fut in device_tasks {
+        let (h, reg) = AbortHandle::new_pair();
+        aborts.push(h);
+        let f = Abortable::new(fut.with_subscriber(dispatch.clone()), reg);
+        if let Err(e) = spawner.spawn(async move {
+            let _ = f.await;
+        }) {
+            spawn_errors.push(e.to_string());
+        }
+    }
+
+    // The recorder runs beside the sequencer in this task. It ends when `main` closes the
+    // channel, after the safe state, and hands the sink back.
+    let main_ctx = ctx.clone();
+    let main_record_error = record_error.clone();
+    let main = async move {
+        let ctx = main_ctx;
+        let outcome = if spawn_errors.is_empty() {
+            sequencer::run_steps(plan, &ctx, fault_rx, &main_record_error).await
+        } else {
+            Outcome::Aborted(format!("cannot start device tasks: {}", spawn_errors.join("; ")))
+        };
+        match &outcome {
+            Outcome::Aborted(r) => tracing::error!("run aborted: {r}"),
+            Outcome::Completed => tracing::info!("run completed"),
+        }
+        sequencer::safe_state(plan, &ctx).await;
+        let duration = ctx.clock.now();
+        aborts.iter().for_each(AbortHandle::abort);
+        ctx.tx.close_channel();
+        (outcome, duration)
+    }
+    .with_subscriber(dispatch);
+    let (sink, (outcome, duration)) = futures::join!(recording, main);
+    let record_error = record_error.lock().unwrap_or_else(|p| p.into_inner()).clone();
+    RunResult { outcome, sink, duration, record_error }
+}
+

@@ -1,0 +1,220 @@
+//! The step sequencer: runs the plan's steps in order, brackets each with step events, and
+//! puts the bench into its safe state at the end.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use futures::channel::mpsc;
+use futures::StreamExt;
+
+use super::{Ctx, Event, Outcome, StepEvent};
+use crate::plan::{Action, PlannedStep, RunPlan, TempSource};
+
+/// Measured table rate counts as settled within this fraction of the command…
+const SETTLE_REL: f64 = 1e-3;
+/// …or this absolute rate, rad/s (≈ 0.2 °/h), whichever is larger.
+const SETTLE_ABS_RAD_S: f64 = 1e-6;
+/// The chamber's working set point has reached its target within this, °C.
+const RAMP_END_TOL_C: f64 = 0.05;
+
+fn step_event(ctx: &Ctx, step: &PlannedStep, event: StepEvent) {
+    ctx.send(Event::Step {
+        t: ctx.clock.now(),
+        index: step.index,
+        name: step.name.clone(),
+        event,
+        label: step.label.clone(),
+    });
+}
+
+/// Run every step; the first failure (or a fault from a device task or the recorder) aborts.
+pub(super) async fn run_steps(
+    plan: &RunPlan,
+    ctx: &Ctx,
+    mut fault_rx: mpsc::UnboundedReceiver<()>,
+    record_error: &Arc<Mutex<Option<String>>>,
+) -> Outcome {
+    let poll = Duration::from_secs_f64(1.0 / plan.chamber_poll_hz.max(plan.table_poll_hz));
+    for step in &plan.steps {
+        ctx.live.set_step(step.index);
+        step_event(ctx, step, StepEvent::Start);
+        tracing::info!(
+            "step {} {}{}",
+            step.index,
+            step.name,
+            if step.label.is_empty() { String::new() } else { format!(" [{}]", step.label) }
+        );
+        let action = run_action(&step.action, ctx, poll);
+        futures::pin_mut!(action);
+        let result = match futures::future::select(action, fault_rx.next()).await {
+            futures::future::Either::Left((r, _)) => r,
+            futures::future::Either::Right(_) => {
+                let reason = record_error
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .clone()
+                    .or_else(|| ctx.fault())
+                    .unwrap_or_else(|| "device fault".to_string());
+                Err(reason)
+            }
+        };
+        match result {
+            Ok(()) => step_event(ctx, step, StepEvent::End),
+            Err(reason) => {
+                step_event(ctx, step, StepEvent::Abort);
+                return Outcome::Aborted(format!(
+                    "step {} ({}{}) at {}: {reason}",
+                    step.index,
+                    step.name,
+                    if step.label.is_empty() { String::new() } else { format!(" {}", step.label) },
+                    step.origin
+                ));
+            }
+        }
+    }
+    Outcome::Completed
+}
+
+async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), String> {
+    let clock = &ctx.clock;
+    match *action {
+        Action::Chamber { target_c, ramp_c_s } => {
+            ctx.chamber.lock().await.set_target(target_c, ramp_c_s).await.map_err(|e| {
+                format!("chamber refused set point {target_c} °C: {e}")
+            })?;
+        }
+        Action::Table { rate_rad_s, accel_rad_s2, settle } => {
+            ctx.table
+                .lock()
+                .await
+                .set_rate(rate_rad_s, accel_rad_s2)
+                .await
+                .map_err(|e| format!("table refused rate {rate_rad_s} rad/s: {e}"))?;
+            if settle {
+                wait_table_rate(ctx, rate_rad_s, accel_rad_s2, poll).await?;
+            }
+        }
+        Action::TableStop { decel_rad_s2 } => {
+            ctx.table
+                .lock()
+                .await
+                .stop(decel_rad_s2)
+                .await
+                .map_err(|e| format!("table refused stop: {e}"))?;
+            wait_table_rate(ctx, 0.0, decel_rad_s2, poll).await?;
+        }
+        Action::Wait { duration } => clock.sleep(duration).await,
+        Action::WaitTemperature { source, target_c, band_c, hold, timeout } => {
+            let start = clock.now();
+            let mut in_band_since: Option<Duration> = None;
+            loop {
+                let snap = ctx.live.snapshot();
+                let temp = match source {
+                    TempSource::Air => snap.air_temp_c,
+                    TempSource::Gyro if snap.gyro_temp_c.is_finite() => snap.gyro_temp_c,
+                    TempSource::Gyro => snap.air_temp_c,
+                };
+                let now = clock.now();
+                if (temp - target_c).abs() <= band_c {
+                    let since = *in_band_since.get_or_insert(now);
+                    if now - since >= hold {
+                        return Ok(());
+                    }
+                } else {
+                    in_band_since = None;
+                }
+                if now - start >= timeout {
+                    return Err(format!(
+                        "temperature {temp:.2} °C not within {target_c} ± {band_c} °C for {} s \
+                         after {} s",
+                        hold.as_secs_f64(),
+                        timeout.as_secs_f64()
+                    ));
+                }
+                clock.sleep(poll).await;
+            }
+        }
+        Action::WaitRampEnd { timeout } => wait_ramp_end(ctx, timeout, poll).await?,
+        Action::Record { duration, until_ramp_end } => {
+            if until_ramp_end {
+                wait_ramp_end(ctx, duration, poll).await?;
+            } else {
+                clock.sleep(duration).await;
+            }
+        }
+    }
+    Ok(())
+}
+
+async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(), String> {
+    let start = ctx.clock.now();
+    loop {
+        let s = ctx.live.snapshot();
+        if (s.setpoint_c - s.target_c).abs() <= RAMP_END_TOL_C {
+            return Ok(());
+        }
+        if ctx.clock.now() - start >= timeout {
+            return Err(format!(
+                "chamber ramp not finished after {} s (working set point {:.2} °C, target {:.2} °C)",
+                timeout.as_secs_f64(),
+                s.setpoint_c,
+                s.target_c
+            ));
+        }
+        ctx.clock.sleep(poll).await;
+    }
+}
+
+async fn wait_table_rate(
+    ctx: &Ctx,
+    rate_rad_s: f64,
+    accel_rad_s2: f64,
+    poll: Duration,
+) -> Result<(), String> {
+    let start = ctx.clock.now();
+    let tol = (rate_rad_s.abs() * SETTLE_REL).max(SETTLE_ABS_RAD_S);
+    let span = (rate_rad_s - ctx.live.snapshot().table_rate_rad_s).abs();
+    let slew_s = if accel_rad_s2 > 0.0 && span.is_finite() { span / accel_rad_s2 } else { 0.0 };
+    let timeout = Duration::from_secs_f64(2.0 * slew_s + 10.0);
+    // Only readings taken after the command count.
+    ctx.clock.sleep(poll).await;
+    loop {
+        let s = ctx.live.snapshot();
+        if (s.table_rate_rad_s - rate_rad_s).abs() <= tol {
+            return Ok(());
+        }
+        if ctx.clock.now() - start >= timeout {
+            return Err(format!(
+                "table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
+                s.table_rate_rad_s,
+                timeout.as_secs_f64()
+            ));
+        }
+        ctx.clock.sleep(poll).await;
+    }
+}
+
+/// Table to rest, chamber to the safe set point; each bounded by the policy's timeout. Errors
+/// are logged: the run is ending either way.
+pub(super) async fn safe_state(plan: &RunPlan, ctx: &Ctx) {
+    let limit = ctx.policy.safe_state_timeout;
+    let clock = ctx.clock.as_ref();
+    let table = async {
+        let mut t = ctx.table.lock().await;
+        t.stop(plan.safe_decel_rad_s2).await
+    };
+    match bench_drivers::clock::timeout(clock, limit, table).await {
+        Some(Ok(())) => tracing::info!("safe state: table decelerating to rest"),
+        Some(Err(e)) => tracing::error!("safe state: table stop failed: {e}"),
+        None => tracing::error!("safe state: table stop timed out after {limit:?}"),
+    }
+    let chamber = async {
+        let mut c = ctx.chamber.lock().await;
+        c.set_target(plan.safe_temp_c, None).await
+    };
+    match bench_drivers::clock::timeout(clock, limit, chamber).await {
+        Some(Ok(())) => tracing::info!("safe state: chamber set point {} °C", plan.safe_temp_c),
+        Some(Err(e)) => tracing::error!("safe state: chamber set point failed: {e}"),
+        None => tracing::error!("safe state: chamber set point timed out after {limit:?}"),
+    }
+}
