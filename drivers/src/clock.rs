@@ -162,35 +162,57 @@ pub struct Deadlock {
 }
 
 /// Drive `make(spawner)` to completion in virtual time on a deterministic single-threaded
-/// executor. `make` receives a spawner for the run's other tasks.
+/// executor. `make` receives a spawner for the run's other tasks (which must be `'static`);
+/// the main future itself may borrow.
 pub fn run_virtual<T, F>(
     clock: &VirtualClock,
     make: impl FnOnce(futures::executor::LocalSpawner) -> F,
 ) -> Result<T, Deadlock>
 where
-    F: Future<Output = T> + 'static,
-    T: 'static,
+    F: Future<Output = T>,
 {
-    use futures::task::LocalSpawnExt;
     let mut pool = futures::executor::LocalPool::new();
-    let spawner = pool.spawner();
-    let main = make(spawner.clone());
-    let out: std::rc::Rc<std::cell::RefCell<Option<T>>> = Default::default();
-    let slot = out.clone();
-    spawner
-        .spawn_local(async move {
-            let v = main.await;
-            *slot.borrow_mut() = Some(v);
-        })
-        .map_err(|_| Deadlock { at: clock.now() })?;
+    let main = make(pool.spawner());
+    futures::pin_mut!(main);
+    let woken = Arc::new(WakeFlag::default());
+    let waker = Waker::from(woken.clone());
+    let mut cx = Context::from_waker(&waker);
+    woken.set();
     loop {
+        if woken.take() {
+            if let Poll::Ready(v) = main.as_mut().poll(&mut cx) {
+                return Ok(v);
+            }
+        }
         pool.run_until_stalled();
-        if let Some(v) = out.borrow_mut().take() {
-            return Ok(v);
+        if woken.is_set() {
+            continue;
         }
         if clock.advance().is_none() {
             return Err(Deadlock { at: clock.now() });
         }
+    }
+}
+
+/// Wakes the main future of [`run_virtual`] by setting a flag.
+#[derive(Default)]
+struct WakeFlag(std::sync::atomic::AtomicBool);
+
+impl WakeFlag {
+    fn set(&self) {
+        self.0.store(true, std::sync::atomic::Ordering::Release);
+    }
+    fn is_set(&self) -> bool {
+        self.0.load(std::sync::atomic::Ordering::Acquire)
+    }
+    fn take(&self) -> bool {
+        self.0.swap(false, std::sync::atomic::Ordering::AcqRel)
+    }
+}
+
+impl std::task::Wake for WakeFlag {
+    fn wake(self: Arc<Self>) {
+        self.set();
     }
 }
 
