@@ -15,6 +15,7 @@ pub mod chamber;
 pub mod clock;
 pub mod error;
 pub mod gyro;
+pub mod protocol;
 pub mod status;
 pub mod table;
 
