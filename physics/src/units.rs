@@ -34,8 +34,12 @@ impl Dimension {
     /// The unit strings accepted for this dimension, for error messages.
     pub fn accepted(self) -> &'static [&'static str] {
         match self {
-            Dimension::AngularRate => &["rad/s", "deg/s", "deg/min", "deg/h", "°/s", "°/min", "°/h"],
-            Dimension::AngularAcceleration => &["rad/s2", "deg/s2", "rad/s²", "deg/s²", "°/s²", "°/s2"],
+            Dimension::AngularRate => {
+                &["rad/s", "deg/s", "deg/min", "deg/h", "°/s", "°/min", "°/h"]
+            }
+            Dimension::AngularAcceleration => {
+                &["rad/s2", "deg/s2", "rad/s²", "deg/s²", "°/s²", "°/s2"]
+            }
             Dimension::TemperatureRate => &["C/s", "C/min", "C/h", "°C/s", "°C/min", "°C/h"],
             Dimension::Time => &["s", "min", "h", "ms"],
         }
@@ -85,6 +89,22 @@ pub fn si_factor(unit: &str, dim: Dimension) -> Option<f64> {
         },
     };
     Some(f)
+}
+
+/// `value` rounded to the nearest multiple of `resolution` (a readout's quantisation);
+/// `value` unchanged if `resolution` is not positive.
+///
+/// ```
+/// use bench_physics::units::{quantise, ARCSEC};
+/// assert_eq!(quantise(0.26, 0.1), 0.30000000000000004);
+/// assert_eq!(quantise(1.4 * ARCSEC, ARCSEC), ARCSEC);
+/// ```
+pub fn quantise(value: f64, resolution: f64) -> f64 {
+    if resolution > 0.0 {
+        (value / resolution).round() * resolution
+    } else {
+        value
+    }
 }
 
 #[cfg(test)]
