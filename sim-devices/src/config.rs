@@ -1,0 +1,238 @@
+//! Configuration of the simulated bench and the capabilities it reports.
+
+use bench_drivers::{ChamberCapabilities, DeviceInfo, GyroCapabilities, TableCapabilities};
+use bench_physics::chamber::ChamberParams;
+use bench_physics::table::TableParams;
+use bench_physics::units::DEG;
+use bench_physics::GyroModel;
+use serde::{Deserialize, Serialize};
+
+/// The simulated gyro's interface (what it can do, not its error model).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GyroParams {
+    /// Output rates it can be set to, Hz (default 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000,
+    /// 2000).
+    pub sample_rates_hz: Vec<f64>,
+    /// Input range, rad/s (default 500 °/s); larger true rates saturate the output and flag the
+    /// sample invalid.
+    pub max_rate_rad_s: f64,
+    /// Operating temperature range, °C (default −40..+60).
+    pub operating_temp_c: (f64, f64),
+    /// Whether samples carry the internal temperature (default true).
+    pub has_temperature: bool,
+}
+
+impl Default for GyroParams {
+    fn default() -> Self {
+        Self {
+            sample_rates_hz: vec![
+                1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0,
+            ],
+            max_rate_rad_s: 500.0 * DEG,
+            operating_temp_c: (-40.0, 60.0),
+            has_temperature: true,
+        }
+    }
+}
+
+/// Everything the simulated bench needs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimConfig {
+    /// Seed of every random stream (gyro noise, table and chamber readout noise).
+    pub seed: u64,
+    /// The gyro's true error model (default: [`GyroModel::default`], the seed's gyro).
+    pub gyro_model: GyroModel,
+    /// Gyro output rate, Hz (default 20); must be one of `gyro.sample_rates_hz`.
+    pub gyro_sample_rate_hz: f64,
+    /// Latitude of the bench, degrees north (default 59.94, St Petersburg).
+    pub latitude_deg: f64,
+    /// The gyro's sensing axis points up (default true).
+    pub axis_up: bool,
+    /// Chamber air, set point and gyro temperature at the start, °C (default 20).
+    pub initial_temp_c: f64,
+    /// Rate table (default: ST1300 class, see [`TableParams`]).
+    pub table: TableParams,
+    /// Climatic chamber (default: ST1300 chamber, see [`ChamberParams`]).
+    pub chamber: ChamberParams,
+    /// Gyro interface.
+    pub gyro: GyroParams,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            gyro_model: GyroModel::default(),
+            gyro_sample_rate_hz: 20.0,
+            latitude_deg: 59.94,
+            axis_up: true,
+            initial_temp_c: 20.0,
+            table: TableParams::default(),
+            chamber: ChamberParams::default(),
+            gyro: GyroParams::default(),
+        }
+    }
+}
+
+/// A configuration the simulator cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("simulator config: `{field}` {problem}")]
+pub struct SimConfigError {
+    /// The offending field.
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub problem: String,
+}
+
+fn err(field: &'static str, problem: impl Into<String>) -> SimConfigError {
+    SimConfigError {
+        field,
+        problem: problem.into(),
+    }
+}
+
+fn positive(field: &'static str, v: f64) -> Result<(), SimConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(err(field, format!("must be a positive number, got {v}")))
+    }
+}
+
+fn non_negative(field: &'static str, v: f64) -> Result<(), SimConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(err(field, format!("must be a number ≥ 0, got {v}")))
+    }
+}
+
+/// The three devices' descriptions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimInfos {
+    /// Rate table.
+    pub table: DeviceInfo<TableCapabilities>,
+    /// Chamber.
+    pub chamber: DeviceInfo<ChamberCapabilities>,
+    /// Gyro.
+    pub gyro: DeviceInfo<GyroCapabilities>,
+}
+
+/// Descriptions of the devices of a default [`SimConfig`], without building a simulator.
+pub fn default_infos() -> SimInfos {
+    SimConfig::default().infos()
+}
+
+impl SimConfig {
+    /// Check the configuration: every parameter finite and in range, the gyro rate one of the
+    /// listed rates, the initial temperature inside the chamber's range.
+    pub fn validate(&self) -> Result<(), SimConfigError> {
+        let rates = &self.gyro.sample_rates_hz;
+        if rates.is_empty() || rates.iter().any(|r| !(r.is_finite() && *r > 0.0)) {
+            return Err(err("gyro.sample_rates_hz", "must list positive rates"));
+        }
+        if !rates
+            .iter()
+            .any(|r| (r - self.gyro_sample_rate_hz).abs() < 1e-9)
+        {
+            return Err(err(
+                "gyro_sample_rate_hz",
+                format!(
+                    "{} Hz is not one of the gyro's rates {rates:?}",
+                    self.gyro_sample_rate_hz
+                ),
+            ));
+        }
+        if !(self.latitude_deg.is_finite() && self.latitude_deg.abs() <= 90.0) {
+            return Err(err(
+                "latitude_deg",
+                format!("must be within ±90, got {}", self.latitude_deg),
+            ));
+        }
+        let c = &self.chamber;
+        if !(c.min_temp_c.is_finite() && c.max_temp_c.is_finite() && c.min_temp_c < c.max_temp_c) {
+            return Err(err(
+                "chamber.min_temp_c",
+                "range must be finite with min < max",
+            ));
+        }
+        if !(self.initial_temp_c >= c.min_temp_c && self.initial_temp_c <= c.max_temp_c) {
+            return Err(err(
+                "initial_temp_c",
+                format!(
+                    "{} °C is outside the chamber's {}..{} °C",
+                    self.initial_temp_c, c.min_temp_c, c.max_temp_c
+                ),
+            ));
+        }
+        positive("chamber.max_heat_rate_c_s", c.max_heat_rate_c_s)?;
+        positive("chamber.max_cool_rate_c_s", c.max_cool_rate_c_s)?;
+        positive("chamber.air_heat_slew_c_s", c.air_heat_slew_c_s)?;
+        positive("chamber.air_cool_slew_c_s", c.air_cool_slew_c_s)?;
+        non_negative("chamber.air_time_constant_s", c.air_time_constant_s)?;
+        non_negative("chamber.resolution_c", c.resolution_c)?;
+        non_negative("chamber.sensor_noise_c", c.sensor_noise_c)?;
+        let t = &self.table;
+        positive("table.max_rate_rad_s", t.max_rate_rad_s)?;
+        positive("table.max_accel_rad_s2", t.max_accel_rad_s2)?;
+        non_negative("table.position_resolution_rad", t.position_resolution_rad)?;
+        non_negative("table.ripple_rel", t.ripple_rel)?;
+        non_negative("table.rate_noise_rad_s", t.rate_noise_rad_s)?;
+        positive("gyro.max_rate_rad_s", self.gyro.max_rate_rad_s)?;
+        let m = &self.gyro_model;
+        for (name, v) in [
+            ("gyro_model.bias", m.bias),
+            ("gyro_model.scale_factor_error", m.scale_factor_error),
+            ("gyro_model.reference_temperature", m.reference_temperature),
+            ("gyro_model.temp_coeff", m.temp_coeff),
+            ("gyro_model.temp_rate_coeff", m.temp_rate_coeff),
+        ] {
+            if !v.is_finite() {
+                return Err(err(name, format!("must be finite, got {v}")));
+            }
+        }
+        non_negative("gyro_model.arw", m.arw)?;
+        non_negative("gyro_model.bias_instability", m.bias_instability)?;
+        non_negative("gyro_model.thermal_time_constant", m.thermal_time_constant)?;
+        Ok(())
+    }
+
+    /// The devices' descriptions (model, driver `sim`, capabilities), for validating a scenario
+    /// before any simulator exists.
+    pub fn infos(&self) -> SimInfos {
+        SimInfos {
+            table: DeviceInfo {
+                model: "Actidyn ST1300 rate table (simulated)".into(),
+                driver: "sim".into(),
+                capabilities: TableCapabilities {
+                    max_rate_rad_s: self.table.max_rate_rad_s,
+                    max_accel_rad_s2: self.table.max_accel_rad_s2,
+                    position_resolution_rad: self.table.position_resolution_rad,
+                },
+            },
+            chamber: DeviceInfo {
+                model: "ST1300 climatic chamber (simulated)".into(),
+                driver: "sim".into(),
+                capabilities: ChamberCapabilities {
+                    min_temp_c: self.chamber.min_temp_c,
+                    max_temp_c: self.chamber.max_temp_c,
+                    max_heat_rate_c_s: self.chamber.max_heat_rate_c_s,
+                    max_cool_rate_c_s: self.chamber.max_cool_rate_c_s,
+                    temp_resolution_c: self.chamber.resolution_c,
+                },
+            },
+            gyro: DeviceInfo {
+                model: "FOG (simulated)".into(),
+                driver: "sim".into(),
+                capabilities: GyroCapabilities {
+                    sample_rates_hz: self.gyro.sample_rates_hz.clone(),
+                    max_rate_rad_s: self.gyro.max_rate_rad_s,
+                    operating_temp_c: self.gyro.operating_temp_c,
+                    has_temperature: self.gyro.has_temperature,
+                },
+            },
+        }
+    }
+}
