@@ -21,9 +21,9 @@
 //! marker, so the decoder finds word alignment by requiring [`BinaryDecoder::LOCK_WORDS`]
 //! consecutive candidate words that each have odd parity, a defined type (not 3) and the same
 //! type; bytes skipped before lock are reported as one error. Once locked, a word that fails
-//! parity (or has type 3) is reported with its offset, dropped, and the decoder checks alignment
-//! again from the next word (a single corrupted word costs one error, a slipped byte costs one
-//! more error for the skipped bytes). A lab with the manual can make the check stricter with
+//! parity (or has type 3) is reported with its offset and dropped; a single bad word is taken as
+//! a bit error and the alignment is kept, two in a row mean the alignment was lost (a slipped
+//! byte) and the search starts again, reporting the bytes it skips. A lab with the manual can make the check stricter with
 //! [`BinaryDecoder::with_sync`].
 //!
 //! ```
@@ -73,10 +73,17 @@ impl AsciiSample {
         let Some((v, flag)) = t.rsplit_once(' ') else {
             return Err(DecodeError::new(0, "`<value> <flag>`", line));
         };
-        let value = parse_f64(v).ok_or_else(|| {
+        let six_decimals = v.split_once('.').is_some_and(|(i, f)| {
+            let i = i.strip_prefix('-').unwrap_or(i);
+            !i.is_empty()
+                && i.bytes().all(|b| b.is_ascii_digit())
+                && f.len() == 6
+                && f.bytes().all(|b| b.is_ascii_digit())
+        });
+        let value = parse_f64(v).filter(|_| six_decimals).ok_or_else(|| {
             DecodeError::new(
                 lead as u64,
-                "a decimal value such as -0.012345",
+                "a value with 6 decimals such as -0.012345",
                 v.as_bytes(),
             )
         })?;
@@ -100,6 +107,8 @@ impl AsciiSample {
 #[derive(Debug, Clone)]
 pub struct AsciiDecoder {
     lines: LineSplitter,
+    /// Still discarding the (possibly partial) first line.
+    skip_first: bool,
 }
 
 impl Default for AsciiDecoder {
@@ -109,10 +118,20 @@ impl Default for AsciiDecoder {
 }
 
 impl AsciiDecoder {
-    /// A decoder at stream offset 0.
+    /// A decoder for a stream that starts on a line boundary (a simulator's pty, a recording).
     pub fn new() -> Self {
         Self {
             lines: LineSplitter::new(b"\n", 64),
+            skip_first: false,
+        }
+    }
+
+    /// A decoder for a port opened while the gyro is already streaming: the first line may be
+    /// the tail of a line (`3.456789 1` looks valid on its own), so it is silently dropped.
+    pub fn mid_stream() -> Self {
+        Self {
+            lines: LineSplitter::new(b"\n", 64),
+            skip_first: true,
         }
     }
 
@@ -121,15 +140,17 @@ impl AsciiDecoder {
         self.lines.push(bytes);
     }
 
-    /// The next sample, or `None` until a line is complete. A partial first line (the port was
-    /// opened mid-line) is reported as an error with its offset.
+    /// The next sample, or `None` until a line is complete. A line that does not parse is
+    /// reported with its stream offset and skipped.
     pub fn next_sample(&mut self) -> Option<Result<AsciiSample, DecodeError>> {
         loop {
             let line = match self.lines.next_line()? {
                 Ok(l) => l,
                 Err(e) => return Some(Err(e)),
             };
-            if line.bytes.iter().all(u8::is_ascii_whitespace) {
+            if std::mem::take(&mut self.skip_first)
+                || line.bytes.iter().all(u8::is_ascii_whitespace)
+            {
                 continue;
             }
             return Some(AsciiSample::parse(&line.bytes).map_err(|e| e.shifted(line.offset)));
@@ -276,6 +297,8 @@ pub struct BinaryDecoder {
     /// Stream offset of `buf[0]`.
     base: u64,
     locked: bool,
+    /// Consecutive bad words while locked.
+    failures: u8,
     /// Stream offset where the current run of skipped bytes began.
     skipped_from: Option<u64>,
     skipped: Vec<u8>,
@@ -298,6 +321,7 @@ impl BinaryDecoder {
             buf: Vec::new(),
             base: 0,
             locked: false,
+            failures: 0,
             skipped_from: None,
             skipped: Vec::new(),
             sync: None,
@@ -371,13 +395,18 @@ impl BinaryDecoder {
                 return match self.check(w) {
                     Ok(word) => {
                         self.drop_front(4);
+                        self.failures = 0;
                         Some(Ok(word))
                     }
                     Err(e) => {
-                        // Drop the bad word; if alignment still holds, the search re-locks at
-                        // the next word without skipping anything.
-                        self.locked = false;
+                        // Drop the bad word. One bad word is a bit error: keep the alignment.
+                        // Two in a row: alignment lost, search again.
                         self.drop_front(4);
+                        self.failures = self.failures.saturating_add(1);
+                        if self.failures >= 2 {
+                            self.locked = false;
+                            self.failures = 0;
+                        }
                         Some(Err(e.shifted(at)))
                     }
                 };
