@@ -349,6 +349,8 @@ pub struct RecorderOptions {
     /// zstd worker threads (0: compress on the calling thread). Default 0: compressing 1 MiB
     /// of JSON takes a few ms, not worth threads on a small bench PC.
     pub compression_threads: u32,
+    /// Compression level; 0 is the codec's default (zstd: 3). Lower is faster, higher smaller.
+    pub compression_level: u32,
 }
 
 impl Default for RecorderOptions {
@@ -360,6 +362,7 @@ impl Default for RecorderOptions {
             flush_interval: Some(Duration::from_secs(5)),
             flush_on_step_end: true,
             compression_threads: 0,
+            compression_level: 0,
         }
     }
 }
@@ -372,6 +375,7 @@ impl RecorderOptions {
             .compression(self.compression)
             .chunk_size(Some(self.chunk_size))
             .compression_threads(self.compression_threads)
+            .compression_level(self.compression_level)
     }
 }
 
