@@ -3,3 +3,4 @@
 pub mod plan;
 pub mod record;
 pub mod recording;
+pub mod scenario;
