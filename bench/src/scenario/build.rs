@@ -1,0 +1,1542 @@
+//! From the spanned TOML tree to a validated [`RunPlan`]: strict key checking, units, loop
+//! expansion and checks against the devices' capabilities. Errors are collected, never thrown.
+
+use std::collections::HashSet;
+use std::ops::Range;
+use std::time::Duration;
+
+use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel};
+
+use super::doc::{line_col, Entry, Node, Value};
+use super::quantity::{self, fmt_num, Dim, Quantity};
+use super::Capabilities;
+use crate::plan::{Action, GyroSetup, PlannedStep, RunPlan, SimSetup, Site, TempSource};
+
+/// Largest number of steps a scenario may expand to.
+pub(crate) const MAX_STEPS: usize = 100_000;
+
+/// Longest duration accepted anywhere (a year), s; keeps `Duration` conversions finite.
+const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
+
+/// The action keys of a step, canonical names.
+const ACTIONS: [&str; 7] = [
+    "chamber",
+    "spin",
+    "stop",
+    "wait",
+    "wait_temperature",
+    "record",
+    "for",
+];
+
+/// The error was reported; the caller uses a default and goes on.
+struct Reported;
+
+type Got<T> = Result<Option<T>, Reported>;
+
+/// A table of the tree with its span.
+#[derive(Clone, Copy)]
+struct Tbl<'a> {
+    entries: &'a [Entry],
+    span: &'a Range<usize>,
+}
+
+impl<'a> Tbl<'a> {
+    fn get(&self, key: &str) -> Option<&'a Entry> {
+        self.entries.iter().find(|e| e.key == key)
+    }
+}
+
+/// State carried along the expanded steps.
+struct State {
+    /// The chamber's target after the steps so far, °C.
+    setpoint_c: f64,
+    /// Where the latest ramp started, °C.
+    ramp_from_c: f64,
+    /// A ramp was started and nothing has waited for its end yet.
+    ramp_active: bool,
+    /// Nominal length of the latest ramp, s.
+    ramp_duration_s: f64,
+    /// Expansion was cut at [`MAX_STEPS`].
+    overflow: bool,
+}
+
+struct Builder<'a> {
+    text: &'a str,
+    source: &'a str,
+    caps: &'a Capabilities,
+    /// (span, message, loop context) — context is appended when reported.
+    issues: Vec<(Range<usize>, String, String)>,
+    seen: HashSet<(usize, String)>,
+    /// Loop variables in scope, outermost first.
+    vars: Vec<(String, String)>,
+    steps: Vec<PlannedStep>,
+    /// Defaults from the settings sections.
+    table_accel: f64,
+}
+
+/// Build the plan, or return every issue as (span, message).
+pub(crate) fn build(
+    root: &Node,
+    text: &str,
+    source: &str,
+    caps: &Capabilities,
+) -> Result<RunPlan, Vec<(Range<usize>, String)>> {
+    let mut b = Builder {
+        text,
+        source,
+        caps,
+        issues: Vec::new(),
+        seen: HashSet::new(),
+        vars: Vec::new(),
+        steps: Vec::new(),
+        table_accel: 10.0 * bench_physics::units::DEG,
+    };
+    let plan = b.root(root);
+    if b.issues.is_empty() {
+        if let Some(plan) = plan {
+            return Ok(plan);
+        }
+    }
+    Err(b
+        .issues
+        .into_iter()
+        .map(|(span, msg, ctx)| {
+            (
+                span,
+                if ctx.is_empty() {
+                    msg
+                } else {
+                    format!("{msg} ({ctx})")
+                },
+            )
+        })
+        .collect())
+}
+
+impl<'a> Builder<'a> {
+    fn err(&mut self, span: &Range<usize>, msg: impl Into<String>) -> Reported {
+        let msg = msg.into();
+        // The same mistake inside a loop body is reported once, with its first iteration.
+        if self.seen.insert((span.start, msg.clone())) {
+            let ctx = self
+                .vars
+                .iter()
+                .map(|(k, v)| format!("{k} = {v}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let ctx = if ctx.is_empty() {
+                ctx
+            } else {
+                format!("in loop: {ctx}")
+            };
+            self.issues.push((span.clone(), msg, ctx));
+        }
+        Reported
+    }
+
+    fn origin(&self, span: &Range<usize>) -> String {
+        let (l, c) = line_col(self.text, span.start);
+        format!("{}:{l}:{c}", self.source)
+    }
+
+    // ---------------------------------------------------------------- generic readers
+
+    /// Report keys of `t` not in `allowed`.
+    fn check_keys(&mut self, t: Tbl<'_>, allowed: &[&str], what: &str) {
+        for e in t.entries {
+            if !allowed.contains(&e.key.as_str()) {
+                let hint = closest(&e.key, allowed)
+                    .map(|k| format!("did you mean `{k}`? "))
+                    .unwrap_or_default();
+                self.err(
+                    &e.key_span,
+                    format!(
+                        "unknown key `{}` in {what}; {hint}allowed: {}",
+                        e.key,
+                        allowed
+                            .iter()
+                            .map(|k| format!("`{k}`"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                );
+            }
+        }
+    }
+
+    /// A sub-table (`[site]`); `None` if absent.
+    fn table(&mut self, t: Tbl<'a>, key: &str) -> Got<Tbl<'a>> {
+        let Some(e) = t.get(key) else { return Ok(None) };
+        match &e.node.value {
+            Value::Table(entries) => Ok(Some(Tbl {
+                entries,
+                span: &e.node.span,
+            })),
+            v => Err(self.err(
+                &e.node.span,
+                format!("`{key}` must be a table, got {}", v.type_name()),
+            )),
+        }
+    }
+
+    /// Substitute loop variables into a string value.
+    fn subst(&mut self, s: &str, span: &Range<usize>) -> Result<String, Reported> {
+        match substitute(s, &self.vars) {
+            Ok(x) => Ok(x),
+            Err(m) => Err(self.err(span, m)),
+        }
+    }
+
+    /// A string (loop variables substituted).
+    fn string(&mut self, t: Tbl<'_>, key: &str) -> Got<(String, Range<usize>)> {
+        let Some(e) = t.get(key) else { return Ok(None) };
+        match &e.node.value {
+            Value::Str(s) => {
+                let s = self.subst(s, &e.node.span)?;
+                Ok(Some((s, e.node.span.clone())))
+            }
+            v => Err(self.err(
+                &e.node.span,
+                format!("`{key}` must be a string, got {}", v.type_name()),
+            )),
+        }
+    }
+
+    /// A plain finite number.
+    fn number(&mut self, t: Tbl<'_>, key: &str) -> Got<(f64, Range<usize>)> {
+        let Some(e) = t.get(key) else { return Ok(None) };
+        match &e.node.value {
+            Value::Num(x) if x.is_finite() => Ok(Some((*x, e.node.span.clone()))),
+            Value::Num(_) => {
+                Err(self.err(&e.node.span, format!("`{key}` must be a finite number")))
+            }
+            v => Err(self.err(
+                &e.node.span,
+                format!("`{key}` must be a number, got {}", v.type_name()),
+            )),
+        }
+    }
+
+    fn boolean(&mut self, t: Tbl<'_>, key: &str) -> Got<bool> {
+        let Some(e) = t.get(key) else { return Ok(None) };
+        match &e.node.value {
+            Value::Bool(b) => Ok(Some(*b)),
+            v => Err(self.err(
+                &e.node.span,
+                format!("`{key}` must be true or false, got {}", v.type_name()),
+            )),
+        }
+    }
+
+    /// A quantity: `key = "<number> <unit>"` or `key_<si> = <number>` (not both).
+    fn quantity(&mut self, t: Tbl<'_>, key: &str, dim: Dim) -> Got<(Quantity, Range<usize>)> {
+        let si_key = format!("{key}_{}", dim.si_suffix());
+        let with_unit = t.get(key);
+        let plain = t.get(&si_key);
+        if let (Some(_), Some(p)) = (with_unit, plain) {
+            return Err(self.err(
+                &p.key_span,
+                format!("give either `{key}` or `{si_key}`, not both"),
+            ));
+        }
+        if let Some(e) = with_unit {
+            return match &e.node.value {
+                Value::Str(s) => {
+                    let s = self.subst(s, &e.node.span)?;
+                    match quantity::parse(&s, dim) {
+                        Ok(q) => Ok(Some((q, e.node.span.clone()))),
+                        Err(m) => Err(self.err(&e.node.span, format!("`{key}`: {m}"))),
+                    }
+                }
+                Value::Num(x) => Err(self.err(
+                    &e.node.span,
+                    format!(
+                        "`{key}` takes a quantity with a unit, like {} (units: {}); for a plain \
+                         number in {} write `{si_key} = {}`",
+                        dim.example(),
+                        dim.accepted().join(", "),
+                        Quantity::si(dim, 0.0).unit,
+                        fmt_num(*x)
+                    ),
+                )),
+                v => Err(self.err(
+                    &e.node.span,
+                    format!(
+                        "`{key}` must be a string like {}, got {}",
+                        dim.example(),
+                        v.type_name()
+                    ),
+                )),
+            };
+        }
+        if let Some(e) = plain {
+            let unit = Quantity::si(dim, 0.0).unit;
+            return match &e.node.value {
+                Value::Num(x) if x.is_finite() => {
+                    Ok(Some((Quantity::si(dim, *x), e.node.span.clone())))
+                }
+                Value::Num(_) => {
+                    Err(self.err(&e.node.span, format!("`{si_key}` must be a finite number")))
+                }
+                v => Err(self.err(
+                    &e.node.span,
+                    format!(
+                        "`{si_key}` takes a plain number in {unit}, got {}; for units write \
+                         `{key} = {}`",
+                        v.type_name(),
+                        dim.example()
+                    ),
+                )),
+            };
+        }
+        Ok(None)
+    }
+
+    /// A quantity that must be > 0 (and, for times, at most a year).
+    fn positive(
+        &mut self,
+        t: Tbl<'_>,
+        key: &str,
+        dim: Dim,
+        what: &str,
+    ) -> Got<(Quantity, Range<usize>)> {
+        let Some((q, span)) = self.quantity(t, key, dim)? else {
+            return Ok(None);
+        };
+        if q.si <= 0.0 {
+            return Err(self.err(
+                &span,
+                format!("{what} must be greater than zero, got {}", q.show_self()),
+            ));
+        }
+        if dim == Dim::Time && q.si > MAX_DURATION_S {
+            return Err(self.err(
+                &span,
+                format!("{what} {} is longer than a year", q.show_self()),
+            ));
+        }
+        Ok(Some((q, span)))
+    }
+
+    fn duration(
+        &mut self,
+        t: Tbl<'_>,
+        key: &str,
+        what: &str,
+    ) -> Got<(Duration, Range<usize>, Quantity)> {
+        Ok(self
+            .positive(t, key, Dim::Time, what)?
+            .map(|(q, span)| (Duration::from_secs_f64(q.si), span, q)))
+    }
+
+    fn required<T>(&mut self, got: Got<T>, span: &Range<usize>, msg: &str) -> Option<T> {
+        match got {
+            Ok(Some(x)) => Some(x),
+            Ok(None) => {
+                self.err(span, msg.to_string());
+                None
+            }
+            Err(Reported) => None,
+        }
+    }
+
+    // ---------------------------------------------------------------- capability checks
+
+    /// A temperature the chamber is asked to reach: within the chamber's and gyro's ranges.
+    fn check_temp(&mut self, q: &Quantity, span: &Range<usize>, what: &str) -> bool {
+        let (glo, ghi) = self.caps.gyro.capabilities.operating_temp_c;
+        let c = &self.caps.chamber.capabilities;
+        let (clo, chi) = (c.min_temp_c, c.max_temp_c);
+        if !(glo..=ghi).contains(&q.si) {
+            self.err(
+                span,
+                format!(
+                    "{what} {} is outside the gyro's operating range {}..{} °C",
+                    q.show_self(),
+                    fmt_num(glo),
+                    fmt_num(ghi)
+                ),
+            );
+            false
+        } else if !(clo..=chi).contains(&q.si) {
+            self.err(
+                span,
+                format!(
+                    "{what} {} is outside the chamber's range {}..{} °C",
+                    q.show_self(),
+                    fmt_num(clo),
+                    fmt_num(chi)
+                ),
+            );
+            false
+        } else {
+            true
+        }
+    }
+
+    /// A table acceleration: > 0 and within the table's maximum.
+    fn check_accel(&mut self, q: &Quantity, span: &Range<usize>, what: &str) {
+        let max = self.caps.table.capabilities.max_accel_rad_s2;
+        if q.si <= 0.0 {
+            self.err(
+                span,
+                format!("{what} must be greater than zero, got {}", q.show_self()),
+            );
+        } else if q.si > max {
+            self.err(
+                span,
+                format!(
+                    "{what} {} exceeds the table's maximum {}",
+                    q.show_self(),
+                    q.show(max)
+                ),
+            );
+        }
+    }
+
+    /// A poll rate: > 0 Hz.
+    fn poll_rate(&mut self, t: Option<Tbl<'_>>, what: &str) -> f64 {
+        let Some(t) = t else { return 20.0 };
+        match self.positive(t, "poll_rate", Dim::Frequency, what) {
+            Ok(Some((q, _))) => q.si,
+            _ => 20.0,
+        }
+    }
+
+    // ---------------------------------------------------------------- sections
+
+    fn root(&mut self, root: &'a Node) -> Option<RunPlan> {
+        let Value::Table(entries) = &root.value else {
+            return None;
+        };
+        let top = Tbl {
+            entries,
+            span: &root.span,
+        };
+        let start = 0..0;
+        self.check_keys(
+            top,
+            &[
+                "scenario",
+                "site",
+                "gyro",
+                "table",
+                "chamber",
+                "safe",
+                "simulation",
+                "step",
+            ],
+            "the scenario file",
+        );
+
+        // [scenario]
+        let mut name = String::new();
+        match self.table(top, "scenario") {
+            Ok(Some(t)) => {
+                self.check_keys(t, &["name", "description"], "[scenario]");
+                let got = self.string(t, "name");
+                if let Some((n, span)) = self.required(got, t.span, "[scenario] needs `name`") {
+                    if n.trim().is_empty() {
+                        self.err(&span, "scenario name must not be empty");
+                    }
+                    name = n;
+                }
+                let _ = self.string(t, "description");
+            }
+            Ok(None) => {
+                self.err(&start, "missing [scenario] section with `name`");
+            }
+            Err(Reported) => {}
+        }
+
+        // [site]
+        let mut site = Site {
+            latitude_deg: 0.0,
+            longitude_deg: None,
+            height_m: None,
+            axis_up: true,
+        };
+        match self.table(top, "site") {
+            Ok(Some(t)) => site = self.site(t),
+            Ok(None) => {
+                self.err(
+                    &start,
+                    "missing [site] section with `latitude_deg` (needed for Earth rate)",
+                );
+            }
+            Err(Reported) => {}
+        }
+
+        // [table]
+        let table_t = self.table(top, "table").unwrap_or(None);
+        if let Some(t) = table_t {
+            self.check_keys(
+                t,
+                &["poll_rate", "poll_rate_hz", "accel", "accel_rad_s2"],
+                "[table]",
+            );
+            if let Ok(Some((q, span))) = self.quantity(t, "accel", Dim::AngularAccel) {
+                self.check_accel(&q, &span, "default table acceleration");
+                self.table_accel = q.si;
+            }
+        }
+        let table_poll_hz = self.poll_rate(table_t, "table poll rate");
+
+        // [chamber]
+        let chamber_t = self.table(top, "chamber").unwrap_or(None);
+        if let Some(t) = chamber_t {
+            self.check_keys(t, &["poll_rate", "poll_rate_hz"], "[chamber]");
+        }
+        let chamber_poll_hz = self.poll_rate(chamber_t, "chamber poll rate");
+
+        // [gyro]
+        let mut gyro = GyroSetup {
+            sample_rate_hz: 20.0,
+            model: GyroModel::default(),
+        };
+        let gyro_t = self.table(top, "gyro");
+        let mut rate_checked = gyro_t.is_err();
+        if let Ok(Some(t)) = gyro_t {
+            self.check_keys(t, &["sample_rate", "sample_rate_hz", "model"], "[gyro]");
+            match self.positive(t, "sample_rate", Dim::Frequency, "gyro sample rate") {
+                Ok(Some((q, span))) => {
+                    gyro.sample_rate_hz = q.si;
+                    self.check_sample_rate(&q, &span);
+                    rate_checked = true;
+                }
+                Ok(None) => {}
+                Err(Reported) => rate_checked = true,
+            }
+            if let Ok(Some(m)) = self.table(t, "model") {
+                self.model(m, &mut gyro.model, "[gyro.model]");
+            }
+        }
+        if !rate_checked {
+            // The default 20 Hz must be offered too.
+            let q = Quantity::si(Dim::Frequency, 20.0);
+            self.check_sample_rate(&q, &start);
+        }
+
+        // [simulation]
+        let mut sim = SimSetup {
+            initial_temp_c: 20.0,
+            truth: gyro.model.clone(),
+        };
+        if let Ok(Some(t)) = self.table(top, "simulation") {
+            self.check_keys(
+                t,
+                &["initial_temp", "initial_temp_c", "truth"],
+                "[simulation]",
+            );
+            if let Ok(Some((q, span))) = self.quantity(t, "initial_temp", Dim::Temperature) {
+                if self.check_temp(&q, &span, "initial temperature") {
+                    sim.initial_temp_c = q.si;
+                }
+            }
+            if let Ok(Some(m)) = self.table(t, "truth") {
+                self.model(m, &mut sim.truth, "[simulation.truth]");
+            }
+        }
+
+        // [safe]
+        let mut safe_decel = 10.0 * bench_physics::units::DEG;
+        let mut safe_temp = 20.0;
+        if let Ok(Some(t)) = self.table(top, "safe") {
+            self.check_keys(
+                t,
+                &["decel", "decel_rad_s2", "temperature", "temperature_c"],
+                "[safe]",
+            );
+            if let Ok(Some((q, span))) = self.quantity(t, "decel", Dim::AngularAccel) {
+                self.check_accel(&q, &span, "safe-state deceleration");
+                safe_decel = q.si;
+            }
+            if let Ok(Some((q, span))) = self.quantity(t, "temperature", Dim::Temperature) {
+                self.check_temp(&q, &span, "safe-state temperature");
+                safe_temp = q.si;
+            }
+        } else {
+            // The defaults must fit the devices too.
+            let a = Quantity {
+                si: safe_decel,
+                unit: "°/s²".into(),
+                factor: bench_physics::units::DEG,
+            };
+            self.check_accel(&a, &start, "default safe-state deceleration");
+            let t = Quantity::si(Dim::Temperature, safe_temp);
+            self.check_temp(&t, &start, "default safe-state temperature");
+        }
+
+        // [[step]]
+        let mut st = State {
+            setpoint_c: sim.initial_temp_c,
+            ramp_from_c: sim.initial_temp_c,
+            ramp_active: false,
+            ramp_duration_s: 0.0,
+            overflow: false,
+        };
+        match top.get("step") {
+            Some(e) => {
+                self.steps_array(&e.node, "step", &mut st);
+                if self.steps.is_empty() && self.issues.is_empty() {
+                    self.err(&e.key_span, "the scenario has no steps");
+                }
+            }
+            None => {
+                self.err(&start, "the scenario has no steps: add [[step]] tables");
+            }
+        }
+
+        Some(RunPlan {
+            name,
+            text: self.text.to_string(),
+            source: self.source.to_string(),
+            site,
+            gyro,
+            table_poll_hz,
+            chamber_poll_hz,
+            sim,
+            safe_decel_rad_s2: safe_decel,
+            safe_temp_c: safe_temp,
+            steps: std::mem::take(&mut self.steps),
+        })
+    }
+
+    fn site(&mut self, t: Tbl<'_>) -> Site {
+        self.check_keys(
+            t,
+            &["latitude_deg", "longitude_deg", "height_m", "axis"],
+            "[site]",
+        );
+        let mut site = Site {
+            latitude_deg: 0.0,
+            longitude_deg: None,
+            height_m: None,
+            axis_up: true,
+        };
+        let got = self.number(t, "latitude_deg");
+        if let Some((lat, span)) = self.required(
+            got,
+            t.span,
+            "[site] needs `latitude_deg` (degrees, north positive)",
+        ) {
+            if !(-90.0..=90.0).contains(&lat) {
+                self.err(
+                    &span,
+                    format!("latitude_deg {} is outside -90..90", fmt_num(lat)),
+                );
+            }
+            site.latitude_deg = lat;
+        }
+        if let Ok(Some((lon, span))) = self.number(t, "longitude_deg") {
+            if !(-180.0..=360.0).contains(&lon) {
+                self.err(
+                    &span,
+                    format!("longitude_deg {} is outside -180..360", fmt_num(lon)),
+                );
+            }
+            site.longitude_deg = Some(lon);
+        }
+        if let Ok(Some((h, _))) = self.number(t, "height_m") {
+            site.height_m = Some(h);
+        }
+        if let Ok(Some((axis, span))) = self.string(t, "axis") {
+            match axis.as_str() {
+                "up" => site.axis_up = true,
+                "down" => site.axis_up = false,
+                other => {
+                    self.err(
+                        &span,
+                        format!("axis must be \"up\" or \"down\", got \"{other}\""),
+                    );
+                }
+            }
+        }
+        site
+    }
+
+    fn check_sample_rate(&mut self, q: &Quantity, span: &Range<usize>) {
+        let offered = &self.caps.gyro.capabilities.sample_rates_hz;
+        if !offered
+            .iter()
+            .any(|r| (r - q.si).abs() <= 1e-9 * r.abs().max(1.0))
+        {
+            let list = offered
+                .iter()
+                .map(|r| fmt_num(*r))
+                .collect::<Vec<_>>()
+                .join(", ");
+            self.err(
+                span,
+                format!(
+                    "gyro sample rate {} is not offered by the gyro; it offers {list} Hz",
+                    q.show_self()
+                ),
+            );
+        }
+    }
+
+    /// `[gyro.model]` / `[simulation.truth]`: contract key names, SI numbers, over `model`.
+    fn model(&mut self, t: Tbl<'_>, model: &mut GyroModel, what: &str) {
+        self.check_keys(t, &GYRO_MODEL_KEYS, what);
+        for e in t.entries {
+            let key = e.key.as_str();
+            if key == "earth_rate" {
+                match &e.node.value {
+                    Value::Bool(b) => model.earth_rate = *b,
+                    Value::Num(x) if *x == 0.0 || *x == 1.0 => model.earth_rate = *x == 1.0,
+                    _ => {
+                        self.err(&e.node.span, "`earth_rate` must be true/false (or 1/0)");
+                    }
+                }
+                continue;
+            }
+            if !GYRO_MODEL_KEYS.contains(&key) {
+                continue;
+            }
+            let x = match &e.node.value {
+                Value::Num(x) if x.is_finite() => *x,
+                _ => {
+                    self.err(
+                        &e.node.span,
+                        format!("`{key}` must be a finite number in the contract's SI unit"),
+                    );
+                    continue;
+                }
+            };
+            let non_negative = matches!(key, "arw" | "bias_instability" | "thermal_time_constant");
+            if non_negative && x < 0.0 {
+                self.err(
+                    &e.node.span,
+                    format!("`{key}` must not be negative, got {}", fmt_num(x)),
+                );
+                continue;
+            }
+            match key {
+                "bias" => model.bias = x,
+                "scale_factor_error" => model.scale_factor_error = x,
+                "reference_temperature" => model.reference_temperature = x,
+                "temp_coeff" => model.temp_coeff = x,
+                "temp_rate_coeff" => model.temp_rate_coeff = x,
+                "arw" => model.arw = x,
+                "bias_instability" => model.bias_instability = x,
+                "thermal_time_constant" => model.thermal_time_constant = x,
+                _ => {}
+            }
+        }
+    }
+
+    // ---------------------------------------------------------------- steps
+
+    fn steps_array(&mut self, node: &Node, key: &str, st: &mut State) {
+        let Value::Array(items) = &node.value else {
+            self.err(
+                &node.span,
+                format!(
+                    "`{key}` must be an array of tables ({}), got {}",
+                    if key == "do" {
+                        "[[step.do]]"
+                    } else {
+                        "[[step]]"
+                    },
+                    node.value.type_name()
+                ),
+            );
+            return;
+        };
+        for item in items {
+            if st.overflow {
+                return;
+            }
+            match &item.value {
+                Value::Table(entries) => self.step(
+                    Tbl {
+                        entries,
+                        span: &item.span,
+                    },
+                    st,
+                ),
+                v => {
+                    self.err(
+                        &item.span,
+                        format!("each step must be a table, got {}", v.type_name()),
+                    );
+                }
+            }
+        }
+    }
+
+    fn push(
+        &mut self,
+        st: &mut State,
+        name: &str,
+        label: String,
+        at: &Range<usize>,
+        action: Action,
+    ) {
+        if self.steps.len() >= MAX_STEPS {
+            if !st.overflow {
+                st.overflow = true;
+                self.err(
+                    at,
+                    format!("the scenario expands to more than {MAX_STEPS} steps"),
+                );
+            }
+            return;
+        }
+        let origin = self.origin(at);
+        let index = self.steps.len();
+        self.steps.push(PlannedStep {
+            index,
+            name: name.to_string(),
+            label,
+            origin,
+            action,
+        });
+    }
+
+    fn step(&mut self, t: Tbl<'_>, st: &mut State) {
+        // Which action?
+        let mut found: Vec<(&str, &Entry)> = Vec::new();
+        for e in t.entries {
+            let canon = ACTIONS.iter().copied().find(|a| {
+                e.key == *a
+                    || e.key
+                        .strip_prefix(a)
+                        .and_then(|r| r.strip_prefix('_'))
+                        .is_some_and(|s| action_si_suffix(a) == Some(s))
+            });
+            if let Some(c) = canon {
+                if !found.iter().any(|(f, _)| *f == c) {
+                    found.push((c, e));
+                }
+            }
+        }
+        let Some(&(action, action_entry)) = found.first() else {
+            self.err(
+                t.span,
+                "step has no action: give one of `chamber`, `spin`, `stop`, `wait`, \
+                 `wait_temperature`, `record` or `for`",
+            );
+            return;
+        };
+        if let Some((second, e)) = found.get(1) {
+            self.err(
+                &e.key_span,
+                format!("one action per step: this step has both `{action}` and `{second}`"),
+            );
+            return;
+        }
+        let at = action_entry.key_span.clone();
+
+        let label = match self.string(t, "label") {
+            Ok(Some((l, span))) => Some((l, span)),
+            _ => None,
+        };
+        if action != "record" {
+            if let Some((l, span)) = &label {
+                if l.starts_with("record") {
+                    self.err(
+                        span,
+                        format!(
+                            "label \"{l}\" starts with `record`, which marks a calibration window; \
+                             only `record` steps may have such labels"
+                        ),
+                    );
+                }
+            }
+        }
+        let label_text = label.as_ref().map(|(l, _)| l.clone()).unwrap_or_default();
+
+        match action {
+            "chamber" => self.chamber_step(t, st, label_text, &at),
+            "spin" => self.spin_step(t, st, label_text, &at),
+            "stop" => self.stop_step(t, st, label_text, &at),
+            "wait" => self.wait_step(t, st, label_text, &at),
+            "wait_temperature" => self.wait_temp_step(t, st, label_text, &at),
+            "record" => self.record_step(t, st, label, &at),
+            _ => self.for_step(t, st, action_entry),
+        }
+    }
+
+    fn chamber_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
+        self.check_keys(
+            t,
+            &["chamber", "chamber_c", "ramp", "ramp_c_s", "label"],
+            "a `chamber` step",
+        );
+        let Ok(Some((target, tspan))) = self.quantity(t, "chamber", Dim::Temperature) else {
+            return;
+        };
+        let ok = self.check_temp(&target, &tspan, "chamber target");
+        let c = &self.caps.chamber.capabilities;
+        let (heat, cool) = (c.max_heat_rate_c_s, c.max_cool_rate_c_s);
+        let from = st.setpoint_c;
+        let heating = target.si > from;
+        let mut ramp_c_s = None;
+        match self.quantity(t, "ramp", Dim::TempRate) {
+            Ok(Some((r, rspan))) => {
+                if r.si <= 0.0 {
+                    self.err(
+                        &rspan,
+                        format!("ramp must be greater than zero, got {}", r.show_self()),
+                    );
+                } else if target.si != from {
+                    let (max, word) = if heating {
+                        (heat, "heating")
+                    } else {
+                        (cool, "cooling")
+                    };
+                    if r.si > max {
+                        self.err(
+                            &rspan,
+                            format!(
+                                "chamber ramp {} ({word} from {} to {} °C) exceeds the chamber's \
+                                 maximum {word} rate {}",
+                                r.show_self(),
+                                fmt_num(from),
+                                fmt_num(target.si),
+                                r.show(max)
+                            ),
+                        );
+                    }
+                }
+                ramp_c_s = Some(r.si);
+            }
+            Ok(None) => {}
+            Err(Reported) => return,
+        }
+        if !ok {
+            return;
+        }
+        let rate = ramp_c_s.unwrap_or(if heating { heat } else { cool });
+        st.ramp_duration_s = if rate > 0.0 && rate.is_finite() {
+            (target.si - from).abs() / rate
+        } else {
+            0.0
+        };
+        st.ramp_from_c = from;
+        st.setpoint_c = target.si;
+        st.ramp_active = true;
+        self.push(
+            st,
+            "chamber",
+            label,
+            at,
+            Action::Chamber {
+                target_c: target.si,
+                ramp_c_s,
+            },
+        );
+    }
+
+    fn spin_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
+        self.check_keys(
+            t,
+            &[
+                "spin",
+                "spin_rad_s",
+                "direction",
+                "accel",
+                "accel_rad_s2",
+                "settle",
+                "label",
+            ],
+            "a `spin` step",
+        );
+        let rate = self.quantity(t, "spin", Dim::AngularRate);
+        let dir = self.string(t, "direction");
+        let accel = self.quantity(t, "accel", Dim::AngularAccel);
+        let settle = self.boolean(t, "settle");
+        let Ok(Some((rate, rspan))) = rate else {
+            return;
+        };
+        let mut bad = false;
+        if rate.si < 0.0 {
+            self.err(
+                &rspan,
+                format!(
+                    "give the rate's magnitude and set `direction`, got {}",
+                    rate.show_self()
+                ),
+            );
+            bad = true;
+        }
+        let tcap = &self.caps.table.capabilities;
+        let (tmax, gmax) = (
+            tcap.max_rate_rad_s,
+            self.caps.gyro.capabilities.max_rate_rad_s,
+        );
+        if rate.si.abs() > tmax {
+            self.err(
+                &rspan,
+                format!(
+                    "table rate {} exceeds the table's maximum {}",
+                    rate.show_self(),
+                    rate.show(tmax)
+                ),
+            );
+            bad = true;
+        } else if rate.si.abs() > gmax {
+            self.err(
+                &rspan,
+                format!(
+                    "table rate {} exceeds the gyro's input range {}",
+                    rate.show_self(),
+                    rate.show(gmax)
+                ),
+            );
+            bad = true;
+        }
+        let sign = match dir {
+            Ok(Some((d, span))) => match d.to_ascii_lowercase().as_str() {
+                "cw" => -1.0,
+                "ccw" => 1.0,
+                _ => {
+                    self.err(
+                        &span,
+                        format!("direction must be \"cw\" or \"ccw\", got \"{d}\""),
+                    );
+                    return;
+                }
+            },
+            Ok(None) => {
+                if rate.si != 0.0 {
+                    self.err(
+                        at,
+                        "a spin needs `direction = \"cw\"` (clockwise seen from above, negative \
+                         rate) or `\"ccw\"`",
+                    );
+                    return;
+                }
+                1.0
+            }
+            Err(Reported) => return,
+        };
+        let accel_rad_s2 = match accel {
+            Ok(Some((a, span))) => {
+                self.check_accel(&a, &span, "table acceleration");
+                a.si
+            }
+            Ok(None) => self.table_accel,
+            Err(Reported) => return,
+        };
+        if bad {
+            return;
+        }
+        let settle = settle.ok().flatten().unwrap_or(true);
+        self.push(
+            st,
+            "table",
+            label,
+            at,
+            Action::Table {
+                rate_rad_s: sign * rate.si,
+                accel_rad_s2,
+                settle,
+            },
+        );
+    }
+
+    fn stop_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
+        self.check_keys(
+            t,
+            &["stop", "decel", "decel_rad_s2", "label"],
+            "a `stop` step",
+        );
+        match self.string(t, "stop") {
+            Ok(Some((s, _))) if s == "table" => {}
+            Ok(Some((s, span))) => {
+                self.err(&span, format!("`stop` takes \"table\", got \"{s}\""));
+                return;
+            }
+            _ => return,
+        }
+        let decel_rad_s2 = match self.quantity(t, "decel", Dim::AngularAccel) {
+            Ok(Some((a, span))) => {
+                self.check_accel(&a, &span, "table deceleration");
+                a.si
+            }
+            Ok(None) => self.table_accel,
+            Err(Reported) => return,
+        };
+        self.push(
+            st,
+            "table_stop",
+            label,
+            at,
+            Action::TableStop { decel_rad_s2 },
+        );
+    }
+
+    /// `wait`/`record` value: `"ramp end"` → `None`; a duration → `Some`.
+    fn duration_or_ramp_end(&mut self, t: Tbl<'_>, key: &str, what: &str) -> Got<Option<Duration>> {
+        if let Some(e) = t.get(key) {
+            if let Value::Str(s) = &e.node.value {
+                let s = self.subst(s, &e.node.span)?;
+                if is_ramp_end(&s) {
+                    return Ok(Some(None));
+                }
+            }
+        }
+        Ok(self.duration(t, key, what)?.map(|(d, _, _)| Some(d)))
+    }
+
+    /// The timeout of a ramp-end wait: given, or twice the ramp's nominal length plus 30 min.
+    fn ramp_end_timeout(
+        &mut self,
+        t: Tbl<'_>,
+        st: &State,
+        at: &Range<usize>,
+        what: &str,
+    ) -> Option<Duration> {
+        if !st.ramp_active {
+            self.err(
+                at,
+                format!(
+                    "{what} until \"ramp end\", but no chamber step starts a ramp before it (or \
+                     its end was already waited for)"
+                ),
+            );
+            return None;
+        }
+        match self.duration(t, "timeout", "timeout") {
+            Ok(Some((d, _, _))) => Some(d),
+            Ok(None) => Some(Duration::from_secs_f64(
+                (2.0 * st.ramp_duration_s + 1800.0).min(MAX_DURATION_S),
+            )),
+            Err(Reported) => None,
+        }
+    }
+
+    fn forbid_timeout(&mut self, t: Tbl<'_>) {
+        for k in ["timeout", "timeout_s"] {
+            if let Some(e) = t.get(k) {
+                self.err(&e.key_span, format!("`{k}` only applies to \"ramp end\""));
+            }
+        }
+    }
+
+    fn wait_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
+        self.check_keys(
+            t,
+            &["wait", "wait_s", "timeout", "timeout_s", "label"],
+            "a `wait` step",
+        );
+        match self.duration_or_ramp_end(t, "wait", "wait") {
+            Ok(Some(Some(duration))) => {
+                self.forbid_timeout(t);
+                self.push(st, "wait", label, at, Action::Wait { duration });
+            }
+            Ok(Some(None)) => {
+                if let Some(timeout) = self.ramp_end_timeout(t, st, at, "wait") {
+                    st.ramp_active = false;
+                    self.push(
+                        st,
+                        "wait_ramp_end",
+                        label,
+                        at,
+                        Action::WaitRampEnd { timeout },
+                    );
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn wait_temp_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
+        self.check_keys(
+            t,
+            &[
+                "wait_temperature",
+                "wait_temperature_c",
+                "source",
+                "band",
+                "band_c",
+                "hold",
+                "hold_s",
+                "timeout",
+                "timeout_s",
+                "label",
+            ],
+            "a `wait_temperature` step",
+        );
+        let target = self.quantity(t, "wait_temperature", Dim::Temperature);
+        let source = match self.string(t, "source") {
+            Ok(None) => Some(TempSource::Air),
+            Ok(Some((s, span))) => match s.as_str() {
+                "air" => Some(TempSource::Air),
+                "gyro" => Some(TempSource::Gyro),
+                other => {
+                    self.err(
+                        &span,
+                        format!("source must be \"air\" or \"gyro\", got \"{other}\""),
+                    );
+                    None
+                }
+            },
+            Err(Reported) => None,
+        };
+        let band = self.positive(t, "band", Dim::TempDifference, "band");
+        let band = self.required(
+            band,
+            at,
+            "`wait_temperature` needs `band` (half-width, e.g. \"0.5 °C\")",
+        );
+        let hold = self.duration(t, "hold", "hold");
+        let hold = self.required(
+            hold,
+            at,
+            "`wait_temperature` needs `hold` (e.g. \"10 min\")",
+        );
+        let timeout = self.duration(t, "timeout", "timeout");
+        let timeout = self.required(
+            timeout,
+            at,
+            "`wait_temperature` needs `timeout` (e.g. \"2 h\")",
+        );
+        let Ok(Some((target, tspan))) = target else {
+            return;
+        };
+        let in_range = self.check_temp(&target, &tspan, "temperature");
+        let (Some(source), Some((band, _)), Some((hold, _, holdq)), Some((timeout, tospan, toq))) =
+            (source, band, hold, timeout)
+        else {
+            return;
+        };
+        if timeout < hold {
+            self.err(
+                &tospan,
+                format!(
+                    "timeout {} is shorter than hold {}; the wait could never succeed",
+                    toq.show_self(),
+                    holdq.show_self()
+                ),
+            );
+            return;
+        }
+        if !in_range {
+            return;
+        }
+        let lo = st.ramp_from_c.min(st.setpoint_c) - band.si;
+        let hi = st.ramp_from_c.max(st.setpoint_c) + band.si;
+        if !(lo..=hi).contains(&target.si) {
+            self.err(
+                &tspan,
+                format!(
+                    "waiting for {} ± {} can never succeed: the chamber is set to {} °C at this \
+                     point",
+                    target.show_self(),
+                    band.show_self(),
+                    fmt_num(st.setpoint_c)
+                ),
+            );
+            return;
+        }
+        if (target.si - st.setpoint_c).abs() <= band.si {
+            st.ramp_active = false;
+        }
+        self.push(
+            st,
+            "wait_temperature",
+            label,
+            at,
+            Action::WaitTemperature {
+                source,
+                target_c: target.si,
+                band_c: band.si,
+                hold,
+                timeout,
+            },
+        );
+    }
+
+    fn record_step(
+        &mut self,
+        t: Tbl<'_>,
+        st: &mut State,
+        label: Option<(String, Range<usize>)>,
+        at: &Range<usize>,
+    ) {
+        self.check_keys(
+            t,
+            &["record", "record_s", "timeout", "timeout_s", "label"],
+            "a `record` step",
+        );
+        let label = match label {
+            Some((l, span)) => {
+                if !l.starts_with("record") {
+                    self.err(
+                        &span,
+                        format!(
+                            "the label of a record step must start with `record` (e.g. \"record \
+                             cw 20C\"), got \"{l}\""
+                        ),
+                    );
+                    return;
+                }
+                l
+            }
+            None => {
+                if t.get("label").is_none() {
+                    self.err(at, "a record step needs a label starting with `record`, e.g. \"record cw 20C\"");
+                }
+                return;
+            }
+        };
+        match self.duration_or_ramp_end(t, "record", "record window") {
+            Ok(Some(Some(duration))) => {
+                self.forbid_timeout(t);
+                self.push(
+                    st,
+                    "record",
+                    label,
+                    at,
+                    Action::Record {
+                        duration,
+                        until_ramp_end: false,
+                    },
+                );
+            }
+            Ok(Some(None)) => {
+                if let Some(duration) = self.ramp_end_timeout(t, st, at, "record") {
+                    st.ramp_active = false;
+                    self.push(
+                        st,
+                        "record",
+                        label,
+                        at,
+                        Action::Record {
+                            duration,
+                            until_ramp_end: true,
+                        },
+                    );
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn for_step(&mut self, t: Tbl<'_>, st: &mut State, for_entry: &Entry) {
+        self.check_keys(t, &["for", "do", "label"], "a `for` step");
+        let Value::Table(var_entries) = &for_entry.node.value else {
+            self.err(
+                &for_entry.node.span,
+                "`for` must be a table of loop variables, e.g. `for.temp = [-40, 20, 60]`",
+            );
+            return;
+        };
+        if var_entries.is_empty() {
+            self.err(&for_entry.node.span, "`for` declares no loop variable");
+            return;
+        }
+        let mut lists: Vec<(String, Vec<String>)> = Vec::new();
+        let mut ok = true;
+        for e in var_entries {
+            let valid_name = e
+                .key
+                .chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                && e.key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+            if !valid_name {
+                self.err(
+                    &e.key_span,
+                    format!(
+                        "loop variable `{}` must be a name of letters, digits and _",
+                        e.key
+                    ),
+                );
+                ok = false;
+                continue;
+            }
+            if self.vars.iter().any(|(k, _)| *k == e.key) {
+                self.err(
+                    &e.key_span,
+                    format!(
+                        "loop variable `{}` is already defined by an enclosing loop",
+                        e.key
+                    ),
+                );
+                ok = false;
+                continue;
+            }
+            let Value::Array(items) = &e.node.value else {
+                self.err(
+                    &e.node.span,
+                    format!("loop variable `{}` must be a list, e.g. [-40, 20, 60] or [\"cw\", \"ccw\"]", e.key),
+                );
+                ok = false;
+                continue;
+            };
+            if items.is_empty() {
+                self.err(
+                    &e.node.span,
+                    format!("loop variable `{}` has an empty list", e.key),
+                );
+                ok = false;
+                continue;
+            }
+            let mut values = Vec::new();
+            for it in items {
+                match &it.value {
+                    Value::Num(x) if x.is_finite() => values.push(format!("{x}")),
+                    Value::Str(s) => match self.subst(s, &it.span) {
+                        Ok(s) => values.push(s),
+                        Err(Reported) => ok = false,
+                    },
+                    v => {
+                        self.err(
+                            &it.span,
+                            format!(
+                                "loop values must be numbers or strings, got {}",
+                                v.type_name()
+                            ),
+                        );
+                        ok = false;
+                    }
+                }
+            }
+            lists.push((e.key.clone(), values));
+        }
+        let Some(body) = t.get("do") else {
+            self.err(
+                t.span,
+                "a `for` step needs steps to repeat: add [[step.do]] tables",
+            );
+            return;
+        };
+        if matches!(&body.node.value, Value::Array(a) if a.is_empty()) {
+            self.err(&body.key_span, "`do` has no steps");
+            return;
+        }
+        if !ok {
+            return;
+        }
+        self.expand(&lists, &body.node, st);
+    }
+
+    /// Run the body for every combination of the loop lists, first list outermost.
+    fn expand(&mut self, lists: &[(String, Vec<String>)], body: &Node, st: &mut State) {
+        let Some(((name, values), rest)) = lists.split_first() else {
+            self.steps_array(body, "do", st);
+            return;
+        };
+        for v in values {
+            if st.overflow {
+                return;
+            }
+            self.vars.push((name.clone(), v.clone()));
+            self.expand(rest, body, st);
+            self.vars.pop();
+        }
+    }
+}
+
+/// Suffix of an action key's plain-SI form (`wait_s`), if it has one.
+fn action_si_suffix(action: &str) -> Option<&'static str> {
+    match action {
+        "chamber" | "wait_temperature" => Some(Dim::Temperature.si_suffix()),
+        "spin" => Some(Dim::AngularRate.si_suffix()),
+        "wait" | "record" => Some(Dim::Time.si_suffix()),
+        _ => None,
+    }
+}
+
+fn is_ramp_end(s: &str) -> bool {
+    let norm: Vec<&str> = s
+        .split(|c: char| c.is_whitespace() || c == '_')
+        .filter(|w| !w.is_empty())
+        .collect();
+    norm == ["ramp", "end"]
+}
+
+/// Replace `{name}` by the loop variable's value; `{{` and `}}` are literal braces.
+pub(crate) fn substitute(s: &str, vars: &[(String, String)]) -> Result<String, String> {
+    if !s.contains(['{', '}']) {
+        return Ok(s.to_string());
+    }
+    let mut out = String::with_capacity(s.len());
+    let mut chars = s.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '{' if chars.peek() == Some(&'{') => {
+                chars.next();
+                out.push('{');
+            }
+            '}' if chars.peek() == Some(&'}') => {
+                chars.next();
+                out.push('}');
+            }
+            '{' => {
+                let mut name = String::new();
+                let mut closed = false;
+                for n in chars.by_ref() {
+                    if n == '}' {
+                        closed = true;
+                        break;
+                    }
+                    name.push(n);
+                }
+                if !closed {
+                    return Err(format!(
+                        "unclosed `{{` in \"{s}\" (write `{{{{` for a literal brace)"
+                    ));
+                }
+                // Innermost loop wins (shadowing is rejected anyway).
+                match vars.iter().rev().find(|(k, _)| *k == name) {
+                    Some((_, v)) => out.push_str(v),
+                    None if vars.is_empty() => {
+                        return Err(format!(
+                            "`{{{name}}}` is not a loop variable: no `for` step encloses this one"
+                        ));
+                    }
+                    None => {
+                        let known = vars
+                            .iter()
+                            .map(|(k, _)| format!("{{{k}}}"))
+                            .collect::<Vec<_>>()
+                            .join(", ");
+                        return Err(format!(
+                            "unknown loop variable `{{{name}}}`; defined here: {known}"
+                        ));
+                    }
+                }
+            }
+            '}' => {
+                return Err(format!(
+                    "unmatched `}}` in \"{s}\" (write `}}}}` for a literal brace)"
+                ))
+            }
+            c => out.push(c),
+        }
+    }
+    Ok(out)
+}
+
+/// The allowed key closest to `key` (edit distance ≤ 2), for "did you mean".
+fn closest<'k>(key: &str, allowed: &[&'k str]) -> Option<&'k str> {
+    allowed
+        .iter()
+        .map(|a| (edit_distance(key, a), *a))
+        .filter(|(d, _)| *d <= 2)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, a)| a)
+}
+
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let sub = prev.get(j).copied().unwrap_or(0) + usize::from(ca != *cb);
+            let del = prev.get(j + 1).copied().unwrap_or(0) + 1;
+            let ins = cur.get(j).copied().unwrap_or(0) + 1;
+            cur.push(sub.min(del).min(ins));
+        }
+        prev = cur;
+    }
+    prev.last().copied().unwrap_or(0)
+}

@@ -1,0 +1,184 @@
+//! Scenario files: TOML text → validated, loop-expanded [`RunPlan`].
+//!
+//! The format is described in `docs/scenario.md`. Parsing is strict (unknown keys are errors)
+//! and every value is checked against the devices' capabilities before anything moves. All
+//! errors are collected, each naming `file:line:column` of the offending key or value:
+//!
+//! ```
+//! use bench::scenario::{parse, Capabilities};
+//! # use bench_drivers::{DeviceInfo, TableCapabilities, ChamberCapabilities, GyroCapabilities};
+//! # let info = |c| DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities: c };
+//! # let caps = Capabilities {
+//! #     table: info(TableCapabilities { max_rate_rad_s: 17.45, max_accel_rad_s2: 17.45,
+//! #         position_resolution_rad: 4.8481e-6 }),
+//! #     chamber: DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities:
+//! #         ChamberCapabilities { min_temp_c: -55.0, max_temp_c: 185.0,
+//! #         max_heat_rate_c_s: 5.0 / 60.0, max_cool_rate_c_s: 3.5 / 60.0, temp_resolution_c: 0.01 } },
+//! #     gyro: DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities:
+//! #         GyroCapabilities { sample_rates_hz: vec![20.0], max_rate_rad_s: 10.0,
+//! #         operating_temp_c: (-40.0, 60.0), has_temperature: true } },
+//! # };
+//! let text = r#"
+//! scenario.name = "spin"
+//! site.latitude_deg = 59.94
+//! [[step]]
+//! spin = "2000 °/s"
+//! direction = "cw"
+//! "#;
+//! let errors = parse(text, "x.toml", &caps).expect_err("too fast");
+//! assert_eq!(
+//!     errors.to_string(),
+//!     "x.toml:5:8: table rate 2000 °/s exceeds the table's maximum 1000 °/s"
+//! );
+//! ```
+
+mod build;
+mod doc;
+pub mod quantity;
+#[cfg(test)]
+mod tests;
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use bench_drivers::{ChamberCapabilities, DeviceInfo, GyroCapabilities, TableCapabilities};
+
+use crate::plan::RunPlan;
+
+/// The three devices' descriptions a scenario is validated against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Capabilities {
+    /// The rate table.
+    pub table: DeviceInfo<TableCapabilities>,
+    /// The climatic chamber.
+    pub chamber: DeviceInfo<ChamberCapabilities>,
+    /// The gyro.
+    pub gyro: DeviceInfo<GyroCapabilities>,
+}
+
+/// One problem in a scenario, located in its file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScenarioError {
+    /// The scenario's name for messages (usually its path).
+    pub file: String,
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column, in characters.
+    pub column: usize,
+    /// Byte range of the offending key or value in the text.
+    pub span: Range<usize>,
+    /// What is wrong and what is allowed.
+    pub message: String,
+}
+
+impl fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}:{}:{}: {}",
+            self.file, self.line, self.column, self.message
+        )
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+/// Every problem found in a scenario, in file order; displayed one per line.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub struct ScenarioErrors(pub Vec<ScenarioError>);
+
+impl fmt::Display for ScenarioErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl ScenarioErrors {
+    /// The errors, in file order.
+    pub fn iter(&self) -> std::slice::Iter<'_, ScenarioError> {
+        self.0.iter()
+    }
+
+    /// Number of errors.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there are none (never the case for a returned error).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+/// Why a scenario file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The file could not be read.
+    #[error("cannot read scenario {}: {source}", path.display())]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file was read but is not a valid scenario.
+    #[error("{0}")]
+    Invalid(#[from] ScenarioErrors),
+}
+
+/// Read, parse and validate the scenario at `path` against `caps`.
+pub fn load(path: &Path, caps: &Capabilities) -> Result<RunPlan, LoadError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(parse(&text, &path.display().to_string(), caps)?)
+}
+
+/// Parse and validate scenario `text` against `caps`; `source_name` (usually the path) prefixes
+/// every error message and step origin. Never panics.
+pub fn parse(
+    text: &str,
+    source_name: &str,
+    caps: &Capabilities,
+) -> Result<RunPlan, ScenarioErrors> {
+    let issues = match doc::parse(text) {
+        Ok(root) => match build::build(&root, text, source_name, caps) {
+            Ok(plan) => return Ok(plan),
+            Err(issues) => issues,
+        },
+        Err(issues) => issues,
+    };
+    let mut errors: Vec<ScenarioError> = issues
+        .into_iter()
+        .map(|(span, message)| {
+            let (line, column) = doc::line_col(text, span.start);
+            ScenarioError {
+                file: source_name.to_string(),
+                line,
+                column,
+                span,
+                message,
+            }
+        })
+        .collect();
+    errors.sort_by_key(|e| (e.span.start, e.line));
+    if errors.is_empty() {
+        // Cannot happen (build only fails with issues), but never return an empty error.
+        errors.push(ScenarioError {
+            file: source_name.to_string(),
+            line: 1,
+            column: 1,
+            span: 0..0,
+            message: "invalid scenario".to_string(),
+        });
+    }
+    Err(ScenarioErrors(errors))
+}
