@@ -144,12 +144,7 @@ pub struct Site {
 impl Site {
     /// A site known only by its latitude.
     pub fn at_latitude(latitude_deg: f64) -> Self {
-        Self {
-            latitude_deg,
-            longitude_deg: None,
-            height_m: None,
-            axis: None,
-        }
+        Self { latitude_deg, longitude_deg: None, height_m: None, axis: None }
     }
 
     fn to_metadata(self) -> Result<BTreeMap<String, String>, RecordError> {
@@ -241,10 +236,7 @@ pub fn default_software() -> String {
 pub fn rfc3339_utc(epoch_ns: u64) -> String {
     time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(epoch_ns))
         .ok()
-        .and_then(|t| {
-            t.format(&time::format_description::well_known::Rfc3339)
-                .ok()
-        })
+        .and_then(|t| t.format(&time::format_description::well_known::Rfc3339).ok())
         // Unreachable for any u64 (year < 2555); keep a valid RFC 3339 text anyway.
         .unwrap_or_else(|| "1970-01-01T00:00:00Z".to_string())
 }
@@ -264,8 +256,7 @@ impl Outcome {
         if text == "completed" {
             Some(Outcome::Completed)
         } else {
-            text.strip_prefix("aborted:")
-                .map(|r| Outcome::Aborted(r.trim_start().to_string()))
+            text.strip_prefix("aborted:").map(|r| Outcome::Aborted(r.trim_start().to_string()))
         }
     }
 }
@@ -346,10 +337,11 @@ pub struct RecorderOptions {
     pub flush_interval: Option<Duration>,
     /// Also close the chunk and flush at every step end or abort. Default true.
     pub flush_on_step_end: bool,
-    /// zstd worker threads (0: compress on the calling thread). Default 0: compressing 1 MiB
-    /// of JSON takes a few ms, not worth threads on a small bench PC.
+    /// zstd worker threads (0: compress on the calling thread). Default 0: with 1 worker the
+    /// recorder ran 2-3× slower (`benches/record.rs`), the mcap crate's default is one per core.
     pub compression_threads: u32,
-    /// Compression level; 0 is the codec's default (zstd: 3). Lower is faster, higher smaller.
+    /// Compression level; 0 is the codec's default (zstd: 3). Default 1: on bench JSON, zstd
+    /// level 1 was ~25 % faster than level 3 and no bigger (`benches/record.rs`).
     pub compression_level: u32,
 }
 
@@ -362,7 +354,7 @@ impl Default for RecorderOptions {
             flush_interval: Some(Duration::from_secs(5)),
             flush_on_step_end: true,
             compression_threads: 0,
-            compression_level: 0,
+            compression_level: 1,
         }
     }
 }
@@ -391,13 +383,7 @@ struct Chan {
 
 impl Chan {
     fn new(topic: &'static str, id: u16) -> Self {
-        Self {
-            topic,
-            id,
-            next_sequence: 0,
-            last_log_time: 0,
-            last_t: Duration::ZERO,
-        }
+        Self { topic, id, next_sequence: 0, last_log_time: 0, last_t: Duration::ZERO }
     }
 }
 
@@ -452,11 +438,7 @@ fn finite(topic: &'static str, field: &'static str, value: f64) -> Result<f64, R
     if value.is_finite() {
         Ok(value)
     } else {
-        Err(RecordError::NonFinite {
-            topic,
-            field,
-            value,
-        })
+        Err(RecordError::NonFinite { topic, field, value })
     }
 }
 
@@ -491,10 +473,8 @@ pub struct Recorder<W: Write + Seek> {
 impl Recorder<BufWriter<File>> {
     /// Create (truncate) `path` and record into it with default options.
     pub fn create(path: &Path, info: RunInfo) -> Result<Self, RecordError> {
-        let file = File::create(path).map_err(|source| RecordError::Io {
-            context: "creating the recording file",
-            source,
-        })?;
+        let file = File::create(path)
+            .map_err(|source| RecordError::Io { context: "creating the recording file", source })?;
         Self::new(BufWriter::with_capacity(256 * 1024, file), info)
     }
 }
@@ -513,10 +493,8 @@ impl<W: Write + Seek> Recorder<W> {
         options: RecorderOptions,
     ) -> Result<Self, RecordError> {
         let site = info.site.to_metadata()?;
-        let mut writer = options
-            .write_options()
-            .create(sink)
-            .map_err(mcap_err("starting the file"))?;
+        let mut writer =
+            options.write_options().create(sink).map_err(mcap_err("starting the file"))?;
         let no_meta = BTreeMap::new();
         let mut channel =
             |topic: &'static str, name: &str, doc: &str| -> Result<Chan, RecordError> {
@@ -538,9 +516,7 @@ impl<W: Write + Seek> Recorder<W> {
             name: name.to_string(),
             metadata,
         };
-        writer
-            .write_metadata(&meta(META_SITE, site))
-            .map_err(mcap_err("writing bench.site"))?;
+        writer.write_metadata(&meta(META_SITE, site)).map_err(mcap_err("writing bench.site"))?;
         let scenario = BTreeMap::from([
             ("name".to_string(), info.scenario_name.clone()),
             ("text".to_string(), info.scenario_text.clone()),
@@ -556,11 +532,7 @@ impl<W: Write + Seek> Recorder<W> {
             .as_deref()
             .map(|name| (name, info.scenario_text.as_str()))
             .into_iter()
-            .chain(
-                info.config
-                    .as_ref()
-                    .map(|c| (c.name.as_str(), c.text.as_str())),
-            );
+            .chain(info.config.as_ref().map(|c| (c.name.as_str(), c.text.as_str())));
         for (name, text) in attachments {
             writer
                 .attach(&mcap::Attachment {
@@ -572,9 +544,7 @@ impl<W: Write + Seek> Recorder<W> {
                 })
                 .map_err(mcap_err("writing an attachment"))?;
         }
-        writer
-            .flush()
-            .map_err(mcap_err("flushing the file header"))?;
+        writer.flush().map_err(mcap_err("flushing the file header"))?;
 
         let bits = options.gyro_seq_bits.clamp(1, 64);
         Ok(Self {
@@ -587,11 +557,7 @@ impl<W: Write + Seek> Recorder<W> {
             chamber,
             step,
             log,
-            gyro_seq_mask: if bits == 64 {
-                u64::MAX
-            } else {
-                (1u64 << bits) - 1
-            },
+            gyro_seq_mask: if bits == 64 { u64::MAX } else { (1u64 << bits) - 1 },
             last_gyro_seq: None,
             gyro_seq_gaps: 0,
             flush_interval: options.flush_interval,
@@ -621,10 +587,7 @@ impl<W: Write + Seek> Recorder<W> {
         let topic = TOPIC_GYRO;
         let body = GyroBody {
             rate: finite(topic, "rate", s.rate_rad_s)?,
-            temperature: s
-                .temperature_c
-                .map(|v| finite(topic, "temperature", v))
-                .transpose()?,
+            temperature: s.temperature_c.map(|v| finite(topic, "temperature", v)).transpose()?,
             seq: s.seq,
             status,
         };
@@ -676,12 +639,7 @@ impl<W: Write + Seek> Recorder<W> {
         event: StepEvent,
         label: &str,
     ) -> Result<(), RecordError> {
-        let body = StepBody {
-            index,
-            name,
-            event,
-            label,
-        };
+        let body = StepBody { index, name, event, label };
         let mut ch = self.step;
         let res = self.write(&mut ch, t, None, &body);
         self.step = ch;
@@ -739,19 +697,12 @@ impl<W: Write + Seek> Recorder<W> {
             ("outcome".to_string(), outcome.to_string()),
         ]);
         self.writer
-            .write_metadata(&mcap::records::Metadata {
-                name: META_RUN.to_string(),
-                metadata: run,
-            })
+            .write_metadata(&mcap::records::Metadata { name: META_RUN.to_string(), metadata: run })
             .map_err(mcap_err("writing bench.run"))?;
-        self.writer
-            .finish()
-            .map_err(mcap_err("writing the summary"))?;
+        self.writer.finish().map_err(mcap_err("writing the summary"))?;
         let mut sink = self.writer.into_inner();
-        sink.flush().map_err(|source| RecordError::Io {
-            context: "flushing the finished file",
-            source,
-        })?;
+        sink.flush()
+            .map_err(|source| RecordError::Io { context: "flushing the finished file", source })?;
         Ok(sink)
     }
 
@@ -771,27 +722,17 @@ impl<W: Write + Seek> Recorder<W> {
     ) -> Result<(), RecordError> {
         let log_time = self.log_time(ch.topic, t)?;
         if log_time < ch.last_log_time {
-            return Err(RecordError::TimeWentBack {
-                topic: ch.topic,
-                previous: ch.last_t,
-                got: t,
-            });
+            return Err(RecordError::TimeWentBack { topic: ch.topic, previous: ch.last_t, got: t });
         }
         let publish_time = match device_time {
             Some(d) => self.log_time(ch.topic, d)?,
             None => log_time,
         };
         self.buf.clear();
-        serde_json::to_writer(&mut self.buf, body).map_err(|source| RecordError::Json {
-            topic: ch.topic,
-            source,
-        })?;
-        let header = MessageHeader {
-            channel_id: ch.id,
-            sequence: ch.next_sequence,
-            log_time,
-            publish_time,
-        };
+        serde_json::to_writer(&mut self.buf, body)
+            .map_err(|source| RecordError::Json { topic: ch.topic, source })?;
+        let header =
+            MessageHeader { channel_id: ch.id, sequence: ch.next_sequence, log_time, publish_time };
         self.writer
             .write_to_known_channel(&header, &self.buf)
             .map_err(mcap_err("writing a message"))?;

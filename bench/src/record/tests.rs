@@ -30,18 +30,12 @@ fn info() -> RunInfo {
         },
         model,
     );
-    i.config = Some(TomlAttachment {
-        name: "bench.toml".into(),
-        text: "[gyro]\n".into(),
-    });
+    i.config = Some(TomlAttachment { name: "bench.toml".into(), text: "[gyro]\n".into() });
     i
 }
 
 fn opts() -> RecorderOptions {
-    RecorderOptions {
-        flush_interval: None,
-        ..RecorderOptions::default()
-    }
+    RecorderOptions { flush_interval: None, ..RecorderOptions::default() }
 }
 
 fn gyro(seq: u64, temp: Option<f64>) -> GyroSample {
@@ -58,17 +52,9 @@ fn gyro(seq: u64, temp: Option<f64>) -> GyroSample {
 fn small_recording(outcome: &Outcome) -> Vec<u8> {
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info(), opts()).expect("start");
     let ms = Duration::from_millis;
-    r.step(ms(0), 0, "soak", StepEvent::Start, "record cw 20C")
-        .expect("step");
+    r.step(ms(0), 0, "soak", StepEvent::Start, "record cw 20C").expect("step");
     r.gyro(ms(50), &gyro(7, Some(20.5))).expect("gyro");
-    r.gyro(
-        ms(100),
-        &GyroSample {
-            device_time: Some(ms(99)),
-            ..gyro(8, None)
-        },
-    )
-    .expect("gyro");
+    r.gyro(ms(100), &GyroSample { device_time: Some(ms(99)), ..gyro(8, None) }).expect("gyro");
     r.table(
         ms(50),
         &TableReading {
@@ -106,26 +92,14 @@ fn small_recording(outcome: &Outcome) -> Vec<u8> {
         )
         .expect("chamber");
     }
-    r.log(
-        ms(120),
-        LogLevel::Warning,
-        "door \"A\" ajar",
-        "bench::run",
-        "run.rs",
-        42,
-    )
-    .expect("log");
+    r.log(ms(120), LogLevel::Warning, "door \"A\" ajar", "bench::run", "run.rs", 42).expect("log");
     r.gyro(ms(150), &gyro(10, Some(20.625))).expect("gyro");
-    r.step(ms(150), 0, "soak", StepEvent::End, "record cw 20C")
-        .expect("step");
+    r.step(ms(150), 0, "soak", StepEvent::End, "record cw 20C").expect("step");
     r.finish(outcome).expect("finish").into_inner()
 }
 
 fn messages(file: &[u8]) -> Vec<mcap::Message<'static>> {
-    mcap::MessageStream::new(file)
-        .expect("stream")
-        .collect::<Result<_, _>>()
-        .expect("messages")
+    mcap::MessageStream::new(file).expect("stream").collect::<Result<_, _>>().expect("messages")
 }
 
 fn bodies(file: &[u8], topic: &str) -> Vec<String> {
@@ -139,9 +113,7 @@ fn bodies(file: &[u8], topic: &str) -> Vec<String> {
 #[test]
 fn channels_schemas_and_encodings_follow_the_contract() {
     let file = small_recording(&Outcome::Completed);
-    let summary = mcap::Summary::read(&file)
-        .expect("summary")
-        .expect("has summary");
+    let summary = mcap::Summary::read(&file).expect("summary").expect("has summary");
     let mut seen: Vec<(String, String, String, String)> = summary
         .channels
         .values()
@@ -149,23 +121,12 @@ fn channels_schemas_and_encodings_follow_the_contract() {
             let s = c.schema.as_ref().expect("schema");
             let doc: serde_json::Value = serde_json::from_slice(&s.data).expect("schema is JSON");
             assert_eq!(doc["title"], s.name.as_str());
-            (
-                c.topic.clone(),
-                s.name.clone(),
-                s.encoding.clone(),
-                c.message_encoding.clone(),
-            )
+            (c.topic.clone(), s.name.clone(), s.encoding.clone(), c.message_encoding.clone())
         })
         .collect();
     seen.sort();
-    let want = |t: &str, s: &str| {
-        (
-            t.to_string(),
-            s.to_string(),
-            "jsonschema".into(),
-            "json".into(),
-        )
-    };
+    let want =
+        |t: &str, s: &str| (t.to_string(), s.to_string(), "jsonschema".into(), "json".into());
     assert_eq!(
         seen,
         vec![
@@ -230,19 +191,9 @@ fn numbers_round_trip_exactly() {
         assert!(rate == 0.0029088820866572155 || rate == 1.0);
     }
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info(), opts()).expect("start");
-    let values = [
-        f64::MIN_POSITIVE,
-        f64::MAX,
-        -0.1 - 0.2,
-        1.0 / 3.0,
-        5e-324,
-        123456789.0,
-    ];
+    let values = [f64::MIN_POSITIVE, f64::MAX, -0.1 - 0.2, 1.0 / 3.0, 5e-324, 123456789.0];
     for (i, v) in values.iter().enumerate() {
-        let s = GyroSample {
-            rate_rad_s: *v,
-            ..gyro(i as u64, Some(-*v))
-        };
+        let s = GyroSample { rate_rad_s: *v, ..gyro(i as u64, Some(-*v)) };
         r.gyro(Duration::from_millis(i as u64), &s).expect("gyro");
     }
     let file = r.finish(&Outcome::Completed).expect("finish").into_inner();
@@ -250,10 +201,7 @@ fn numbers_round_trip_exactly() {
         .iter()
         .map(|b| {
             let v: serde_json::Value = serde_json::from_str(b).expect("json");
-            (
-                v["rate"].as_f64().expect("n"),
-                v["temperature"].as_f64().expect("n"),
-            )
+            (v["rate"].as_f64().expect("n"), v["temperature"].as_f64().expect("n"))
         })
         .collect();
     let want: Vec<(f64, f64)> = values.iter().map(|v| (*v, -*v)).collect();
@@ -266,25 +214,17 @@ fn sequences_count_per_channel_and_times_are_epoch_plus_bench_time() {
     let msgs = messages(&file);
     let mut per_topic: BTreeMap<String, Vec<&mcap::Message>> = BTreeMap::new();
     for m in &msgs {
-        per_topic
-            .entry(m.channel.topic.clone())
-            .or_default()
-            .push(m);
+        per_topic.entry(m.channel.topic.clone()).or_default().push(m);
     }
     for (topic, ms) in &per_topic {
         let seqs: Vec<u32> = ms.iter().map(|m| m.sequence).collect();
         assert_eq!(seqs, (0..ms.len() as u32).collect::<Vec<_>>(), "{topic}");
-        assert!(
-            ms.windows(2).all(|w| w[0].log_time <= w[1].log_time),
-            "{topic}"
-        );
+        assert!(ms.windows(2).all(|w| w[0].log_time <= w[1].log_time), "{topic}");
     }
     let g = &per_topic["/gyro/rate"];
     let ms = 1_000_000u64;
     assert_eq!(
-        g.iter()
-            .map(|m| (m.log_time, m.publish_time))
-            .collect::<Vec<_>>(),
+        g.iter().map(|m| (m.log_time, m.publish_time)).collect::<Vec<_>>(),
         vec![
             (EPOCH + 50 * ms, EPOCH + 50 * ms),
             (EPOCH + 100 * ms, EPOCH + 99 * ms),
@@ -296,25 +236,16 @@ fn sequences_count_per_channel_and_times_are_epoch_plus_bench_time() {
 #[test]
 fn metadata_records_and_attachments() {
     let file = small_recording(&Outcome::Aborted("door open".into()));
-    let summary = mcap::Summary::read(&file)
-        .expect("summary")
-        .expect("has summary");
+    let summary = mcap::Summary::read(&file).expect("summary").expect("has summary");
     let mut meta = BTreeMap::new();
     for idx in &summary.metadata_indexes {
         let m = mcap::read::metadata(&file, idx).expect("metadata");
-        assert!(
-            meta.insert(m.name.clone(), m.metadata).is_none(),
-            "one {} record",
-            m.name
-        );
+        assert!(meta.insert(m.name.clone(), m.metadata).is_none(), "one {} record", m.name);
     }
     let run = &meta["bench.run"];
     assert_eq!(run["format_version"], "1");
     assert_eq!(run["started"], "2023-11-14T22:13:20.123456789Z");
-    assert_eq!(
-        run["software"],
-        format!("bench {}", env!("CARGO_PKG_VERSION"))
-    );
+    assert_eq!(run["software"], format!("bench {}", env!("CARGO_PKG_VERSION")));
     assert_eq!(run["outcome"], "aborted: door open");
     assert_eq!(run.len(), 4);
     let site = &meta["bench.site"];
@@ -343,16 +274,8 @@ fn metadata_records_and_attachments() {
     assert_eq!(
         att,
         vec![
-            (
-                "bench.toml".into(),
-                "application/toml".into(),
-                b"[gyro]\n".to_vec()
-            ),
-            (
-                "scenario.toml".into(),
-                "application/toml".into(),
-                b"name = \"thermal\"\n".to_vec()
-            ),
+            ("bench.toml".into(), "application/toml".into(), b"[gyro]\n".to_vec()),
+            ("scenario.toml".into(), "application/toml".into(), b"name = \"thermal\"\n".to_vec()),
         ]
     );
 }
@@ -360,9 +283,7 @@ fn metadata_records_and_attachments() {
 #[test]
 fn summary_statistics_match_what_was_written_and_chunks_are_zstd() {
     let file = small_recording(&Outcome::Completed);
-    let summary = mcap::Summary::read(&file)
-        .expect("summary")
-        .expect("has summary");
+    let summary = mcap::Summary::read(&file).expect("summary").expect("has summary");
     let stats = summary.stats.as_ref().expect("statistics");
     assert_eq!(stats.message_count, 10);
     assert_eq!(stats.channel_count, 5);
@@ -404,22 +325,13 @@ fn summary_statistics_match_what_was_written_and_chunks_are_zstd() {
 
 #[test]
 fn counter_gaps_are_flagged_and_wrap_is_not_a_gap() {
-    let o = RecorderOptions {
-        gyro_seq_bits: 8,
-        ..opts()
-    };
+    let o = RecorderOptions { gyro_seq_bits: 8, ..opts() };
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info(), o).expect("start");
     let seqs = [253u64, 254, 255, 0, 1, 3, 4, 4, 5];
     for (i, s) in seqs.iter().enumerate() {
         let st = if i == 1 { status::gyro::INVALID } else { 0 };
-        r.gyro(
-            Duration::from_millis(i as u64),
-            &GyroSample {
-                status: st,
-                ..gyro(*s, None)
-            },
-        )
-        .expect("gyro");
+        r.gyro(Duration::from_millis(i as u64), &GyroSample { status: st, ..gyro(*s, None) })
+            .expect("gyro");
     }
     assert_eq!(r.gyro_seq_gaps(), 2);
     let file = r.finish(&Outcome::Completed).expect("finish").into_inner();
@@ -439,16 +351,14 @@ fn counter_gaps_are_flagged_and_wrap_is_not_a_gap() {
     // With the default 64-bit counter the same wrap is a gap.
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info(), opts()).expect("start");
     r.gyro(Duration::ZERO, &gyro(255, None)).expect("gyro");
-    r.gyro(Duration::from_millis(1), &gyro(0, None))
-        .expect("gyro");
+    r.gyro(Duration::from_millis(1), &gyro(0, None)).expect("gyro");
     assert_eq!(r.gyro_seq_gaps(), 1);
 }
 
 #[test]
 fn time_going_back_on_a_channel_and_non_finite_numbers_are_errors() {
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info(), opts()).expect("start");
-    r.gyro(Duration::from_secs(2), &gyro(0, None))
-        .expect("gyro");
+    r.gyro(Duration::from_secs(2), &gyro(0, None)).expect("gyro");
     // Another channel may be earlier.
     let c = ChamberReading {
         temperature_c: 1.0,
@@ -458,38 +368,12 @@ fn time_going_back_on_a_channel_and_non_finite_numbers_are_errors() {
         device_time: None,
     };
     r.chamber(Duration::from_secs(1), &c).expect("chamber");
+    let e = r.gyro(Duration::from_secs(1), &gyro(1, None)).expect_err("went back");
+    assert!(matches!(e, RecordError::TimeWentBack { topic: "/gyro/rate", .. }), "{e}");
     let e = r
-        .gyro(Duration::from_secs(1), &gyro(1, None))
-        .expect_err("went back");
-    assert!(
-        matches!(
-            e,
-            RecordError::TimeWentBack {
-                topic: "/gyro/rate",
-                ..
-            }
-        ),
-        "{e}"
-    );
-    let e = r
-        .chamber(
-            Duration::from_secs(3),
-            &ChamberReading {
-                setpoint_c: f64::NAN,
-                ..c
-            },
-        )
+        .chamber(Duration::from_secs(3), &ChamberReading { setpoint_c: f64::NAN, ..c })
         .expect_err("nan");
-    assert!(
-        matches!(
-            e,
-            RecordError::NonFinite {
-                field: "setpoint",
-                ..
-            }
-        ),
-        "{e}"
-    );
+    assert!(matches!(e, RecordError::NonFinite { field: "setpoint", .. }), "{e}");
     // Failed writes use no sequence number.
     r.chamber(Duration::from_secs(3), &c).expect("chamber");
     let file = r.finish(&Outcome::Completed).expect("finish").into_inner();
@@ -525,21 +409,16 @@ fn flushed_chunks_survive_a_crash() {
     let sink = SharedBuf::default();
     let mut r = Recorder::with_options(sink.clone(), info(), opts()).expect("start");
     for i in 0..100u64 {
-        r.gyro(Duration::from_millis(50 * i), &gyro(i, Some(20.0)))
-            .expect("gyro");
+        r.gyro(Duration::from_millis(50 * i), &gyro(i, Some(20.0))).expect("gyro");
     }
     r.flush().expect("flush");
     for i in 100..150u64 {
-        r.gyro(Duration::from_millis(50 * i), &gyro(i, Some(20.0)))
-            .expect("gyro");
+        r.gyro(Duration::from_millis(50 * i), &gyro(i, Some(20.0))).expect("gyro");
     }
     // The process dies here: the file holds what was written so far, an open chunk at its end.
     let crashed = sink.0.borrow().get_ref().clone();
     drop(r);
-    assert!(
-        mcap::Summary::read(&crashed).is_err(),
-        "no footer in a crashed file"
-    );
+    assert!(mcap::Summary::read(&crashed).is_err(), "no footer in a crashed file");
     let mut got = 0;
     let mut failed = false;
     for m in mcap::MessageStream::new(&crashed).expect("stream") {
