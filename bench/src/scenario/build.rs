@@ -19,15 +19,7 @@ pub(crate) const MAX_STEPS: usize = 100_000;
 const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
 
 /// The action keys of a step, canonical names.
-const ACTIONS: [&str; 7] = [
-    "chamber",
-    "spin",
-    "stop",
-    "wait",
-    "wait_temperature",
-    "record",
-    "for",
-];
+const ACTIONS: [&str; 7] = ["chamber", "spin", "stop", "wait", "wait_temperature", "record", "for"];
 
 /// The error was reported; the caller uses a default and goes on.
 struct Reported;
@@ -101,16 +93,7 @@ pub(crate) fn build(
     Err(b
         .issues
         .into_iter()
-        .map(|(span, msg, ctx)| {
-            (
-                span,
-                if ctx.is_empty() {
-                    msg
-                } else {
-                    format!("{msg} ({ctx})")
-                },
-            )
-        })
+        .map(|(span, msg, ctx)| (span, if ctx.is_empty() { msg } else { format!("{msg} ({ctx})") }))
         .collect())
 }
 
@@ -119,17 +102,9 @@ impl<'a> Builder<'a> {
         let msg = msg.into();
         // The same mistake inside a loop body is reported once, with its first iteration.
         if self.seen.insert((span.start, msg.clone())) {
-            let ctx = self
-                .vars
-                .iter()
-                .map(|(k, v)| format!("{k} = {v}"))
-                .collect::<Vec<_>>()
-                .join(", ");
-            let ctx = if ctx.is_empty() {
-                ctx
-            } else {
-                format!("in loop: {ctx}")
-            };
+            let ctx =
+                self.vars.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", ");
+            let ctx = if ctx.is_empty() { ctx } else { format!("in loop: {ctx}") };
             self.issues.push((span.clone(), msg, ctx));
         }
         Reported
@@ -154,11 +129,7 @@ impl<'a> Builder<'a> {
                     format!(
                         "unknown key `{}` in {what}; {hint}allowed: {}",
                         e.key,
-                        allowed
-                            .iter()
-                            .map(|k| format!("`{k}`"))
-                            .collect::<Vec<_>>()
-                            .join(", ")
+                        allowed.iter().map(|k| format!("`{k}`")).collect::<Vec<_>>().join(", ")
                     ),
                 );
             }
@@ -169,14 +140,11 @@ impl<'a> Builder<'a> {
     fn table(&mut self, t: Tbl<'a>, key: &str) -> Got<Tbl<'a>> {
         let Some(e) = t.get(key) else { return Ok(None) };
         match &e.node.value {
-            Value::Table(entries) => Ok(Some(Tbl {
-                entries,
-                span: &e.node.span,
-            })),
-            v => Err(self.err(
-                &e.node.span,
-                format!("`{key}` must be a table, got {}", v.type_name()),
-            )),
+            Value::Table(entries) => Ok(Some(Tbl { entries, span: &e.node.span })),
+            v => {
+                Err(self
+                    .err(&e.node.span, format!("`{key}` must be a table, got {}", v.type_name())))
+            }
         }
     }
 
@@ -196,10 +164,10 @@ impl<'a> Builder<'a> {
                 let s = self.subst(s, &e.node.span)?;
                 Ok(Some((s, e.node.span.clone())))
             }
-            v => Err(self.err(
-                &e.node.span,
-                format!("`{key}` must be a string, got {}", v.type_name()),
-            )),
+            v => {
+                Err(self
+                    .err(&e.node.span, format!("`{key}` must be a string, got {}", v.type_name())))
+            }
         }
     }
 
@@ -211,10 +179,10 @@ impl<'a> Builder<'a> {
             Value::Num(_) => {
                 Err(self.err(&e.node.span, format!("`{key}` must be a finite number")))
             }
-            v => Err(self.err(
-                &e.node.span,
-                format!("`{key}` must be a number, got {}", v.type_name()),
-            )),
+            v => {
+                Err(self
+                    .err(&e.node.span, format!("`{key}` must be a number, got {}", v.type_name())))
+            }
         }
     }
 
@@ -235,10 +203,9 @@ impl<'a> Builder<'a> {
         let with_unit = t.get(key);
         let plain = t.get(&si_key);
         if let (Some(_), Some(p)) = (with_unit, plain) {
-            return Err(self.err(
-                &p.key_span,
-                format!("give either `{key}` or `{si_key}`, not both"),
-            ));
+            return Err(
+                self.err(&p.key_span, format!("give either `{key}` or `{si_key}`, not both"))
+            );
         }
         if let Some(e) = with_unit {
             return match &e.node.value {
@@ -305,16 +272,12 @@ impl<'a> Builder<'a> {
             return Ok(None);
         };
         if q.si <= 0.0 {
-            return Err(self.err(
-                &span,
-                format!("{what} must be greater than zero, got {}", q.show_self()),
-            ));
+            return Err(
+                self.err(&span, format!("{what} must be greater than zero, got {}", q.show_self()))
+            );
         }
         if dim == Dim::Time && q.si > MAX_DURATION_S {
-            return Err(self.err(
-                &span,
-                format!("{what} {} is longer than a year", q.show_self()),
-            ));
+            return Err(self.err(&span, format!("{what} {} is longer than a year", q.show_self())));
         }
         Ok(Some((q, span)))
     }
@@ -379,18 +342,11 @@ impl<'a> Builder<'a> {
     fn check_accel(&mut self, q: &Quantity, span: &Range<usize>, what: &str) {
         let max = self.caps.table.capabilities.max_accel_rad_s2;
         if q.si <= 0.0 {
-            self.err(
-                span,
-                format!("{what} must be greater than zero, got {}", q.show_self()),
-            );
+            self.err(span, format!("{what} must be greater than zero, got {}", q.show_self()));
         } else if q.si > max {
             self.err(
                 span,
-                format!(
-                    "{what} {} exceeds the table's maximum {}",
-                    q.show_self(),
-                    q.show(max)
-                ),
+                format!("{what} {} exceeds the table's maximum {}", q.show_self(), q.show(max)),
             );
         }
     }
@@ -410,23 +366,11 @@ impl<'a> Builder<'a> {
         let Value::Table(entries) = &root.value else {
             return None;
         };
-        let top = Tbl {
-            entries,
-            span: &root.span,
-        };
+        let top = Tbl { entries, span: &root.span };
         let start = 0..0;
         self.check_keys(
             top,
-            &[
-                "scenario",
-                "site",
-                "gyro",
-                "table",
-                "chamber",
-                "safe",
-                "simulation",
-                "step",
-            ],
+            &["scenario", "site", "gyro", "table", "chamber", "safe", "simulation", "step"],
             "the scenario file",
         );
 
@@ -451,12 +395,8 @@ impl<'a> Builder<'a> {
         }
 
         // [site]
-        let mut site = Site {
-            latitude_deg: 0.0,
-            longitude_deg: None,
-            height_m: None,
-            axis_up: true,
-        };
+        let mut site =
+            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis_up: true };
         match self.table(top, "site") {
             Ok(Some(t)) => site = self.site(t),
             Ok(None) => {
@@ -471,11 +411,7 @@ impl<'a> Builder<'a> {
         // [table]
         let table_t = self.table(top, "table").unwrap_or(None);
         if let Some(t) = table_t {
-            self.check_keys(
-                t,
-                &["poll_rate", "poll_rate_hz", "accel", "accel_rad_s2"],
-                "[table]",
-            );
+            self.check_keys(t, &["poll_rate", "poll_rate_hz", "accel", "accel_rad_s2"], "[table]");
             if let Ok(Some((q, span))) = self.quantity(t, "accel", Dim::AngularAccel) {
                 self.check_accel(&q, &span, "default table acceleration");
                 self.table_accel = q.si;
@@ -491,10 +427,7 @@ impl<'a> Builder<'a> {
         let chamber_poll_hz = self.poll_rate(chamber_t, "chamber poll rate");
 
         // [gyro]
-        let mut gyro = GyroSetup {
-            sample_rate_hz: 20.0,
-            model: GyroModel::default(),
-        };
+        let mut gyro = GyroSetup { sample_rate_hz: 20.0, model: GyroModel::default() };
         let gyro_t = self.table(top, "gyro");
         let mut rate_checked = gyro_t.is_err();
         if let Ok(Some(t)) = gyro_t {
@@ -519,16 +452,9 @@ impl<'a> Builder<'a> {
         }
 
         // [simulation]
-        let mut sim = SimSetup {
-            initial_temp_c: 20.0,
-            truth: gyro.model.clone(),
-        };
+        let mut sim = SimSetup { initial_temp_c: 20.0, truth: gyro.model.clone() };
         if let Ok(Some(t)) = self.table(top, "simulation") {
-            self.check_keys(
-                t,
-                &["initial_temp", "initial_temp_c", "truth"],
-                "[simulation]",
-            );
+            self.check_keys(t, &["initial_temp", "initial_temp_c", "truth"], "[simulation]");
             if let Ok(Some((q, span))) = self.quantity(t, "initial_temp", Dim::Temperature) {
                 if self.check_temp(&q, &span, "initial temperature") {
                     sim.initial_temp_c = q.si;
@@ -558,11 +484,10 @@ impl<'a> Builder<'a> {
             }
         } else {
             // The defaults must fit the devices too.
-            let a = Quantity {
-                si: safe_decel,
-                unit: "°/s²".into(),
-                factor: bench_physics::units::DEG,
-            };
+            let a =
+                Quantity {
+                    si: safe_decel, unit: "°/s²".into(), factor: bench_physics::units::DEG
+                };
             self.check_accel(&a, &start, "default safe-state deceleration");
             let t = Quantity::si(Dim::Temperature, safe_temp);
             self.check_temp(&t, &start, "default safe-state temperature");
@@ -604,37 +529,21 @@ impl<'a> Builder<'a> {
     }
 
     fn site(&mut self, t: Tbl<'_>) -> Site {
-        self.check_keys(
-            t,
-            &["latitude_deg", "longitude_deg", "height_m", "axis"],
-            "[site]",
-        );
-        let mut site = Site {
-            latitude_deg: 0.0,
-            longitude_deg: None,
-            height_m: None,
-            axis_up: true,
-        };
+        self.check_keys(t, &["latitude_deg", "longitude_deg", "height_m", "axis"], "[site]");
+        let mut site =
+            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis_up: true };
         let got = self.number(t, "latitude_deg");
-        if let Some((lat, span)) = self.required(
-            got,
-            t.span,
-            "[site] needs `latitude_deg` (degrees, north positive)",
-        ) {
+        if let Some((lat, span)) =
+            self.required(got, t.span, "[site] needs `latitude_deg` (degrees, north positive)")
+        {
             if !(-90.0..=90.0).contains(&lat) {
-                self.err(
-                    &span,
-                    format!("latitude_deg {} is outside -90..90", fmt_num(lat)),
-                );
+                self.err(&span, format!("latitude_deg {} is outside -90..90", fmt_num(lat)));
             }
             site.latitude_deg = lat;
         }
         if let Ok(Some((lon, span))) = self.number(t, "longitude_deg") {
             if !(-180.0..=360.0).contains(&lon) {
-                self.err(
-                    &span,
-                    format!("longitude_deg {} is outside -180..360", fmt_num(lon)),
-                );
+                self.err(&span, format!("longitude_deg {} is outside -180..360", fmt_num(lon)));
             }
             site.longitude_deg = Some(lon);
         }
@@ -646,10 +555,7 @@ impl<'a> Builder<'a> {
                 "up" => site.axis_up = true,
                 "down" => site.axis_up = false,
                 other => {
-                    self.err(
-                        &span,
-                        format!("axis must be \"up\" or \"down\", got \"{other}\""),
-                    );
+                    self.err(&span, format!("axis must be \"up\" or \"down\", got \"{other}\""));
                 }
             }
         }
@@ -658,15 +564,8 @@ impl<'a> Builder<'a> {
 
     fn check_sample_rate(&mut self, q: &Quantity, span: &Range<usize>) {
         let offered = &self.caps.gyro.capabilities.sample_rates_hz;
-        if !offered
-            .iter()
-            .any(|r| (r - q.si).abs() <= 1e-9 * r.abs().max(1.0))
-        {
-            let list = offered
-                .iter()
-                .map(|r| fmt_num(*r))
-                .collect::<Vec<_>>()
-                .join(", ");
+        if !offered.iter().any(|r| (r - q.si).abs() <= 1e-9 * r.abs().max(1.0)) {
+            let list = offered.iter().map(|r| fmt_num(*r)).collect::<Vec<_>>().join(", ");
             self.err(
                 span,
                 format!(
@@ -707,10 +606,7 @@ impl<'a> Builder<'a> {
             };
             let non_negative = matches!(key, "arw" | "bias_instability" | "thermal_time_constant");
             if non_negative && x < 0.0 {
-                self.err(
-                    &e.node.span,
-                    format!("`{key}` must not be negative, got {}", fmt_num(x)),
-                );
+                self.err(&e.node.span, format!("`{key}` must not be negative, got {}", fmt_num(x)));
                 continue;
             }
             match key {
@@ -735,11 +631,7 @@ impl<'a> Builder<'a> {
                 &node.span,
                 format!(
                     "`{key}` must be an array of tables ({}), got {}",
-                    if key == "do" {
-                        "[[step.do]]"
-                    } else {
-                        "[[step]]"
-                    },
+                    if key == "do" { "[[step.do]]" } else { "[[step]]" },
                     node.value.type_name()
                 ),
             );
@@ -750,13 +642,7 @@ impl<'a> Builder<'a> {
                 return;
             }
             match &item.value {
-                Value::Table(entries) => self.step(
-                    Tbl {
-                        entries,
-                        span: &item.span,
-                    },
-                    st,
-                ),
+                Value::Table(entries) => self.step(Tbl { entries, span: &item.span }, st),
                 v => {
                     self.err(
                         &item.span,
@@ -778,22 +664,13 @@ impl<'a> Builder<'a> {
         if self.steps.len() >= MAX_STEPS {
             if !st.overflow {
                 st.overflow = true;
-                self.err(
-                    at,
-                    format!("the scenario expands to more than {MAX_STEPS} steps"),
-                );
+                self.err(at, format!("the scenario expands to more than {MAX_STEPS} steps"));
             }
             return;
         }
         let origin = self.origin(at);
         let index = self.steps.len();
-        self.steps.push(PlannedStep {
-            index,
-            name: name.to_string(),
-            label,
-            origin,
-            action,
-        });
+        self.steps.push(PlannedStep { index, name: name.to_string(), label, origin, action });
     }
 
     fn step(&mut self, t: Tbl<'_>, st: &mut State) {
@@ -866,6 +743,9 @@ impl<'a> Builder<'a> {
             &["chamber", "chamber_c", "ramp", "ramp_c_s", "label"],
             "a `chamber` step",
         );
+        // Whatever is wrong with this step, later steps see a ramp started (no cascade of
+        // "no ramp" errors).
+        st.ramp_active = true;
         let Ok(Some((target, tspan))) = self.quantity(t, "chamber", Dim::Temperature) else {
             return;
         };
@@ -883,11 +763,7 @@ impl<'a> Builder<'a> {
                         format!("ramp must be greater than zero, got {}", r.show_self()),
                     );
                 } else if target.si != from {
-                    let (max, word) = if heating {
-                        (heat, "heating")
-                    } else {
-                        (cool, "cooling")
-                    };
+                    let (max, word) = if heating { (heat, "heating") } else { (cool, "cooling") };
                     if r.si > max {
                         self.err(
                             &rspan,
@@ -905,44 +781,23 @@ impl<'a> Builder<'a> {
                 ramp_c_s = Some(r.si);
             }
             Ok(None) => {}
-            Err(Reported) => return,
+            Err(Reported) => {}
         }
+        let rate = ramp_c_s.unwrap_or(if heating { heat } else { cool });
+        st.ramp_duration_s =
+            if rate > 0.0 && rate.is_finite() { (target.si - from).abs() / rate } else { 0.0 };
+        st.ramp_from_c = from;
+        st.setpoint_c = target.si;
         if !ok {
             return;
         }
-        let rate = ramp_c_s.unwrap_or(if heating { heat } else { cool });
-        st.ramp_duration_s = if rate > 0.0 && rate.is_finite() {
-            (target.si - from).abs() / rate
-        } else {
-            0.0
-        };
-        st.ramp_from_c = from;
-        st.setpoint_c = target.si;
-        st.ramp_active = true;
-        self.push(
-            st,
-            "chamber",
-            label,
-            at,
-            Action::Chamber {
-                target_c: target.si,
-                ramp_c_s,
-            },
-        );
+        self.push(st, "chamber", label, at, Action::Chamber { target_c: target.si, ramp_c_s });
     }
 
     fn spin_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
         self.check_keys(
             t,
-            &[
-                "spin",
-                "spin_rad_s",
-                "direction",
-                "accel",
-                "accel_rad_s2",
-                "settle",
-                "label",
-            ],
+            &["spin", "spin_rad_s", "direction", "accel", "accel_rad_s2", "settle", "label"],
             "a `spin` step",
         );
         let rate = self.quantity(t, "spin", Dim::AngularRate);
@@ -956,18 +811,12 @@ impl<'a> Builder<'a> {
         if rate.si < 0.0 {
             self.err(
                 &rspan,
-                format!(
-                    "give the rate's magnitude and set `direction`, got {}",
-                    rate.show_self()
-                ),
+                format!("give the rate's magnitude and set `direction`, got {}", rate.show_self()),
             );
             bad = true;
         }
         let tcap = &self.caps.table.capabilities;
-        let (tmax, gmax) = (
-            tcap.max_rate_rad_s,
-            self.caps.gyro.capabilities.max_rate_rad_s,
-        );
+        let (tmax, gmax) = (tcap.max_rate_rad_s, self.caps.gyro.capabilities.max_rate_rad_s);
         if rate.si.abs() > tmax {
             self.err(
                 &rspan,
@@ -994,10 +843,7 @@ impl<'a> Builder<'a> {
                 "cw" => -1.0,
                 "ccw" => 1.0,
                 _ => {
-                    self.err(
-                        &span,
-                        format!("direction must be \"cw\" or \"ccw\", got \"{d}\""),
-                    );
+                    self.err(&span, format!("direction must be \"cw\" or \"ccw\", got \"{d}\""));
                     return;
                 }
             },
@@ -1031,20 +877,12 @@ impl<'a> Builder<'a> {
             "table",
             label,
             at,
-            Action::Table {
-                rate_rad_s: sign * rate.si,
-                accel_rad_s2,
-                settle,
-            },
+            Action::Table { rate_rad_s: sign * rate.si, accel_rad_s2, settle },
         );
     }
 
     fn stop_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
-        self.check_keys(
-            t,
-            &["stop", "decel", "decel_rad_s2", "label"],
-            "a `stop` step",
-        );
+        self.check_keys(t, &["stop", "decel", "decel_rad_s2", "label"], "a `stop` step");
         match self.string(t, "stop") {
             Ok(Some((s, _))) if s == "table" => {}
             Ok(Some((s, span))) => {
@@ -1061,13 +899,7 @@ impl<'a> Builder<'a> {
             Ok(None) => self.table_accel,
             Err(Reported) => return,
         };
-        self.push(
-            st,
-            "table_stop",
-            label,
-            at,
-            Action::TableStop { decel_rad_s2 },
-        );
+        self.push(st, "table_stop", label, at, Action::TableStop { decel_rad_s2 });
     }
 
     /// `wait`/`record` value: `"ramp end"` → `None`; a duration → `Some`.
@@ -1119,11 +951,7 @@ impl<'a> Builder<'a> {
     }
 
     fn wait_step(&mut self, t: Tbl<'_>, st: &mut State, label: String, at: &Range<usize>) {
-        self.check_keys(
-            t,
-            &["wait", "wait_s", "timeout", "timeout_s", "label"],
-            "a `wait` step",
-        );
+        self.check_keys(t, &["wait", "wait_s", "timeout", "timeout_s", "label"], "a `wait` step");
         match self.duration_or_ramp_end(t, "wait", "wait") {
             Ok(Some(Some(duration))) => {
                 self.forbid_timeout(t);
@@ -1132,13 +960,7 @@ impl<'a> Builder<'a> {
             Ok(Some(None)) => {
                 if let Some(timeout) = self.ramp_end_timeout(t, st, at, "wait") {
                     st.ramp_active = false;
-                    self.push(
-                        st,
-                        "wait_ramp_end",
-                        label,
-                        at,
-                        Action::WaitRampEnd { timeout },
-                    );
+                    self.push(st, "wait_ramp_end", label, at, Action::WaitRampEnd { timeout });
                 }
             }
             _ => {}
@@ -1169,10 +991,7 @@ impl<'a> Builder<'a> {
                 "air" => Some(TempSource::Air),
                 "gyro" => Some(TempSource::Gyro),
                 other => {
-                    self.err(
-                        &span,
-                        format!("source must be \"air\" or \"gyro\", got \"{other}\""),
-                    );
+                    self.err(&span, format!("source must be \"air\" or \"gyro\", got \"{other}\""));
                     None
                 }
             },
@@ -1185,17 +1004,10 @@ impl<'a> Builder<'a> {
             "`wait_temperature` needs `band` (half-width, e.g. \"0.5 °C\")",
         );
         let hold = self.duration(t, "hold", "hold");
-        let hold = self.required(
-            hold,
-            at,
-            "`wait_temperature` needs `hold` (e.g. \"10 min\")",
-        );
+        let hold = self.required(hold, at, "`wait_temperature` needs `hold` (e.g. \"10 min\")");
         let timeout = self.duration(t, "timeout", "timeout");
-        let timeout = self.required(
-            timeout,
-            at,
-            "`wait_temperature` needs `timeout` (e.g. \"2 h\")",
-        );
+        let timeout =
+            self.required(timeout, at, "`wait_temperature` needs `timeout` (e.g. \"2 h\")");
         let Ok(Some((target, tspan))) = target else {
             return;
         };
@@ -1242,13 +1054,7 @@ impl<'a> Builder<'a> {
             "wait_temperature",
             label,
             at,
-            Action::WaitTemperature {
-                source,
-                target_c: target.si,
-                band_c: band.si,
-                hold,
-                timeout,
-            },
+            Action::WaitTemperature { source, target_c: target.si, band_c: band.si, hold, timeout },
         );
     }
 
@@ -1293,10 +1099,7 @@ impl<'a> Builder<'a> {
                     "record",
                     label,
                     at,
-                    Action::Record {
-                        duration,
-                        until_ramp_end: false,
-                    },
+                    Action::Record { duration, until_ramp_end: false },
                 );
             }
             Ok(Some(None)) => {
@@ -1307,10 +1110,7 @@ impl<'a> Builder<'a> {
                         "record",
                         label,
                         at,
-                        Action::Record {
-                            duration,
-                            until_ramp_end: true,
-                        },
+                        Action::Record { duration, until_ramp_end: true },
                     );
                 }
             }
@@ -1334,19 +1134,13 @@ impl<'a> Builder<'a> {
         let mut lists: Vec<(String, Vec<String>)> = Vec::new();
         let mut ok = true;
         for e in var_entries {
-            let valid_name = e
-                .key
-                .chars()
-                .next()
-                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-                && e.key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+            let valid_name =
+                e.key.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                    && e.key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
             if !valid_name {
                 self.err(
                     &e.key_span,
-                    format!(
-                        "loop variable `{}` must be a name of letters, digits and _",
-                        e.key
-                    ),
+                    format!("loop variable `{}` must be a name of letters, digits and _", e.key),
                 );
                 ok = false;
                 continue;
@@ -1354,10 +1148,7 @@ impl<'a> Builder<'a> {
             if self.vars.iter().any(|(k, _)| *k == e.key) {
                 self.err(
                     &e.key_span,
-                    format!(
-                        "loop variable `{}` is already defined by an enclosing loop",
-                        e.key
-                    ),
+                    format!("loop variable `{}` is already defined by an enclosing loop", e.key),
                 );
                 ok = false;
                 continue;
@@ -1371,10 +1162,7 @@ impl<'a> Builder<'a> {
                 continue;
             };
             if items.is_empty() {
-                self.err(
-                    &e.node.span,
-                    format!("loop variable `{}` has an empty list", e.key),
-                );
+                self.err(&e.node.span, format!("loop variable `{}` has an empty list", e.key));
                 ok = false;
                 continue;
             }
@@ -1401,10 +1189,7 @@ impl<'a> Builder<'a> {
             lists.push((e.key.clone(), values));
         }
         let Some(body) = t.get("do") else {
-            self.err(
-                t.span,
-                "a `for` step needs steps to repeat: add [[step.do]] tables",
-            );
+            self.err(t.span, "a `for` step needs steps to repeat: add [[step.do]] tables");
             return;
         };
         if matches!(&body.node.value, Value::Array(a) if a.is_empty()) {
@@ -1445,10 +1230,8 @@ fn action_si_suffix(action: &str) -> Option<&'static str> {
 }
 
 fn is_ramp_end(s: &str) -> bool {
-    let norm: Vec<&str> = s
-        .split(|c: char| c.is_whitespace() || c == '_')
-        .filter(|w| !w.is_empty())
-        .collect();
+    let norm: Vec<&str> =
+        s.split(|c: char| c.is_whitespace() || c == '_').filter(|w| !w.is_empty()).collect();
     norm == ["ramp", "end"]
 }
 
@@ -1505,9 +1288,7 @@ pub(crate) fn substitute(s: &str, vars: &[(String, String)]) -> Result<String, S
                 }
             }
             '}' => {
-                return Err(format!(
-                    "unmatched `}}` in \"{s}\" (write `}}}}` for a literal brace)"
-                ))
+                return Err(format!("unmatched `}}` in \"{s}\" (write `}}}}` for a literal brace)"))
             }
             c => out.push(c),
         }

@@ -65,10 +65,7 @@ pub(crate) fn parse(text: &str) -> Result<Node, Vec<(Range<usize>, String)>> {
     let mut errs = Vec::new();
     let table = convert_table(doc.get_ref(), 0, &mut errs);
     if errs.is_empty() {
-        Ok(Node {
-            span,
-            value: Value::Table(table),
-        })
+        Ok(Node { span, value: Value::Table(table) })
     } else {
         Err(errs)
     }
@@ -95,14 +92,8 @@ fn convert_table(
 fn convert(v: &Spanned<DeValue<'_>>, depth: usize, errs: &mut Vec<(Range<usize>, String)>) -> Node {
     let span = v.span();
     if depth > MAX_DEPTH {
-        errs.push((
-            span.clone(),
-            format!("nested deeper than {MAX_DEPTH} levels"),
-        ));
-        return Node {
-            span,
-            value: Value::Datetime,
-        };
+        errs.push((span.clone(), format!("nested deeper than {MAX_DEPTH} levels")));
+        return Node { span, value: Value::Datetime };
     }
     let value = match v.get_ref() {
         DeValue::String(s) => Value::Str(s.to_string()),
@@ -150,16 +141,8 @@ mod tests {
     #[test]
     fn spans_point_at_values_and_keys_in_source_order() {
         let text = "[site]\nzeta = 1\nalpha = 0x10\n";
-        let Ok(Node {
-            value: Value::Table(top),
-            ..
-        }) = parse(text)
-        else {
-            panic!("parses")
-        };
-        let Value::Table(site) = &top[0].node.value else {
-            panic!("table")
-        };
+        let Ok(Node { value: Value::Table(top), .. }) = parse(text) else { panic!("parses") };
+        let Value::Table(site) = &top[0].node.value else { panic!("table") };
         assert_eq!(site[0].key, "zeta");
         assert_eq!(site[1].key, "alpha");
         assert!(matches!(site[1].node.value, Value::Num(x) if x == 16.0));
@@ -169,9 +152,7 @@ mod tests {
 
     #[test]
     fn syntax_errors_have_spans() {
-        let Err(errs) = parse("a = \nb = 2") else {
-            panic!("must fail")
-        };
+        let Err(errs) = parse("a = \nb = 2") else { panic!("must fail") };
         assert!(!errs.is_empty());
         assert!(errs[0].1.starts_with("TOML syntax"));
     }

@@ -57,6 +57,13 @@ pub struct Capabilities {
     pub gyro: DeviceInfo<GyroCapabilities>,
 }
 
+impl From<bench_sim::SimInfos> for Capabilities {
+    /// The simulated bench's devices (`bench_sim::default_infos()` or `SimConfig::infos()`).
+    fn from(i: bench_sim::SimInfos) -> Self {
+        Self { table: i.table, chamber: i.chamber, gyro: i.gyro }
+    }
+}
+
 /// One problem in a scenario, located in its file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ScenarioError {
@@ -74,11 +81,7 @@ pub struct ScenarioError {
 
 impl fmt::Display for ScenarioError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{}:{}:{}: {}",
-            self.file, self.line, self.column, self.message
-        )
+        write!(f, "{}:{}:{}: {}", self.file, self.line, self.column, self.message)
     }
 }
 
@@ -135,10 +138,8 @@ pub enum LoadError {
 
 /// Read, parse and validate the scenario at `path` against `caps`.
 pub fn load(path: &Path, caps: &Capabilities) -> Result<RunPlan, LoadError> {
-    let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|source| LoadError::Io { path: path.to_path_buf(), source })?;
     Ok(parse(&text, &path.display().to_string(), caps)?)
 }
 
@@ -160,13 +161,7 @@ pub fn parse(
         .into_iter()
         .map(|(span, message)| {
             let (line, column) = doc::line_col(text, span.start);
-            ScenarioError {
-                file: source_name.to_string(),
-                line,
-                column,
-                span,
-                message,
-            }
+            ScenarioError { file: source_name.to_string(), line, column, span, message }
         })
         .collect();
     errors.sort_by_key(|e| (e.span.start, e.line));

@@ -62,11 +62,8 @@ impl Dim {
 
     /// Factor from `unit` to this dimension's SI unit.
     pub fn factor(self, unit: &str) -> Option<f64> {
-        let u: String = unit
-            .chars()
-            .filter(|c| !c.is_whitespace())
-            .collect::<String>()
-            .replace('°', "deg");
+        let u: String =
+            unit.chars().filter(|c| !c.is_whitespace()).collect::<String>().replace('°', "deg");
         match self {
             Dim::AngularRate => si_factor(&u, Dimension::AngularRate),
             Dim::AngularAccel => si_factor(&u, Dimension::AngularAcceleration),
@@ -105,11 +102,7 @@ impl Quantity {
             Dim::Temperature | Dim::TempDifference => "°C",
             Dim::Frequency => "Hz",
         };
-        Self {
-            si,
-            unit: unit.to_string(),
-            factor: 1.0,
-        }
+        Self { si, unit: unit.to_string(), factor: 1.0 }
     }
 
     /// `si_value` expressed in this quantity's unit, e.g. `1000 °/s`.
@@ -131,10 +124,7 @@ pub fn parse(text: &str, dim: Dim) -> Result<Quantity, String> {
     let unit = unit.trim();
     let allowed = dim.accepted().join(", ");
     if num.is_empty() {
-        return Err(format!(
-            "expected \"<number> <unit>\" like {}, got \"{text}\"",
-            dim.example()
-        ));
+        return Err(format!("expected \"<number> <unit>\" like {}, got \"{text}\"", dim.example()));
     }
     let Ok(value) = num.parse::<f64>() else {
         return Err(format!("`{num}` is not a number (in \"{text}\")"));
@@ -146,14 +136,8 @@ pub fn parse(text: &str, dim: Dim) -> Result<Quantity, String> {
         return Err(format!("\"{text}\" has no unit; allowed units: {allowed}"));
     }
     match dim.factor(unit) {
-        Some(factor) => Ok(Quantity {
-            si: value * factor,
-            unit: unit.to_string(),
-            factor,
-        }),
-        None => Err(format!(
-            "unit `{unit}` is not allowed here; allowed units: {allowed}"
-        )),
+        Some(factor) => Ok(Quantity { si: value * factor, unit: unit.to_string(), factor }),
+        None => Err(format!("unit `{unit}` is not allowed here; allowed units: {allowed}")),
     }
 }
 
@@ -235,13 +219,7 @@ mod tests {
         assert_eq!(si("0.5 K", Dim::TempDifference), 0.5);
         assert_eq!(si("2 kHz", Dim::Frequency), 2000.0);
         assert!(parse("1_000 Hz", Dim::Frequency).is_err());
-        for d in [
-            Dim::AngularAccel,
-            Dim::TempRate,
-            Dim::Time,
-            Dim::Temperature,
-            Dim::Frequency,
-        ] {
+        for d in [Dim::AngularAccel, Dim::TempRate, Dim::Time, Dim::Temperature, Dim::Frequency] {
             for u in d.accepted() {
                 assert!(parse(&format!("1 {u}"), d).is_ok(), "{u} {d:?}");
             }

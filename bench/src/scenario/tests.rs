@@ -11,11 +11,7 @@ use super::*;
 use crate::plan::{Action, TempSource};
 
 fn info<C>(capabilities: C) -> DeviceInfo<C> {
-    DeviceInfo {
-        model: "test".into(),
-        driver: "test".into(),
-        capabilities,
-    }
+    DeviceInfo { model: "test".into(), driver: "test".into(), capabilities }
 }
 
 /// ST1300-class table, its chamber, and a FOG with the seed's working range.
@@ -93,12 +89,7 @@ fn minimal_scenario_gets_the_documented_defaults() {
     assert_eq!(p.steps.len(), 1);
     assert_eq!(p.steps[0].name, "wait");
     assert_eq!(p.steps[0].origin, "t.toml:6:1");
-    assert_eq!(
-        p.steps[0].action,
-        Action::Wait {
-            duration: Duration::from_secs(1)
-        }
-    );
+    assert_eq!(p.steps[0].action, Action::Wait { duration: Duration::from_secs(1) });
 }
 
 #[test]
@@ -148,11 +139,7 @@ settle = false
     assert_eq!(p.safe_temp_c, 25.0);
     assert_eq!(
         p.steps[0].action,
-        Action::Table {
-            rate_rad_s: 0.1,
-            accel_rad_s2: 20.0 * DEG,
-            settle: false
-        }
+        Action::Table { rate_rad_s: 0.1, accel_rad_s2: 20.0 * DEG, settle: false }
     );
 }
 
@@ -173,12 +160,7 @@ accel = "1 rad/s²"
 stop = "table"
 decel = "5 °/s²"
 "#);
-    let Action::Table {
-        rate_rad_s,
-        accel_rad_s2,
-        settle,
-    } = p.steps[0].action
-    else {
+    let Action::Table { rate_rad_s, accel_rad_s2, settle } = p.steps[0].action else {
         panic!("table step")
     };
     assert!((rate_rad_s + 2.9089e-3).abs() < 1e-7, "{rate_rad_s}");
@@ -192,12 +174,7 @@ decel = "5 °/s²"
         matches!(p.steps[2].action, Action::Table { rate_rad_s, accel_rad_s2, .. } if rate_rad_s == 0.5 && accel_rad_s2 == 1.0)
     );
     assert_eq!(p.steps[3].name, "table_stop");
-    assert_eq!(
-        p.steps[3].action,
-        Action::TableStop {
-            decel_rad_s2: 5.0 * DEG
-        }
-    );
+    assert_eq!(p.steps[3].action, Action::TableStop { decel_rad_s2: 5.0 * DEG });
 }
 
 #[test]
@@ -231,35 +208,12 @@ record_s = 90
 wait_s = 2.5
 "#);
     let a: Vec<&Action> = p.steps.iter().map(|s| &s.action).collect();
-    assert_eq!(
-        *a[0],
-        Action::Chamber {
-            target_c: 40.0,
-            ramp_c_s: Some(2.0 / 60.0)
-        }
-    );
+    assert_eq!(*a[0], Action::Chamber { target_c: 40.0, ramp_c_s: Some(2.0 / 60.0) });
     // Default timeout of a ramp-end wait: twice the ramp's 600 s plus 30 min.
-    assert_eq!(
-        *a[1],
-        Action::Record {
-            duration: Duration::from_secs(3000),
-            until_ramp_end: true
-        }
-    );
+    assert_eq!(*a[1], Action::Record { duration: Duration::from_secs(3000), until_ramp_end: true });
     assert_eq!(p.steps[1].label, "record heat");
-    assert_eq!(
-        *a[2],
-        Action::Chamber {
-            target_c: 30.0,
-            ramp_c_s: None
-        }
-    );
-    assert_eq!(
-        *a[3],
-        Action::WaitRampEnd {
-            timeout: Duration::from_secs(3600)
-        }
-    );
+    assert_eq!(*a[2], Action::Chamber { target_c: 30.0, ramp_c_s: None });
+    assert_eq!(*a[3], Action::WaitRampEnd { timeout: Duration::from_secs(3600) });
     assert_eq!(p.steps[3].name, "wait_ramp_end");
     assert_eq!(
         *a[4],
@@ -274,19 +228,8 @@ wait_s = 2.5
     assert!(
         matches!(a[5], Action::WaitTemperature { source: TempSource::Gyro, band_c, .. } if *band_c == 0.2)
     );
-    assert_eq!(
-        *a[6],
-        Action::Record {
-            duration: Duration::from_secs(90),
-            until_ramp_end: false
-        }
-    );
-    assert_eq!(
-        *a[7],
-        Action::Wait {
-            duration: Duration::from_millis(2500)
-        }
-    );
+    assert_eq!(*a[6], Action::Record { duration: Duration::from_secs(90), until_ramp_end: false });
+    assert_eq!(*a[7], Action::Wait { duration: Duration::from_millis(2500) });
 }
 
 #[test]
@@ -314,36 +257,16 @@ wait = "1 s"
     assert_eq!(p.steps.len(), 3 * 2 * 4 + 1);
     assert_eq!(
         &labels[..4],
-        [
-            "",
-            "spin cw at -20C {literal}",
-            "record cw -20C #1",
-            "record cw -20C #2"
-        ]
+        ["", "spin cw at -20C {literal}", "record cw -20C #1", "record cw -20C #2"]
     );
     assert_eq!(labels[5], "spin ccw at -20C {literal}");
     assert_eq!(labels[23], "record ccw 20.5C #2");
-    assert_eq!(
-        p.steps[0].action,
-        Action::Chamber {
-            target_c: -20.0,
-            ramp_c_s: None
-        }
-    );
-    assert_eq!(
-        p.steps[16].action,
-        Action::Chamber {
-            target_c: 20.5,
-            ramp_c_s: None
-        }
-    );
+    assert_eq!(p.steps[0].action, Action::Chamber { target_c: -20.0, ramp_c_s: None });
+    assert_eq!(p.steps[16].action, Action::Chamber { target_c: 20.5, ramp_c_s: None });
     assert!(matches!(p.steps[5].action, Action::Table { rate_rad_s, .. } if rate_rad_s > 0.0));
     assert_eq!(
         p.steps[3].action,
-        Action::Record {
-            duration: Duration::from_secs(120),
-            until_ramp_end: false
-        }
+        Action::Record { duration: Duration::from_secs(120), until_ramp_end: false }
     );
     for (i, s) in p.steps.iter().enumerate() {
         assert_eq!(s.index, i);
@@ -394,10 +317,7 @@ fn missing_sections_and_steps() {
             "t.toml:1:1: missing [site] section with `latitude_deg` (needed for Earth rate)",
         ]
     );
-    assert_eq!(
-        err1(""),
-        "t.toml:1:1: the scenario has no steps: add [[step]] tables"
-    );
+    assert_eq!(err1(""), "t.toml:1:1: the scenario has no steps: add [[step]] tables");
     let e =
         errs("[scenario]\ndescription = \"x\"\n[site]\naxis = \"up\"\n[[step]]\nwait = \"1 s\"\n");
     assert_eq!(
@@ -535,11 +455,7 @@ fn spin_direction_rules() {
     let p = ok("[[step]]\nspin = \"0 °/s\"\n");
     assert_eq!(
         p.steps[0].action,
-        Action::Table {
-            rate_rad_s: 0.0,
-            accel_rad_s2: 10.0 * DEG,
-            settle: true
-        }
+        Action::Table { rate_rad_s: 0.0, accel_rad_s2: 10.0 * DEG, settle: true }
     );
 }
 
@@ -662,9 +578,7 @@ fn wait_temperature_rules() {
         errs(&with_head("[[step]]\nwait_temperature = \"20 °C\"\n"))[0],
         "t.toml:6:1: `wait_temperature` needs `band` (half-width, e.g. \"0.5 °C\")"
     );
-    let e = errs(&with_head(
-        "[[step]]\nwait_temperature = \"20 °C\"\nband = \"1 C\"\n",
-    ));
+    let e = errs(&with_head("[[step]]\nwait_temperature = \"20 °C\"\nband = \"1 C\"\n"));
     assert_eq!(
         e,
         [
@@ -724,10 +638,7 @@ fn site_values_are_checked() {
 fn gyro_model_keys_are_the_contracts() {
     let e = errs(&with_head("[gyro.model]\nbias = \"1 °/h\"\narw = -1.0\ntemp_cof = 1\nearth_rate = 2\n[[step]]\nwait = \"1 s\"\n"));
     assert_eq!(e.len(), 4, "{e:#?}");
-    assert_eq!(
-        e[0],
-        "t.toml:6:8: `bias` must be a finite number in the contract's SI unit"
-    );
+    assert_eq!(e[0], "t.toml:6:8: `bias` must be a finite number in the contract's SI unit");
     assert_eq!(e[1], "t.toml:7:7: `arw` must not be negative, got -1");
     assert!(
         e[2].starts_with(
@@ -736,10 +647,7 @@ fn gyro_model_keys_are_the_contracts() {
         "{}",
         e[2]
     );
-    assert_eq!(
-        e[3],
-        "t.toml:9:14: `earth_rate` must be true/false (or 1/0)"
-    );
+    assert_eq!(e[3], "t.toml:9:14: `earth_rate` must be true/false (or 1/0)");
 }
 
 #[test]
@@ -792,10 +700,7 @@ fn a_loop_reports_each_distinct_error_once() {
 
 #[test]
 fn expansion_is_bounded() {
-    let list = (0..100)
-        .map(|i| i.to_string())
-        .collect::<Vec<_>>()
-        .join(",");
+    let list = (0..100).map(|i| i.to_string()).collect::<Vec<_>>().join(",");
     let text = with_head(&format!(
         "[[step]]\nfor.a = [{list}]\nfor.b = [{list}]\nfor.c = [{list}]\n[[step.do]]\nwait = \"1 s\"\n"
     ));
@@ -808,14 +713,8 @@ fn all_errors_are_collected_in_file_order() {
     let text = "[scenario]\nname = \"\"\n[site]\nlatitude_deg = 100\n[[step]]\nspin = \"2000 °/s\"\ndirection = \"cw\"\n[[step]]\nchamber = \"99 °C\"\n";
     let e = errs(text);
     assert_eq!(e.len(), 4, "{e:#?}");
-    let lines: Vec<&str> = e
-        .iter()
-        .map(|m| m.split(": ").next().unwrap_or(""))
-        .collect();
-    assert_eq!(
-        lines,
-        ["t.toml:2:8", "t.toml:4:16", "t.toml:6:8", "t.toml:9:11"]
-    );
+    let lines: Vec<&str> = e.iter().map(|m| m.split(": ").next().unwrap_or("")).collect();
+    assert_eq!(lines, ["t.toml:2:8", "t.toml:4:16", "t.toml:6:8", "t.toml:9:11"]);
     assert_eq!(e[0], "t.toml:2:8: scenario name must not be empty");
 }
 
@@ -830,25 +729,14 @@ fn load_reads_files_and_reports_io_errors() {
     let missing = dir.path().join("nope.toml");
     let e = load(&missing, &caps()).expect_err("missing file");
     assert!(matches!(e, LoadError::Io { .. }));
-    assert!(e
-        .to_string()
-        .starts_with(&format!("cannot read scenario {}:", missing.display())));
+    assert!(e.to_string().starts_with(&format!("cannot read scenario {}:", missing.display())));
 }
 
 #[test]
 fn substitute_handles_braces() {
-    let vars = vec![
-        ("a".to_string(), "1".to_string()),
-        ("bc".to_string(), "x y".to_string()),
-    ];
-    assert_eq!(
-        build::substitute("{a}-{bc}", &vars),
-        Ok("1-x y".to_string())
-    );
-    assert_eq!(
-        build::substitute("{{a}} }}", &vars),
-        Ok("{a} }".to_string())
-    );
+    let vars = vec![("a".to_string(), "1".to_string()), ("bc".to_string(), "x y".to_string())];
+    assert_eq!(build::substitute("{a}-{bc}", &vars), Ok("1-x y".to_string()));
+    assert_eq!(build::substitute("{{a}} }}", &vars), Ok("{a} }".to_string()));
     assert!(build::substitute("a}", &vars).is_err());
     assert!(build::substitute("{", &vars).is_err());
     assert_eq!(build::substitute("plain", &[]), Ok("plain".to_string()));
