@@ -216,9 +216,7 @@ mod tests {
     fn adev_of_a_square_wave_matches_hand_computation() {
         // Rate +1 for 4 samples, −1 for 4, repeated: at m = 4 every second difference of the
         // angle is ±8 except where the window straddles in phase; compute by brute force.
-        let rate: Vec<f64> = (0..64)
-            .map(|i| if (i / 4) % 2 == 0 { 1.0 } else { -1.0 })
-            .collect();
+        let rate: Vec<f64> = (0..64).map(|i| if (i / 4) % 2 == 0 { 1.0 } else { -1.0 }).collect();
         let dt = 0.5;
         for m in [1usize, 2, 3, 4, 8] {
             let mut s = 0.0;
@@ -232,11 +230,7 @@ mod tests {
             let want = (s / (2.0 * k as f64)).sqrt();
             let got = overlapping_adev(&rate, dt, &[m]);
             assert_eq!(got.len(), 1);
-            assert!(
-                (got[0].adev - want).abs() < 1e-12,
-                "m={m}: {} vs {want}",
-                got[0].adev
-            );
+            assert!((got[0].adev - want).abs() < 1e-12, "m={m}: {} vs {want}", got[0].adev);
             assert_eq!(got[0].n_terms, k);
             assert_eq!(got[0].tau_s, m as f64 * dt);
         }
@@ -261,10 +255,7 @@ mod tests {
         assert!((chi2_quantile(0.025, 10.0) - 3.247).abs() < 0.03);
         assert!((chi2_quantile(0.975, 10.0) - 20.483).abs() < 0.05);
         let (lo, hi) = chi2_interval(1.0, 100.0, 0.95);
-        assert!(
-            lo < 1.0 && hi > 1.0 && (hi - lo - 0.28).abs() < 0.02,
-            "{lo} {hi}"
-        );
+        assert!(lo < 1.0 && hi > 1.0 && (hi - lo - 0.28).abs() < 0.02, "{lo} {hi}");
     }
 
     #[test]

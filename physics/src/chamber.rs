@@ -172,12 +172,8 @@ impl ChamberModel {
     /// the payload follows the air with time constant `payload_tau_s` (0 = at air temperature).
     pub fn new(params: ChamberParams, initial_c: f64, payload_tau_s: f64) -> Self {
         let tau_air = clean_tau(params.air_time_constant_s);
-        let mut me = Self {
-            params,
-            tau_air,
-            tau_payload: clean_tau(payload_tau_s),
-            segments: Vec::new(),
-        };
+        let mut me =
+            Self { params, tau_air, tau_payload: clean_tau(payload_tau_s), segments: Vec::new() };
         let (up, down) = (me.params.max_heat_rate_c_s, me.params.max_cool_rate_c_s);
         let seg = me.build(0.0, initial_c, initial_c, up, down, initial_c, initial_c);
         me.segments.push(seg);
@@ -221,15 +217,7 @@ impl ChamberModel {
         if let Some(last) = self.segments.last_mut() {
             last.end = t_s;
         }
-        let seg = self.build(
-            t_s,
-            st.setpoint_c,
-            target_c,
-            up,
-            down,
-            st.air_c,
-            st.payload_c,
-        );
+        let seg = self.build(t_s, st.setpoint_c, target_c, up, down, st.air_c, st.payload_c);
         if self.segments.len() >= KEEP_SEGMENTS {
             self.segments.drain(..KEEP_SEGMENTS / 2);
         }
@@ -256,11 +244,7 @@ impl ChamberModel {
         } else {
             0.0
         };
-        let sp_dur = if s != 0.0 {
-            (target - sp0) / s
-        } else {
-            f64::INFINITY
-        };
+        let sp_dur = if s != 0.0 { (target - sp0) / s } else { f64::INFINITY };
         let tau = self.tau_air;
         let (p0, p1, d, clamped, phase_dur);
         if tau == 0.0 {
@@ -323,11 +307,7 @@ impl ChamberModel {
         let (ta, tg) = (self.tau_air, self.tau_payload);
         let (air, air_rate, ea) = if seg.d != 0.0 && ta > 0.0 {
             let ea = (-u / ta).exp();
-            (
-                seg.p0 + seg.p1 * u + seg.d * ea,
-                seg.p1 - seg.d / ta * ea,
-                ea,
-            )
+            (seg.p0 + seg.p1 * u + seg.d * ea, seg.p1 - seg.d / ta * ea, ea)
         } else {
             (seg.p0 + seg.p1 * u, seg.p1, 0.0)
         };
@@ -345,11 +325,7 @@ impl ChamberModel {
                     ta / (ta - tg) * (ea - eg)
                 } else {
                     let x = u * (ta - tg) / (ta * tg);
-                    let r = if x.abs() < 1e-8 {
-                        1.0 + 0.5 * x
-                    } else {
-                        x.exp_m1() / x
-                    };
+                    let r = if x.abs() < 1e-8 { 1.0 + 0.5 * x } else { x.exp_m1() / x };
                     eg * (u / tg) * r
                 };
                 g += seg.d * h;
@@ -405,13 +381,8 @@ impl ChamberModel {
     /// Exact state at `t_s` (which may be before the last command, within the kept history).
     pub fn state(&mut self, t_s: f64) -> ThermalState {
         self.extend_to(t_s);
-        let seg = self
-            .segments
-            .iter()
-            .rev()
-            .find(|s| s.t0 <= t_s)
-            .or(self.segments.first())
-            .copied();
+        let seg =
+            self.segments.iter().rev().find(|s| s.t0 <= t_s).or(self.segments.first()).copied();
         match seg {
             Some(seg) => self.eval(&seg, t_s - seg.t0),
             // Unreachable: there is always at least one segment.
@@ -451,19 +422,14 @@ mod tests {
     use rand::SeedableRng;
 
     fn quiet() -> ChamberParams {
-        ChamberParams {
-            sensor_noise_c: 0.0,
-            ..ChamberParams::default()
-        }
+        ChamberParams { sensor_noise_c: 0.0, ..ChamberParams::default() }
     }
 
     #[test]
     fn set_point_ramp_is_limited_and_air_trails_by_rate_tau() {
         let mut ch = ChamberModel::new(quiet(), 20.0, 0.0);
         // Ask for 10 °C/min: heating is limited to 5 °C/min.
-        let used = ch
-            .set_target(100.0, 60.0, Some(10.0 / 60.0))
-            .expect("accepted");
+        let used = ch.set_target(100.0, 60.0, Some(10.0 / 60.0)).expect("accepted");
         let s = 5.0 / 60.0;
         assert_eq!(used, s);
         let tau = 120.0;
@@ -474,11 +440,7 @@ mod tests {
             assert!(st.ramping && !st.saturated);
             // Air = ramp through the lag: trails by s·τ·(1 − e^{−u/τ}).
             let want = 20.0 + s * u - s * tau * (1.0 - (-u / tau).exp());
-            assert!(
-                (st.air_c - want).abs() < 1e-11,
-                "u={u}: {} vs {want}",
-                st.air_c
-            );
+            assert!((st.air_c - want).abs() < 1e-11, "u={u}: {} vs {want}", st.air_c);
             assert!((st.air_rate_c_s - s * (1.0 - (-u / tau).exp())).abs() < 1e-14);
         }
         // After the set point arrives, the air closes the gap exponentially.
@@ -497,10 +459,7 @@ mod tests {
     #[test]
     fn air_slew_limit_binds_from_the_closed_form_crossing_time() {
         let h = 1.0 / 60.0;
-        let p = ChamberParams {
-            air_heat_slew_c_s: h,
-            ..quiet()
-        };
+        let p = ChamberParams { air_heat_slew_c_s: h, ..quiet() };
         let mut ch = ChamberModel::new(p, 20.0, 0.0);
         let s = 5.0 / 60.0;
         ch.set_target(0.0, 80.0, None).expect("accepted");
@@ -525,10 +484,7 @@ mod tests {
         while t < 3000.0 {
             t += 0.25;
             let a = ch.state(t).air_c;
-            assert!(
-                (a - prev).abs() <= h * 0.25 * (1.0 + 1e-9) + 1e-12,
-                "jump at {t}"
-            );
+            assert!((a - prev).abs() <= h * 0.25 * (1.0 + 1e-9) + 1e-12, "jump at {t}");
             prev = a;
         }
     }
@@ -562,8 +518,7 @@ mod tests {
     fn payload_follows_air_through_its_lag_exactly() {
         for tau_g in [300.0, 120.0, 120.00001, 30.0] {
             let mut ch = ChamberModel::new(quiet(), 20.0, tau_g);
-            ch.set_target(0.0, 40.0, Some(2.0 / 60.0))
-                .expect("accepted");
+            ch.set_target(0.0, 40.0, Some(2.0 / 60.0)).expect("accepted");
             let s = 2.0 / 60.0;
             let sp = |t: f64| (20.0 + s * t).min(40.0);
             for t_end in [100.0, 600.0, 1500.0] {
@@ -616,19 +571,13 @@ mod tests {
             ch.set_target(0.0, f64::NAN, None),
             Err(ChamberError::TargetOutOfRange { .. })
         ));
-        assert!(matches!(
-            ch.set_target(0.0, 30.0, Some(0.0)),
-            Err(ChamberError::BadRamp { .. })
-        ));
+        assert!(matches!(ch.set_target(0.0, 30.0, Some(0.0)), Err(ChamberError::BadRamp { .. })));
         assert!(matches!(
             ch.set_target(0.0, 30.0, Some(f64::INFINITY)),
             Err(ChamberError::BadRamp { .. })
         ));
         ch.set_target(10.0, 30.0, None).expect("ok");
-        assert!(matches!(
-            ch.set_target(5.0, 30.0, None),
-            Err(ChamberError::TimeReversed { .. })
-        ));
+        assert!(matches!(ch.set_target(5.0, 30.0, None), Err(ChamberError::TimeReversed { .. })));
     }
 
     #[test]

@@ -88,11 +88,7 @@ impl GyroTerms {
 pub fn sample_terms(model: &GyroModel, inp: &SampleInputs) -> GyroTerms {
     let dt = if inp.dt_s > 0.0 { inp.dt_s } else { f64::NAN };
     let input = inp.delta_angle_rad / dt;
-    let earth = if model.earth_rate {
-        inp.earth_rate_rad_s
-    } else {
-        0.0
-    };
+    let earth = if model.earth_rate { inp.earth_rate_rad_s } else { 0.0 };
     let t_mean = 0.5 * (inp.temp_start_c + inp.temp_end_c);
     GyroTerms {
         input,
@@ -208,11 +204,7 @@ mod tests {
     const LAT: f64 = 59.94;
 
     fn model() -> GyroModel {
-        GyroModel {
-            bias: 1e-7,
-            scale_factor_error: 1e-4,
-            ..GyroModel::default()
-        }
+        GyroModel { bias: 1e-7, scale_factor_error: 1e-4, ..GyroModel::default() }
     }
 
     /// Bound on the standard deviation of the noise averaged over `t_s`: the white part's
@@ -229,10 +221,7 @@ mod tests {
             let mut table = RateTableModel::new(TableParams::default());
             table.command_rate(0.0, w, 1.0 * DEG).expect("ok");
             let mut ch = ChamberModel::new(ChamberParams::default(), 40.0, m.thermal_time_constant);
-            let mount = Mounting {
-                latitude_deg: LAT,
-                axis_up,
-            };
+            let mount = Mounting { latitude_deg: LAT, axis_up };
             let dt = 0.05;
             let mut g = GyroSampler::new(m.clone(), dt, 7, 1, mount, 40.0);
             let s = if axis_up { 1.0 } else { -1.0 };
@@ -266,11 +255,7 @@ mod tests {
 
     #[test]
     fn temperature_terms_follow_the_two_lag_ramp_closed_form() {
-        let m = GyroModel {
-            arw: 0.0,
-            bias_instability: 0.0,
-            ..model()
-        };
+        let m = GyroModel { arw: 0.0, bias_instability: 0.0, ..model() };
         let (ta, tg) = (120.0, m.thermal_time_constant);
         let s = 2.0 / 60.0;
         let mut ch = ChamberModel::new(ChamberParams::default(), -20.0, tg);
@@ -282,10 +267,7 @@ mod tests {
                     + (ta * ta * (-t / ta).exp() - tg * tg * (-t / tg).exp()) / (ta - tg))
         };
         let dt = 0.05;
-        let mount = Mounting {
-            latitude_deg: LAT,
-            axis_up: true,
-        };
+        let mount = Mounting { latitude_deg: LAT, axis_up: true };
         let mut g = GyroSampler::new(m.clone(), dt, 1, 1, mount, -20.0);
         let table = RateTableModel::new(TableParams::default());
         let earth = EARTH_RATE_RAD_S * LAT.to_radians().sin() * (1.0 + m.scale_factor_error);

@@ -123,10 +123,7 @@ impl GyroModel {
         put("arw", self.arw);
         put("bias_instability", self.bias_instability);
         put("thermal_time_constant", self.thermal_time_constant);
-        m.insert(
-            "earth_rate".into(),
-            if self.earth_rate { "1" } else { "0" }.into(),
-        );
+        m.insert("earth_rate".into(), if self.earth_rate { "1" } else { "0" }.into());
         m
     }
 
@@ -143,10 +140,7 @@ impl GyroModel {
                     .parse::<f64>()
                     .ok()
                     .filter(|x| x.is_finite())
-                    .ok_or_else(|| ModelKeyError {
-                        key: k.clone(),
-                        value: v.clone(),
-                    })
+                    .ok_or_else(|| ModelKeyError { key: k.clone(), value: v.clone() })
             };
             match k.as_str() {
                 "bias" => m.bias = num()?,

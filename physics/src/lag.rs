@@ -13,11 +13,7 @@ impl FirstOrderLag {
     /// A lag with time constant `tau_s` (negative or non-finite values are taken as 0) and
     /// initial output `y0`.
     pub fn new(tau_s: f64, y0: f64) -> Self {
-        let tau_s = if tau_s.is_finite() && tau_s > 0.0 {
-            tau_s
-        } else {
-            0.0
-        };
+        let tau_s = if tau_s.is_finite() && tau_s > 0.0 { tau_s } else { 0.0 };
         Self { tau_s, y: y0 }
     }
 
@@ -88,10 +84,7 @@ mod tests {
             // Transient: the gap to the steady-state trail is rate·τ·e^{−t/τ}.
             let gap = rate * t - y;
             let want = rate * tau * (1.0 - (-t / tau).exp());
-            assert!(
-                (gap - want).abs() < 1e-12 * (1.0 + t),
-                "t={t} gap={gap} want={want}"
-            );
+            assert!((gap - want).abs() < 1e-12 * (1.0 + t), "t={t} gap={gap} want={want}");
             assert!((lag.rate(rate * t, rate) - rate * (1.0 - (-t / tau).exp())).abs() < 1e-14);
         }
         // Steady state after 1400 s ≈ 11.7 τ: lag = rate·τ = 10 °C.

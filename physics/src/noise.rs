@@ -58,11 +58,7 @@ fn gm_design() -> [(f64, f64); GM_COUNT] {
     let ratio = GM_T_MAX_S / GM_T_MIN_S;
     for (i, slot) in out.iter_mut().enumerate() {
         let t = GM_T_MIN_S * ratio.powf(i as f64 / (GM_COUNT - 1) as f64);
-        let w = if i == 0 || i == GM_COUNT - 1 {
-            GM_END_WEIGHT
-        } else {
-            1.0
-        };
+        let w = if i == 0 || i == GM_COUNT - 1 { GM_END_WEIGHT } else { 1.0 };
         *slot = (t, w);
     }
     out
@@ -70,10 +66,7 @@ fn gm_design() -> [(f64, f64); GM_COUNT] {
 
 /// Allan variance of the unscaled design (sum of weights·bump).
 fn design_avar(tau_s: f64) -> f64 {
-    gm_design()
-        .iter()
-        .map(|&(t, w)| gauss_markov_avar(tau_s, w, t))
-        .sum()
+    gm_design().iter().map(|&(t, w)| gauss_markov_avar(tau_s, w, t)).sum()
 }
 
 /// Scale that makes the design's geometric-mean Allan variance over the flat band equal 1.
@@ -146,13 +139,8 @@ impl GyroNoise {
         rng.set_stream(stream);
         let scale = design_scale();
         let design = gm_design();
-        let mut gm = [GaussMarkov {
-            t_corr_s: 1.0,
-            std: 0.0,
-            phi: 0.0,
-            drive: 0.0,
-            x: 0.0,
-        }; GM_COUNT];
+        let mut gm =
+            [GaussMarkov { t_corr_s: 1.0, std: 0.0, phi: 0.0, drive: 0.0, x: 0.0 }; GM_COUNT];
         let has_gm = bi > 0.0;
         for (g, &(t, w)) in gm.iter_mut().zip(design.iter()) {
             g.t_corr_s = t;
@@ -162,27 +150,14 @@ impl GyroNoise {
                 g.x = g.std * n;
             }
         }
-        let mut me = Self {
-            rng,
-            arw,
-            white_std: 0.0,
-            gm,
-            has_gm,
-            dt_s: 1.0,
-        };
+        let mut me = Self { rng, arw, white_std: 0.0, gm, has_gm, dt_s: 1.0 };
         me.set_sample_interval(sample_interval_s);
         me
     }
 
     /// A generator for the noise terms of `model`.
     pub fn from_model(model: &GyroModel, sample_interval_s: f64, seed: u64, stream: u64) -> Self {
-        Self::new(
-            model.arw,
-            model.bias_instability,
-            sample_interval_s,
-            seed,
-            stream,
-        )
+        Self::new(model.arw, model.bias_instability, sample_interval_s, seed, stream)
     }
 
     /// Change the sample interval (s), keeping the processes' state.
@@ -240,10 +215,7 @@ mod tests {
     /// freedom (σ_rel ≈ 1/√(2·edf)) plus a model allowance `extra`.
     fn check(got: f64, want: f64, edf: f64, k: f64, extra: f64, what: &str) {
         let tol = k / (2.0 * edf).sqrt() + extra;
-        assert!(
-            (got / want - 1.0).abs() < tol,
-            "{what}: got {got:e}, want {want:e}, tol {tol}"
-        );
+        assert!((got / want - 1.0).abs() < tol, "{what}: got {got:e}, want {want:e}, tol {tol}");
     }
 
     #[test]
@@ -251,17 +223,11 @@ mod tests {
         let b = 1.0;
         let mut tau = 10.0;
         while tau <= 3000.0 {
-            assert!(
-                (bias_instability_adev(tau, b) - 1.0).abs() < 0.003,
-                "τ={tau}"
-            );
+            assert!((bias_instability_adev(tau, b) - 1.0).abs() < 0.003, "τ={tau}");
             tau *= 1.25;
         }
         for tau in [1.0, 10_000.0] {
-            assert!(
-                (bias_instability_adev(tau, b) - 1.0).abs() < 0.08,
-                "τ={tau}"
-            );
+            assert!((bias_instability_adev(tau, b) - 1.0).abs() < 0.08, "τ={tau}");
         }
         // The Gauss–Markov Allan variance: white-like 2σ²T/τ for τ ≫ T.
         assert!((gauss_markov_avar(1e6, 1.0, 1.0) - 2e-6).abs() < 1e-11);

@@ -113,10 +113,7 @@ impl Segment {
     fn nominal(&self, u: f64) -> (f64, f64) {
         let u = u.max(0.0);
         if u < self.slew_s {
-            (
-                self.theta0 + u * (self.omega0 + 0.5 * self.accel * u),
-                self.omega0 + self.accel * u,
-            )
+            (self.theta0 + u * (self.omega0 + 0.5 * self.accel * u), self.omega0 + self.accel * u)
         } else {
             let ua = self.slew_s;
             let th = self.theta0
@@ -166,10 +163,7 @@ const KEEP_SEGMENTS: usize = 256;
 impl RateTableModel {
     /// A table at rest at angle 0 at time 0.
     pub fn new(params: TableParams) -> Self {
-        Self {
-            params,
-            segments: vec![REST],
-        }
+        Self { params, segments: vec![REST] }
     }
 
     /// The parameters.
@@ -178,12 +172,7 @@ impl RateTableModel {
     }
 
     fn segment_at(&self, t_s: f64) -> &Segment {
-        self.segments
-            .iter()
-            .rev()
-            .find(|s| s.t0 <= t_s)
-            .or(self.segments.first())
-            .unwrap_or(&REST)
+        self.segments.iter().rev().find(|s| s.t0 <= t_s).or(self.segments.first()).unwrap_or(&REST)
     }
 
     /// Command rate mode: slew to `rate_rad_s` at acceleration magnitude `accel_rad_s2`,
@@ -196,17 +185,9 @@ impl RateTableModel {
     ) -> Result<(), TableError> {
         let max = self.params.max_rate_rad_s;
         if !rate_rad_s.is_finite() || rate_rad_s.abs() > max * (1.0 + 1e-12) {
-            return Err(TableError::RateOutOfRange {
-                rate_rad_s,
-                max_rad_s: max,
-            });
+            return Err(TableError::RateOutOfRange { rate_rad_s, max_rad_s: max });
         }
-        self.start_segment(
-            t_s,
-            rate_rad_s.clamp(-max, max),
-            accel_rad_s2,
-            AxisMode::Rate,
-        )
+        self.start_segment(t_s, rate_rad_s.clamp(-max, max), accel_rad_s2, AxisMode::Rate)
     }
 
     /// Decelerate to rest at `decel_rad_s2` from time `t_s` and hold.
@@ -223,17 +204,11 @@ impl RateTableModel {
     ) -> Result<(), TableError> {
         let amax = self.params.max_accel_rad_s2;
         if !(accel.is_finite() && accel > 0.0 && accel <= amax * (1.0 + 1e-12)) {
-            return Err(TableError::AccelOutOfRange {
-                accel_rad_s2: accel,
-                max_rad_s2: amax,
-            });
+            return Err(TableError::AccelOutOfRange { accel_rad_s2: accel, max_rad_s2: amax });
         }
         let last = self.segments.last().copied().unwrap_or(REST);
         if !t_s.is_finite() || t_s < last.t0 {
-            return Err(TableError::TimeReversed {
-                t_s,
-                previous_s: last.t0,
-            });
+            return Err(TableError::TimeReversed { t_s, previous_s: last.t0 });
         }
         let (theta0, omega0) = last.nominal(t_s - last.t0);
         let dv = omega_cmd - omega0;
@@ -318,10 +293,7 @@ mod tests {
     use rand::SeedableRng;
 
     fn no_ripple() -> TableParams {
-        TableParams {
-            ripple_rel: 0.0,
-            ..TableParams::default()
-        }
+        TableParams { ripple_rel: 0.0, ..TableParams::default() }
     }
 
     #[test]
@@ -381,11 +353,8 @@ mod tests {
 
     #[test]
     fn ripple_integrates_exactly_and_averages_out_per_revolution() {
-        let p = TableParams {
-            ripple_rel: 1e-3,
-            ripple_cycles_per_rev: 4,
-            ..TableParams::default()
-        };
+        let p =
+            TableParams { ripple_rel: 1e-3, ripple_cycles_per_rev: 4, ..TableParams::default() };
         let w = 90.0 * DEG;
         let mut t = RateTableModel::new(p);
         t.command_rate(0.0, w, 1e6 * DEG / 1e3).expect("ok");
@@ -426,18 +395,12 @@ mod tests {
             t.command_rate(0.0, f64::NAN, 1.0),
             Err(TableError::RateOutOfRange { .. })
         ));
-        assert!(matches!(
-            t.command_rate(0.0, 1.0, 0.0),
-            Err(TableError::AccelOutOfRange { .. })
-        ));
+        assert!(matches!(t.command_rate(0.0, 1.0, 0.0), Err(TableError::AccelOutOfRange { .. })));
         assert!(matches!(
             t.command_rate(0.0, 1.0, 5000.0 * DEG),
             Err(TableError::AccelOutOfRange { .. })
         ));
         t.command_rate(5.0, 1.0, 1.0).expect("ok");
-        assert!(matches!(
-            t.stop(4.0, 1.0),
-            Err(TableError::TimeReversed { .. })
-        ));
+        assert!(matches!(t.stop(4.0, 1.0), Err(TableError::TimeReversed { .. })));
     }
 }

@@ -27,11 +27,7 @@ fn one_hour() -> f64 {
             let g = async {
                 let mut s = 0.0;
                 for _ in 0..n {
-                    s += gyro
-                        .next_sample()
-                        .await
-                        .map(|x| x.rate_rad_s)
-                        .unwrap_or(0.0);
+                    s += gyro.next_sample().await.map(|x| x.rate_rad_s).unwrap_or(0.0);
                 }
                 s
             };

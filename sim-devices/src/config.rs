@@ -87,10 +87,7 @@ pub struct SimConfigError {
 }
 
 fn err(field: &'static str, problem: impl Into<String>) -> SimConfigError {
-    SimConfigError {
-        field,
-        problem: problem.into(),
-    }
+    SimConfigError { field, problem: problem.into() }
 }
 
 fn positive(field: &'static str, v: f64) -> Result<(), SimConfigError> {
@@ -133,16 +130,10 @@ impl SimConfig {
         if rates.is_empty() || rates.iter().any(|r| !(r.is_finite() && *r > 0.0)) {
             return Err(err("gyro.sample_rates_hz", "must list positive rates"));
         }
-        if !rates
-            .iter()
-            .any(|r| (r - self.gyro_sample_rate_hz).abs() < 1e-9)
-        {
+        if !rates.iter().any(|r| (r - self.gyro_sample_rate_hz).abs() < 1e-9) {
             return Err(err(
                 "gyro_sample_rate_hz",
-                format!(
-                    "{} Hz is not one of the gyro's rates {rates:?}",
-                    self.gyro_sample_rate_hz
-                ),
+                format!("{} Hz is not one of the gyro's rates {rates:?}", self.gyro_sample_rate_hz),
             ));
         }
         if !(self.latitude_deg.is_finite() && self.latitude_deg.abs() <= 90.0) {
@@ -153,10 +144,7 @@ impl SimConfig {
         }
         let c = &self.chamber;
         if !(c.min_temp_c.is_finite() && c.max_temp_c.is_finite() && c.min_temp_c < c.max_temp_c) {
-            return Err(err(
-                "chamber.min_temp_c",
-                "range must be finite with min < max",
-            ));
+            return Err(err("chamber.min_temp_c", "range must be finite with min < max"));
         }
         if !(self.initial_temp_c >= c.min_temp_c && self.initial_temp_c <= c.max_temp_c) {
             return Err(err(

@@ -61,9 +61,7 @@ impl RateTable for SimTable {
         let now = secs(self.clock.now());
         let mut w = lock(&self.world);
         let t = w.command_time(now);
-        w.table
-            .command_rate(t, rate_rad_s, accel_rad_s2)
-            .map_err(out_of_range)
+        w.table.command_rate(t, rate_rad_s, accel_rad_s2).map_err(out_of_range)
     }
 
     async fn stop(&mut self, decel_rad_s2: f64) -> DeviceResult<()> {
@@ -88,11 +86,7 @@ impl RateTable for SimTable {
                 AxisMode::Rate => TableMode::Rate,
                 AxisMode::Stopped => TableMode::Stopped,
             },
-            status: if st.slewing {
-                status::table::SLEWING
-            } else {
-                0
-            },
+            status: if st.slewing { status::table::SLEWING } else { 0 },
             device_time: Some(now),
         })
     }
@@ -108,10 +102,7 @@ impl Chamber for SimChamber {
         let now = secs(self.clock.now());
         let mut w = lock(&self.world);
         let t = w.command_time(now);
-        let used = w
-            .chamber
-            .set_target(t, target_c, ramp_c_s)
-            .map_err(out_of_range)?;
+        let used = w.chamber.set_target(t, target_c, ramp_c_s).map_err(out_of_range)?;
         if let Some(r) = ramp_c_s {
             if used < r {
                 tracing::debug!(
@@ -202,10 +193,7 @@ impl Gyro for SimGyro {
         if !caps.sample_rates_hz.iter().any(|r| (r - hz).abs() < 1e-9) {
             return Err(DeviceError::new(
                 ErrorKind::OutOfRange,
-                format!(
-                    "sample rate {hz} Hz is not one of {:?} Hz",
-                    caps.sample_rates_hz
-                ),
+                format!("sample rate {hz} Hz is not one of {:?} Hz", caps.sample_rates_hz),
             ));
         }
         let last = self.instant(self.since_base);

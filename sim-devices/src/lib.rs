@@ -60,16 +60,8 @@ impl SimBench {
         let infos = config.infos();
         let world = Arc::new(Mutex::new(world::World::new(&config)));
         Ok(Self {
-            table: SimTable {
-                world: world.clone(),
-                clock: clock.clone(),
-                info: infos.table,
-            },
-            chamber: SimChamber {
-                world: world.clone(),
-                clock: clock.clone(),
-                info: infos.chamber,
-            },
+            table: SimTable { world: world.clone(), clock: clock.clone(), info: infos.table },
+            chamber: SimChamber { world: world.clone(), clock: clock.clone(), info: infos.chamber },
             gyro: SimGyro {
                 world: world.clone(),
                 clock,

@@ -41,10 +41,7 @@ fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
 impl World {
     pub(crate) fn new(cfg: &SimConfig) -> Self {
         let m = &cfg.gyro_model;
-        let mounting = Mounting {
-            latitude_deg: cfg.latitude_deg,
-            axis_up: cfg.axis_up,
-        };
+        let mounting = Mounting { latitude_deg: cfg.latitude_deg, axis_up: cfg.axis_up };
         Self {
             table: RateTableModel::new(cfg.table.clone()),
             table_rng: rng(cfg.seed, STREAM_TABLE),

@@ -55,11 +55,7 @@ fn angle_after_an_hour_at_the_seed_rate_is_within_one_arcsec() {
         let r = b.table.read().await.expect("read");
         // Slew lag: the acceleration phase loses w²/2a against w·T.
         let want = w * 3600.0 - w * w.abs() / (2.0 * a);
-        assert!(
-            (r.angle_rad - want).abs() <= ARCSEC,
-            "{} vs {want}",
-            r.angle_rad
-        );
+        assert!((r.angle_rad - want).abs() <= ARCSEC, "{} vs {want}", r.angle_rad);
         b.table.stop(a).await.expect("accepted");
         c.sleep_until(Duration::from_secs(3601)).await;
         let r = b.table.read().await.expect("read");
@@ -80,25 +76,15 @@ fn chamber_ramps_at_its_limit_and_reports_ramping() {
     let c = clock.clone();
     run_virtual(&clock, |_| async move {
         // 10 °C/min requested, 5 °C/min available.
-        b.chamber
-            .set_target(40.0, Some(10.0 / 60.0))
-            .await
-            .expect("accepted");
+        b.chamber.set_target(40.0, Some(10.0 / 60.0)).await.expect("accepted");
         c.sleep_until(Duration::from_secs(120)).await;
         let r = b.chamber.read().await.expect("read");
         assert!((r.setpoint_c - 30.0).abs() < 1e-9, "{}", r.setpoint_c);
         assert_eq!(r.target_c, 40.0);
-        assert_eq!(
-            r.status & status::chamber::RAMPING,
-            status::chamber::RAMPING
-        );
+        assert_eq!(r.status & status::chamber::RAMPING, status::chamber::RAMPING);
         // Air through the 120 s lag: 30 − 10·(1 − e^{−1}) = 23.68 °C.
         let air = 30.0 - 10.0 * (1.0 - (-1.0f64).exp());
-        assert!(
-            (r.temperature_c - air).abs() < 0.05 + 5.0 * 0.01,
-            "{}",
-            r.temperature_c
-        );
+        assert!((r.temperature_c - air).abs() < 0.05 + 5.0 * 0.01, "{}", r.temperature_c);
         c.sleep_until(Duration::from_secs(241)).await;
         let r = b.chamber.read().await.expect("read");
         assert_eq!(r.setpoint_c, 40.0);
@@ -149,10 +135,7 @@ fn gyro_mean_over_a_plateau_is_rate_plus_earth_within_noise() {
     let s = run_gyro(cfg, w, n, false);
     for (k, x) in s.iter().enumerate().take(50) {
         assert_eq!(x.seq, k as u64);
-        assert_eq!(
-            x.device_time,
-            Some(Duration::from_millis(50 * (k as u64 + 1)))
-        );
+        assert_eq!(x.device_time, Some(Duration::from_millis(50 * (k as u64 + 1))));
         assert_eq!(x.status, 0);
         assert_eq!(x.temperature_c, Some(20.0));
     }
@@ -163,20 +146,14 @@ fn gyro_mean_over_a_plateau_is_rate_plus_earth_within_noise() {
     let t = tail.len() as f64 / 20.0;
     let tol = 5.0 * (m.arw / t.sqrt() + bias_instability_stationary_std(m.bias_instability))
         + 2.0 * 1e-5 / 16.0 / t;
-    assert!(
-        (mean - want).abs() < tol,
-        "mean {mean:e}, want {want:e}, tol {tol:e}"
-    );
+    assert!((mean - want).abs() < tol, "mean {mean:e}, want {want:e}, tol {tol:e}");
     // Earth rate is resolvable at this level: leaving it out would fail.
     assert!((mean - w).abs() > tol);
 }
 
 #[test]
 fn same_seed_same_samples_however_calls_interleave_other_seed_differs() {
-    let cfg = SimConfig {
-        seed: 5,
-        ..SimConfig::default()
-    };
+    let cfg = SimConfig { seed: 5, ..SimConfig::default() };
     let w = 10.0 * DEG_PER_MIN;
     let a = run_gyro(cfg.clone(), w, 4000, false);
     let b = run_gyro(cfg.clone(), w, 4000, true);
@@ -200,20 +177,14 @@ fn next_sample_is_cancel_safe() {
         c.sleep_until(Duration::from_millis(210)).await;
         for k in 1..=3u64 {
             let s = b.gyro.next_sample().await.expect("sample");
-            assert_eq!(
-                (s.seq, s.device_time),
-                (k, Some(Duration::from_millis(50 * (k + 1))))
-            );
+            assert_eq!((s.seq, s.device_time), (k, Some(Duration::from_millis(50 * (k + 1)))));
         }
         assert_eq!(c.now(), Duration::from_millis(210));
         // Change to 100 Hz: the schedule continues from the last sample (200 ms).
         b.gyro.set_sample_rate(100.0).await.expect("listed rate");
         assert!(b.gyro.set_sample_rate(33.0).await.is_err());
         let s = b.gyro.next_sample().await.expect("sample");
-        assert_eq!(
-            (s.seq, s.device_time),
-            (4, Some(Duration::from_millis(210)))
-        );
+        assert_eq!((s.seq, s.device_time), (4, Some(Duration::from_millis(210))));
     })
     .expect("runs");
 }
@@ -224,25 +195,16 @@ fn infos_are_available_without_a_world_and_config_is_validated() {
     assert!((i.table.capabilities.max_rate_rad_s - 1000.0 * DEG).abs() < 1e-12);
     assert_eq!(i.table.capabilities.position_resolution_rad, ARCSEC);
     assert_eq!(
-        (
-            i.chamber.capabilities.min_temp_c,
-            i.chamber.capabilities.max_temp_c
-        ),
+        (i.chamber.capabilities.min_temp_c, i.chamber.capabilities.max_temp_c),
         (-55.0, 185.0)
     );
     assert_eq!(i.gyro.capabilities.operating_temp_c, (-40.0, 60.0));
     assert!(i.gyro.capabilities.sample_rates_hz.contains(&20.0));
     assert!(i.gyro.capabilities.has_temperature);
     let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
-    let bad = SimConfig {
-        gyro_sample_rate_hz: 33.0,
-        ..SimConfig::default()
-    };
+    let bad = SimConfig { gyro_sample_rate_hz: 33.0, ..SimConfig::default() };
     let e = SimBench::new(bad, clock.clone()).err().expect("rejected");
     assert_eq!(e.field, "gyro_sample_rate_hz");
-    let bad = SimConfig {
-        initial_temp_c: 300.0,
-        ..SimConfig::default()
-    };
+    let bad = SimConfig { initial_temp_c: 300.0, ..SimConfig::default() };
     assert!(SimBench::new(bad, clock).is_err());
 }
