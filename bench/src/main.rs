@@ -1,2 +1,45 @@
-//! `bench` CLI (being assembled).
-fn main() {}
+//! `bench`: run FOG thermal-calibration scenarios on a simulated or real bench, and inspect the
+//! recordings. The binary is glue: parse arguments, dispatch, map errors to exit codes.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cli;
+
+/// Hardware-in-the-loop bench for thermal calibration of fiber-optic gyros.
+#[derive(Parser, Debug)]
+#[command(name = "bench", version, about, long_about = None)]
+struct Args {
+    /// More log output on the terminal (-v: debug, -vv: trace).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scenario and record it to MCAP (simulated bench unless a bench config is given).
+    Run(cli::run::RunArgs),
+    /// Check a scenario against the devices' capabilities without moving anything.
+    Validate(cli::validate::ValidateArgs),
+    /// Summarise a recording: duration, channels, gaps, steps, metadata, outcome.
+    Info(cli::info::InfoArgs),
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let result = match args.command {
+        Command::Run(a) => cli::run::run(a, args.verbose),
+        Command::Validate(a) => cli::validate::run(a),
+        Command::Info(a) => cli::info::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

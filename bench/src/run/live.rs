@@ -12,6 +12,7 @@ pub struct Live {
     air_temp_c: AtomicU64,
     setpoint_c: AtomicU64,
     target_c: AtomicU64,
+    commanded_target_c: AtomicU64,
     gyro_temp_c: AtomicU64,
     gyro_rate_rad_s: AtomicU64,
     step: AtomicUsize,
@@ -35,6 +36,7 @@ impl Default for Live {
             air_temp_c: nan(),
             setpoint_c: nan(),
             target_c: nan(),
+            commanded_target_c: nan(),
             gyro_temp_c: nan(),
             gyro_rate_rad_s: nan(),
             step: AtomicUsize::new(0),
@@ -56,8 +58,10 @@ pub struct Snapshot {
     pub air_temp_c: f64,
     /// Working set point, °C.
     pub setpoint_c: f64,
-    /// Target set point, °C.
+    /// Target set point the controller reports, °C.
     pub target_c: f64,
+    /// Last target set point bench commanded, °C (NaN before the first command).
+    pub commanded_target_c: f64,
     /// Gyro internal temperature, °C.
     pub gyro_temp_c: f64,
     /// Latest gyro rate, rad/s.
@@ -84,6 +88,10 @@ impl Live {
         store(&self.setpoint_c, setpoint_c);
         store(&self.target_c, target_c);
     }
+    /// Note the chamber target bench commanded.
+    pub fn set_commanded_target(&self, target_c: f64) {
+        store(&self.commanded_target_c, target_c);
+    }
     /// Record a gyro sample.
     pub fn set_gyro(&self, rate_rad_s: f64, temp_c: Option<f64>) {
         store(&self.gyro_rate_rad_s, rate_rad_s);
@@ -105,6 +113,7 @@ impl Live {
             air_temp_c: load(&self.air_temp_c),
             setpoint_c: load(&self.setpoint_c),
             target_c: load(&self.target_c),
+            commanded_target_c: load(&self.commanded_target_c),
             gyro_temp_c: load(&self.gyro_temp_c),
             gyro_rate_rad_s: load(&self.gyro_rate_rad_s),
             step: self.step.load(Ordering::Relaxed),

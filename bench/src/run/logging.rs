@@ -5,21 +5,11 @@ use std::sync::Arc;
 use bench_drivers::Clock;
 use futures::channel::mpsc::UnboundedSender;
 use tracing::field::{Field, Visit};
-use tracing::{Event as TraceEvent, Level, Subscriber};
+use tracing::{Event as TraceEvent, Subscriber};
 use tracing_subscriber::layer::Context;
 use tracing_subscriber::Layer;
 
-use super::Event;
-
-/// foxglove.Log level numbers.
-pub fn foxglove_level(level: &Level) -> u8 {
-    match *level {
-        Level::TRACE | Level::DEBUG => 1,
-        Level::INFO => 2,
-        Level::WARN => 3,
-        Level::ERROR => 4,
-    }
-}
+use super::{Event, LogLevel};
 
 /// A layer that sends every event it sees to the run's recorder, stamped with bench time.
 pub struct RecordingLayer {
@@ -67,7 +57,7 @@ impl<S: Subscriber> Layer<S> for RecordingLayer {
         // message has nowhere to go and is dropped, which is the documented end of `/log`.
         let _ = self.tx.unbounded_send(Event::Log {
             t: self.clock.now(),
-            level: foxglove_level(meta.level()),
+            level: LogLevel::from(*meta.level()),
             message,
             name: meta.target().to_string(),
             file: meta.file().unwrap_or("").to_string(),

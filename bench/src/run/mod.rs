@@ -15,6 +15,7 @@
 pub mod live;
 pub mod logging;
 mod sequencer;
+pub mod threaded;
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -31,6 +32,7 @@ use tracing::instrument::WithSubscriber;
 use tracing_subscriber::layer::SubscriberExt;
 
 use crate::plan::RunPlan;
+pub use crate::record::{LogLevel, Outcome, StepEvent};
 pub use live::{Live, Snapshot};
 
 /// Everything a run records, in the order it happened per source.
@@ -59,8 +61,8 @@ pub enum Event {
     Log {
         /// Bench time.
         t: Duration,
-        /// foxglove.Log level: 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
-        level: u8,
+        /// Severity.
+        level: LogLevel,
         /// Text.
         message: String,
         /// Source (tracing target).
@@ -70,28 +72,6 @@ pub enum Event {
         /// Source line.
         line: u32,
     },
-}
-
-/// Step event kinds of `/bench/step`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum StepEvent {
-    /// The step began.
-    Start,
-    /// The step finished normally.
-    End,
-    /// The step was cut short by an abort.
-    Abort,
-}
-
-impl StepEvent {
-    /// The contract's string.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            StepEvent::Start => "start",
-            StepEvent::End => "end",
-            StepEvent::Abort => "abort",
-        }
-    }
 }
 
 /// Where a run's events go: the MCAP recorder, or memory in tests. Errors stop the run (it
@@ -109,24 +89,6 @@ pub struct Devices {
     pub chamber: Box<dyn Chamber>,
     /// Gyro.
     pub gyro: Box<dyn Gyro>,
-}
-
-/// How a run ended.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Outcome {
-    /// Every step ran.
-    Completed,
-    /// The run stopped early; the reason.
-    Aborted(String),
-}
-
-impl std::fmt::Display for Outcome {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Outcome::Completed => f.write_str("completed"),
-            Outcome::Aborted(r) => write!(f, "aborted: {r}"),
-        }
-    }
 }
 
 /// Result of [`execute`].
@@ -402,3 +364,20 @@ pub async fn execute<S: EventSink>(
     RunResult { outcome, sink, duration, record_error }
 }
 
+
+impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink for crate::record::Recorder<W> {
+    fn record(&mut self, event: &Event) -> anyhow::Result<()> {
+        match event {
+            Event::Gyro(t, s) => self.gyro(*t, s)?,
+            Event::Table(t, r) => self.table(*t, r)?,
+            Event::Chamber(t, r) => self.chamber(*t, r)?,
+            Event::Step { t, index, name, event, label } => {
+                self.step(*t, *index as u64, name, *event, label)?
+            }
+            Event::Log { t, level, message, name, file, line } => {
+                self.log(*t, *level, message, name, file, *line)?
+            }
+        }
+        Ok(())
+    }
+}

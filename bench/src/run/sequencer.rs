@@ -82,6 +82,7 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
             ctx.chamber.lock().await.set_target(target_c, ramp_c_s).await.map_err(|e| {
                 format!("chamber refused set point {target_c} °C: {e}")
             })?;
+            ctx.live.set_commanded_target(target_c);
         }
         Action::Table { rate_rad_s, accel_rad_s2, settle } => {
             ctx.table
@@ -150,7 +151,10 @@ async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(
     let start = ctx.clock.now();
     loop {
         let s = ctx.live.snapshot();
-        if (s.setpoint_c - s.target_c).abs() <= RAMP_END_TOL_C {
+        // Judged against the target bench commanded (the readings may predate the command);
+        // without a command, against the controller's own target.
+        let target = if s.commanded_target_c.is_finite() { s.commanded_target_c } else { s.target_c };
+        if (s.setpoint_c - target).abs() <= RAMP_END_TOL_C {
             return Ok(());
         }
         if ctx.clock.now() - start >= timeout {
@@ -158,7 +162,7 @@ async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(
                 "chamber ramp not finished after {} s (working set point {:.2} °C, target {:.2} °C)",
                 timeout.as_secs_f64(),
                 s.setpoint_c,
-                s.target_c
+                target
             ));
         }
         ctx.clock.sleep(poll).await;
