@@ -1,6 +1,25 @@
 //! bench: orchestrator of the FOG thermal-calibration bench.
+//!
+//! Scenario TOML → validated [`plan::RunPlan`] ([`scenario`]) → run on devices behind the
+//! `bench-drivers` traits ([`run`]) → MCAP per the recording contract ([`record`]), read back by
+//! [`recording`]. [`simulate`] is the embedded default bench: the in-process simulators in
+//! virtual time.
+//!
+//! ```no_run
+//! use bench::simulate::{run_scenario_file, SimOptions};
+//! let report = run_scenario_file(
+//!     "scenarios/seed.toml".as_ref(),
+//!     "seed.mcap".as_ref(),
+//!     &SimOptions { seed: 7, ..Default::default() },
+//! )?;
+//! println!("{} in {:?} of bench time", report.outcome, report.bench_time);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
 
 pub mod plan;
+pub mod progress;
 pub mod record;
 pub mod recording;
+pub mod run;
 pub mod scenario;
+pub mod simulate;
