@@ -212,3 +212,21 @@ fn shipped_scenarios_fail_on_a_slower_chamber_with_located_errors() {
     );
     assert!(msgs.lines().count() >= 3, "{msgs}");
 }
+
+#[test]
+fn complete_examples_in_the_docs_validate() {
+    let doc_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/scenario.md");
+    let doc = std::fs::read_to_string(&doc_path).expect("docs/scenario.md");
+    let mut checked = 0;
+    for block in doc.split("```toml\n").skip(1) {
+        let text = block.split("```").next().unwrap_or("");
+        if !text.starts_with("[scenario]") {
+            continue; // a fragment
+        }
+        if let Err(e) = bench::scenario::parse(text, "docs/scenario.md", &st1300()) {
+            panic!("example does not validate:\n{text}\n{e}");
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 2);
+}
