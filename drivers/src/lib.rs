@@ -18,6 +18,7 @@ pub mod gyro;
 pub mod protocol;
 pub mod status;
 pub mod table;
+pub mod transport;
 
 pub use chamber::{Chamber, ChamberCapabilities, ChamberReading};
 pub use clock::{BenchTime, Clock, SystemClock, VirtualClock};

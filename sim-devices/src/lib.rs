@@ -29,6 +29,7 @@
 
 mod config;
 mod devices;
+pub mod ports;
 mod world;
 
 use std::sync::{Arc, Mutex};
