@@ -62,10 +62,7 @@ fn decoder_handles_byte_by_byte_input() {
         d.push(&[*b]);
         match d.next_frame() {
             Some(r) => {
-                assert!(
-                    i == FRAME_LEN - 1 || i == 2 * FRAME_LEN - 1,
-                    "frame at byte {i}"
-                );
+                assert!(i == FRAME_LEN - 1 || i == 2 * FRAME_LEN - 1, "frame at byte {i}");
                 assert_eq!(r.unwrap(), sample_frame());
             }
             None => assert!(i != FRAME_LEN - 1 && i != 2 * FRAME_LEN - 1),
@@ -146,20 +143,8 @@ fn header_inside_a_corrupt_frame_does_not_swallow_the_next() {
 
 fn any_frame() -> impl Strategy<Value = Frame> {
     let f = || any::<f32>().prop_filter("finite", |v| v.is_finite());
-    (
-        [f(), f(), f()],
-        [f(), f(), f()],
-        any::<u8>(),
-        0u8..=127,
-        any::<i16>(),
-    )
-        .prop_map(|(gyro, accel, status, seq, temp_c)| Frame {
-            gyro,
-            accel,
-            status,
-            seq,
-            temp_c,
-        })
+    ([f(), f(), f()], [f(), f(), f()], any::<u8>(), 0u8..=127, any::<i16>())
+        .prop_map(|(gyro, accel, status, seq, temp_c)| Frame { gyro, accel, status, seq, temp_c })
 }
 
 proptest! {

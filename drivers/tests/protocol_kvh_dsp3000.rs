@@ -8,22 +8,11 @@ use proptest::prelude::*;
 
 #[test]
 fn ascii_line_byte_exact() {
-    let s = AsciiSample {
-        value: -0.012345,
-        valid: true,
-    };
+    let s = AsciiSample { value: -0.012345, valid: true };
     assert_eq!(s.encode().unwrap(), b"  -0.012345 1\r\n");
-    let s = AsciiSample {
-        value: 123.4567891,
-        valid: false,
-    };
+    let s = AsciiSample { value: 123.4567891, valid: false };
     assert_eq!(s.encode().unwrap(), b" 123.456789 0\r\n");
-    assert!(AsciiSample {
-        value: f64::NAN,
-        valid: true
-    }
-    .encode()
-    .is_err());
+    assert!(AsciiSample { value: f64::NAN, valid: true }.encode().is_err());
 }
 
 #[test]
@@ -36,20 +25,8 @@ fn ascii_decoder_partial_and_leading_junk() {
     assert_eq!(e.received, b"456");
     assert!(d.next_sample().is_none());
     d.push(b"12345 1\r\n   1.000000 0\r\n");
-    assert_eq!(
-        d.next_sample().unwrap().unwrap(),
-        AsciiSample {
-            value: -0.012345,
-            valid: true
-        }
-    );
-    assert_eq!(
-        d.next_sample().unwrap().unwrap(),
-        AsciiSample {
-            value: 1.0,
-            valid: false
-        }
-    );
+    assert_eq!(d.next_sample().unwrap().unwrap(), AsciiSample { value: -0.012345, valid: true });
+    assert_eq!(d.next_sample().unwrap().unwrap(), AsciiSample { value: 1.0, valid: false });
     assert!(d.next_sample().is_none());
 }
 
@@ -58,13 +35,7 @@ fn ascii_mid_stream_skips_the_first_partial_line() {
     let mut d = AsciiDecoder::mid_stream();
     // A tail that would parse as a sample on its own.
     d.push(b"3.456789 1\r\n   0.250000 1\r\n");
-    assert_eq!(
-        d.next_sample().unwrap().unwrap(),
-        AsciiSample {
-            value: 0.25,
-            valid: true
-        }
-    );
+    assert_eq!(d.next_sample().unwrap().unwrap(), AsciiSample { value: 0.25, valid: true });
     assert!(d.next_sample().is_none());
 }
 
@@ -82,20 +53,10 @@ fn ascii_bad_flag_has_offset() {
 #[test]
 fn binary_word_layout_and_odd_parity() {
     // valid, sync 0, rate, value +1: 0x80000001 has two 1 bits -> parity bit set.
-    let w = BinaryWord {
-        valid: true,
-        sync: 0,
-        data_type: DataType::Rate,
-        value: 1,
-    };
+    let w = BinaryWord { valid: true, sync: 0, data_type: DataType::Rate, value: 1 };
     assert_eq!(w.encode(), [0x84, 0x00, 0x00, 0x01]);
     // valid, sync 2, incremental angle, value -2 (0x3FFFFFE).
-    let w = BinaryWord {
-        valid: true,
-        sync: 2,
-        data_type: DataType::IncrementalAngle,
-        value: -2,
-    };
+    let w = BinaryWord { valid: true, sync: 2, data_type: DataType::IncrementalAngle, value: -2 };
     // 0xCBFFFFFE has 28 one bits, so the parity bit is set.
     assert_eq!(w.to_u32(), 0xCFFF_FFFE);
     assert!(parity_ok(0xCFFF_FFFE));
@@ -105,9 +66,7 @@ fn binary_word_layout_and_odd_parity() {
         let preset = raw | (1 << 26);
         let bit = preset.count_ones() % 2;
         let manual = (raw & !(1 << 26)) | (bit << 26);
-        let ours = BinaryWord::from_u32(BinaryWord { ..word_of(raw) }.to_u32())
-            .unwrap()
-            .to_u32();
+        let ours = BinaryWord::from_u32(BinaryWord { ..word_of(raw) }.to_u32()).unwrap().to_u32();
         assert_eq!(ours, manual, "{raw:#010x}");
     }
     let w = BinaryWord::from_rate_deg_s(-60e-6 * 1000.0, 0).unwrap();
@@ -126,13 +85,8 @@ fn rate_words(values: &[i32]) -> Vec<u8> {
         .iter()
         .enumerate()
         .flat_map(|(i, &v)| {
-            BinaryWord {
-                valid: true,
-                sync: (i % 4) as u8,
-                data_type: DataType::Rate,
-                value: v,
-            }
-            .encode()
+            BinaryWord { valid: true, sync: (i % 4) as u8, data_type: DataType::Rate, value: v }
+                .encode()
         })
         .collect()
 }
@@ -146,9 +100,7 @@ fn binary_decoder_finds_alignment_after_junk() {
     let e = d.next_word().unwrap().unwrap_err();
     assert_eq!(e.offset, 0);
     assert_eq!(e.received, vec![0x12, 0x34, 0x56]);
-    let got: Vec<i32> = std::iter::from_fn(|| d.next_word())
-        .map(|r| r.unwrap().value)
-        .collect();
+    let got: Vec<i32> = std::iter::from_fn(|| d.next_word()).map(|r| r.unwrap().value).collect();
     assert_eq!(got, vec![1, -1, 100, -100, 7]);
     assert!(d.is_locked());
 }
@@ -166,10 +118,7 @@ fn binary_parity_error_reports_offset_and_relocks() {
             out.push(r.map(|w| w.value).map_err(|e| e.offset));
         }
     }
-    assert_eq!(
-        out,
-        vec![Ok(1), Ok(2), Ok(3), Ok(4), Ok(5), Err(20), Ok(7), Ok(8)]
-    );
+    assert_eq!(out, vec![Ok(1), Ok(2), Ok(3), Ok(4), Ok(5), Err(20), Ok(7), Ok(8)]);
 }
 
 #[test]

@@ -9,34 +9,17 @@ use proptest::prelude::*;
 #[test]
 fn presets_match_device_facts() {
     let f4 = RegisterMap::preset(Preset::WatlowF4);
-    assert_eq!(
-        (f4.process_value, f4.set_point, f4.decimals_register()),
-        (100, 300, Some(606))
-    );
+    assert_eq!((f4.process_value, f4.set_point, f4.decimals_register()), (100, 300, Some(606)));
     assert_eq!(f4.process_value_read(), (100, 1));
     let f4t = RegisterMap::preset(Preset::WatlowF4T);
-    assert_eq!(
-        (f4t.process_value, f4t.set_point, f4t.working_set_point),
-        (2820, 2782, Some(2810))
-    );
+    assert_eq!((f4t.process_value, f4t.set_point, f4t.working_set_point), (2820, 2782, Some(2810)));
     assert_eq!(f4t.process_value_read(), (2820, 2));
     let e = RegisterMap::preset(Preset::Eurotherm3216);
     assert_eq!(
-        (
-            e.process_value,
-            e.set_point,
-            e.working_set_point,
-            e.ramp_rate
-        ),
+        (e.process_value, e.set_point, e.working_set_point, e.ramp_rate),
         (1, 26, Some(5), Some(35))
     );
-    assert_eq!(
-        e.on_connect,
-        vec![RegisterWrite {
-            register: 276,
-            value: 1
-        }]
-    );
+    assert_eq!(e.on_connect, vec![RegisterWrite { register: 276, value: 1 }]);
     for p in [Preset::WatlowF4, Preset::WatlowF4T, Preset::Eurotherm3216] {
         RegisterMap::preset(p).validate().unwrap();
     }
@@ -58,9 +41,7 @@ fn eurotherm_never_writes_eeprom_set_point() {
 
 #[test]
 fn int16_with_implied_decimals() {
-    let enc = ValueEncoding::Int16 {
-        decimals: Decimals::Register(606),
-    };
+    let enc = ValueEncoding::Int16 { decimals: Decimals::Register(606) };
     assert_eq!(enc.encode(-40.0, 1).unwrap(), vec![0xFE70]); // -400
     assert_eq!(enc.encode(23.46, 2).unwrap(), vec![2346]);
     assert_eq!(enc.encode(60.04, 1).unwrap(), vec![600]); // rounded to the display resolution
@@ -75,12 +56,8 @@ fn int16_with_implied_decimals() {
 #[test]
 fn float32_word_orders() {
     // 25.5 = 0x41CC0000.
-    let low = ValueEncoding::Float32 {
-        word_order: WordOrder::LowWordFirst,
-    };
-    let high = ValueEncoding::Float32 {
-        word_order: WordOrder::HighWordFirst,
-    };
+    let low = ValueEncoding::Float32 { word_order: WordOrder::LowWordFirst };
+    let high = ValueEncoding::Float32 { word_order: WordOrder::HighWordFirst };
     assert_eq!(low.encode(25.5, 0).unwrap(), vec![0x0000, 0x41CC]);
     assert_eq!(high.encode(25.5, 0).unwrap(), vec![0x41CC, 0x0000]);
     // -40.125 = 0xC2208000.
@@ -101,12 +78,7 @@ fn map_from_bench_config_toml() {
         eeprom_registers = [7]
     "#;
     let m: RegisterMap = toml::from_str(text).unwrap();
-    assert_eq!(
-        m.encoding,
-        ValueEncoding::Int16 {
-            decimals: Decimals::Register(606)
-        }
-    );
+    assert_eq!(m.encoding, ValueEncoding::Int16 { decimals: Decimals::Register(606) });
     assert_eq!(m.eeprom_registers, vec![7]);
     let f: RegisterMap = toml::from_str(
         r#"
@@ -117,12 +89,7 @@ fn map_from_bench_config_toml() {
     "#,
     )
     .unwrap();
-    assert_eq!(
-        f.encoding,
-        ValueEncoding::Float32 {
-            word_order: WordOrder::LowWordFirst
-        }
-    );
+    assert_eq!(f.encoding, ValueEncoding::Float32 { word_order: WordOrder::LowWordFirst });
     let p: Preset = toml::from_str::<toml::Table>("p = \"eurotherm3216\"").unwrap()["p"]
         .clone()
         .try_into()

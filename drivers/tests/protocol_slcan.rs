@@ -28,10 +28,7 @@ fn host_commands_byte_exact() {
         (HostCommand::SerialNumber, b"N\r"),
         (HostCommand::Timestamps(true), b"Z1\r"),
         (HostCommand::Timestamps(false), b"Z0\r"),
-        (
-            HostCommand::Transmit(CanFrame::new_data(std_id(0x7FF), &[]).unwrap()),
-            b"t7FF0\r",
-        ),
+        (HostCommand::Transmit(CanFrame::new_data(std_id(0x7FF), &[]).unwrap()), b"t7FF0\r"),
         (
             HostCommand::Transmit(
                 CanFrame::new_data(
@@ -42,10 +39,7 @@ fn host_commands_byte_exact() {
             ),
             b"T123456784DEADBEEF\r",
         ),
-        (
-            HostCommand::Transmit(CanFrame::new_remote(std_id(0x100), 8).unwrap()),
-            b"r1008\r",
-        ),
+        (HostCommand::Transmit(CanFrame::new_remote(std_id(0x100), 8).unwrap()), b"r1008\r"),
         (
             HostCommand::Transmit(
                 CanFrame::new_remote(CanId::extended(0x1FFF_FFFF).unwrap(), 2).unwrap(),
@@ -72,28 +66,10 @@ fn adapter_messages_byte_exact() {
         (AdapterMessage::TransmitAck { extended: false }, b"z\r"),
         (AdapterMessage::TransmitAck { extended: true }, b"Z\r"),
         (AdapterMessage::Status(0xA5), b"FA5\r"),
-        (
-            AdapterMessage::Version {
-                hardware: 0x10,
-                software: 0x13,
-            },
-            b"V1013\r",
-        ),
+        (AdapterMessage::Version { hardware: 0x10, software: 0x13 }, b"V1013\r"),
         (AdapterMessage::Serial(*b"A123"), b"NA123\r"),
-        (
-            AdapterMessage::Received {
-                frame: f,
-                timestamp_ms: None,
-            },
-            b"t12321122\r",
-        ),
-        (
-            AdapterMessage::Received {
-                frame: f,
-                timestamp_ms: Some(0xEA5F),
-            },
-            b"t12321122EA5F\r",
-        ),
+        (AdapterMessage::Received { frame: f, timestamp_ms: None }, b"t12321122\r"),
+        (AdapterMessage::Received { frame: f, timestamp_ms: Some(0xEA5F) }, b"t12321122EA5F\r"),
     ];
     let mut dec = HostDecoder::new();
     for (m, bytes) in &cases {
@@ -128,10 +104,7 @@ fn partial_input_and_errors_with_offsets() {
     // Wrong data length for the DLC.
     assert!(AdapterMessage::parse(b"t123211").is_err());
     assert!(HostCommand::parse(b"S9").is_err());
-    assert!(
-        HostCommand::parse(b"t800").is_err(),
-        "11-bit id above 0x7FF"
-    );
+    assert!(HostCommand::parse(b"t800").is_err(), "11-bit id above 0x7FF");
     assert!(CanFrame::new_data(std_id(1), &[0; 9]).is_err());
     assert!(CanId::standard(0x800).is_none());
     assert!(CanId::extended(0x2000_0000).is_none());
@@ -141,10 +114,7 @@ fn partial_input_and_errors_with_offsets() {
 fn adapter_side_skips_empty_commands() {
     let mut dec = AdapterDecoder::new();
     dec.push(b"\r\r\rS6\rO\r");
-    assert_eq!(
-        dec.next_command().unwrap().unwrap(),
-        HostCommand::SetBitrate(Bitrate::K500)
-    );
+    assert_eq!(dec.next_command().unwrap().unwrap(), HostCommand::SetBitrate(Bitrate::K500));
     assert_eq!(dec.next_command().unwrap().unwrap(), HostCommand::Open);
 }
 
@@ -215,12 +185,7 @@ proptest! {
 fn gyro_can_frames_byte_exact() {
     let ids = GyroCanIds::default();
     // Delta angle of -1 LSB, sequence 0x1234_56AB.
-    let a = GyroCanFrame::DeltaAngle(DeltaAngle {
-        seq_lo: 0xAB,
-        counts: -1,
-    })
-    .encode(&ids)
-    .unwrap();
+    let a = GyroCanFrame::DeltaAngle(DeltaAngle { seq_lo: 0xAB, counts: -1 }).encode(&ids).unwrap();
     assert_eq!(a.id(), std_id(0x180));
     assert_eq!(a.data(), &[0xAB, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF]);
     // 1 µrad = 1e-6 × 2^40 LSB = 1_099_511.6 → 1_099_512 = 0x10C6F8.
@@ -237,19 +202,13 @@ fn gyro_can_frames_byte_exact() {
     .unwrap();
     assert_eq!(h.id(), std_id(0x181));
     assert_eq!(h.data(), &[0xAB, 0x56, 0x34, 0x12, 0x02, 0x01, 0x60, 0xF0]);
-    let i = GyroCanFrame::Info(Info {
-        sample_period_ns: 50_000_000,
-        angle_lsb_exp: 40,
-        version: 1,
-    })
-    .encode(&ids)
-    .unwrap();
+    let i =
+        GyroCanFrame::Info(Info { sample_period_ns: 50_000_000, angle_lsb_exp: 40, version: 1 })
+            .encode(&ids)
+            .unwrap();
     assert_eq!(i.data(), &[0x80, 0xF0, 0xFA, 0x02, 40, 1, 0, 0]);
     // Over SLCAN.
-    assert_eq!(
-        HostCommand::Transmit(h).encode(),
-        b"t1818AB563412020160F0\r"
-    );
+    assert_eq!(HostCommand::Transmit(h).encode(), b"t1818AB563412020160F0\r");
 }
 
 #[test]
@@ -295,10 +254,7 @@ fn assembler_pairs_by_sequence_in_either_order() {
         })))
         .is_none());
     let s = asm
-        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle {
-            seq_lo: 44,
-            counts: 1 << 30,
-        })))
+        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle { seq_lo: 44, counts: 1 << 30 })))
         .unwrap()
         .unwrap();
     assert_eq!(s.seq, 300);
@@ -309,16 +265,10 @@ fn assembler_pairs_by_sequence_in_either_order() {
     assert_eq!((g.seq, g.status, g.temperature_c), (300, 0, Some(1.0)));
     // A lost housekeeping frame: the stale delta angle is reported when the next one comes.
     assert!(asm
-        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle {
-            seq_lo: 45,
-            counts: 0
-        })))
+        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle { seq_lo: 45, counts: 0 })))
         .is_none());
     let e = asm
-        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle {
-            seq_lo: 46,
-            counts: 0,
-        })))
+        .push(&enc(GyroCanFrame::DeltaAngle(DeltaAngle { seq_lo: 46, counts: 0 })))
         .unwrap()
         .unwrap_err();
     assert_eq!(e.received, vec![45]);
@@ -331,14 +281,9 @@ fn assembler_pairs_by_sequence_in_either_order() {
         .unwrap()
         .unwrap();
     assert_eq!(s.seq, 302);
-    assert_eq!(
-        s.to_gyro_sample().status,
-        bench_drivers::status::gyro::INVALID
-    );
+    assert_eq!(s.to_gyro_sample().status, bench_drivers::status::gyro::INVALID);
     // Foreign ids are ignored; a short frame with our id is an error at its length.
-    assert!(asm
-        .push(&CanFrame::new_data(std_id(0x7), &[1]).unwrap())
-        .is_none());
+    assert!(asm.push(&CanFrame::new_data(std_id(0x7), &[1]).unwrap()).is_none());
     let short = CanFrame::new_data(CanId::extended(0x1800_0001).unwrap(), &[1, 2, 3]).unwrap();
     assert_eq!(asm.push(&short).unwrap().unwrap_err().offset, 3);
 }

@@ -16,66 +16,19 @@ fn actidyn_commands_byte_exact() {
         (Command::Remote, b"RMT 0\n"),
         (Command::Local, b"LOC 0\n"),
         (Command::ClearAlarms, b"ALC 0\n"),
-        (
-            Command::SetMode {
-                axis: A1,
-                mode: Mode::ServoOn,
-            },
-            b"MOD 1,1\n",
-        ),
-        (
-            Command::SetMode {
-                axis: Axis::All,
-                mode: Mode::Off,
-            },
-            b"MOD &,OFF\n",
-        ),
-        (
-            Command::SetMode {
-                axis: A1,
-                mode: Mode::Rate,
-            },
-            b"MOD 1,RAT\n",
-        ),
-        (
-            Command::SetMode {
-                axis: A1,
-                mode: Mode::Stop,
-            },
-            b"MOD 1,STP\n",
-        ),
+        (Command::SetMode { axis: A1, mode: Mode::ServoOn }, b"MOD 1,1\n"),
+        (Command::SetMode { axis: Axis::All, mode: Mode::Off }, b"MOD &,OFF\n"),
+        (Command::SetMode { axis: A1, mode: Mode::Rate }, b"MOD 1,RAT\n"),
+        (Command::SetMode { axis: A1, mode: Mode::Stop }, b"MOD 1,STP\n"),
         (Command::QueryMode { axis: Axis::All }, b"MOD &,?\n"),
+        (Command::Rate { axis: A1, rate_deg_s: 0.0, accel_deg_s2: 5.0 }, b"RAT 1,0,5\n"),
         (
-            Command::Rate {
-                axis: A1,
-                rate_deg_s: 0.0,
-                accel_deg_s2: 5.0,
-            },
-            b"RAT 1,0,5\n",
-        ),
-        (
-            Command::Rate {
-                axis: A1,
-                rate_deg_s: -0.16666666666666666,
-                accel_deg_s2: 1.0,
-            },
+            Command::Rate { axis: A1, rate_deg_s: -0.16666666666666666, accel_deg_s2: 1.0 },
             b"RAT 1,-0.16666666666666666,1\n",
         ),
+        (Command::Position { axis: A1, position_deg: 90.0, rate_deg_s: 10.5 }, b"POS 1,90,10.5\n"),
         (
-            Command::Position {
-                axis: A1,
-                position_deg: 90.0,
-                rate_deg_s: 10.5,
-            },
-            b"POS 1,90,10.5\n",
-        ),
-        (
-            Command::Sine {
-                axis: A1,
-                amplitude_deg: 1.0,
-                frequency_hz: 0.5,
-                phase_deg: 0.0,
-            },
+            Command::Sine { axis: A1, amplitude_deg: 1.0, frequency_hz: 0.5, phase_deg: 0.0 },
             b"SIN 1,1,0.5,0\n",
         ),
         (Command::QueryPosition { axis: A1 }, b"POS 1,?\n"),
@@ -87,25 +40,10 @@ fn actidyn_commands_byte_exact() {
         dec.push(bytes);
         assert_eq!(dec.next_line().unwrap().unwrap(), vec![*c]);
     }
-    let chained = [
-        Command::Remote,
-        Command::ClearAlarms,
-        Command::SetMode {
-            axis: A1,
-            mode: Mode::Rate,
-        },
-    ];
-    assert_eq!(
-        encode_commands(&chained).unwrap(),
-        b"RMT 0:ALC 0:MOD 1,RAT\n"
-    );
-    assert!(Command::Rate {
-        axis: A1,
-        rate_deg_s: f64::NAN,
-        accel_deg_s2: 1.0
-    }
-    .encode()
-    .is_err());
+    let chained =
+        [Command::Remote, Command::ClearAlarms, Command::SetMode { axis: A1, mode: Mode::Rate }];
+    assert_eq!(encode_commands(&chained).unwrap(), b"RMT 0:ALC 0:MOD 1,RAT\n");
+    assert!(Command::Rate { axis: A1, rate_deg_s: f64::NAN, accel_deg_s2: 1.0 }.encode().is_err());
 }
 
 #[test]
@@ -113,11 +51,7 @@ fn actidyn_parser_is_lenient_on_case_and_space() {
     assert_eq!(
         parse_command_line(b" rat 1, -2.5 ,1e1 : prv & ,? ").unwrap(),
         vec![
-            Command::Rate {
-                axis: A1,
-                rate_deg_s: -2.5,
-                accel_deg_s2: 10.0
-            },
+            Command::Rate { axis: A1, rate_deg_s: -2.5, accel_deg_s2: 10.0 },
             Command::QueryPrv { axis: Axis::All }
         ]
     );
@@ -127,21 +61,10 @@ fn actidyn_parser_is_lenient_on_case_and_space() {
 fn actidyn_replies_byte_exact() {
     let prv = Command::QueryPrv { axis: A1 };
     let modq = Command::QueryMode { axis: Axis::All };
-    let rat = Command::Rate {
-        axis: A1,
-        rate_deg_s: 1.0,
-        accel_deg_s2: 1.0,
-    };
+    let rat = Command::Rate { axis: A1, rate_deg_s: 1.0, accel_deg_s2: 1.0 };
     let replies = vec![
         Reply::ack(&Command::ClearAlarms),
-        Reply::values(
-            &prv,
-            vec![
-                Value::Number(12.5),
-                Value::Number(-0.25),
-                Value::Number(0.0),
-            ],
-        ),
+        Reply::values(&prv, vec![Value::Number(12.5), Value::Number(-0.25), Value::Number(0.0)]),
         Reply::values(&modq, vec![Value::Mode(Mode::Rate), Value::Mode(Mode::Off)]),
         Reply::error(&rat, 12, "drive not ready, servo off"),
     ];
@@ -157,10 +80,7 @@ fn actidyn_replies_byte_exact() {
     assert!(got[0].answers(&Command::ClearAlarms));
     assert!(got[1].answers(&prv));
     let p = got[1].prv().unwrap();
-    assert_eq!(
-        (p.position_deg, p.rate_deg_s, p.accel_deg_s2),
-        (12.5, -0.25, 0.0)
-    );
+    assert_eq!((p.position_deg, p.rate_deg_s, p.accel_deg_s2), (12.5, -0.25, 0.0));
     assert_eq!(got[2].modes().unwrap(), vec![Mode::Rate, Mode::Off]);
     assert!(matches!(got[3].body, ReplyBody::Error { code: 12, .. }));
     assert!(Reply::error(&rat, 1, "a:b").to_text().is_err());
@@ -178,10 +98,7 @@ fn actidyn_reply_errors_carry_stream_offsets() {
     assert_eq!(e.offset, 10);
     assert!(dec.next_line().is_none());
     dec.push(b"45.5\n");
-    assert_eq!(
-        dec.next_line().unwrap().unwrap()[0].position_deg(),
-        Some(45.5)
-    );
+    assert_eq!(dec.next_line().unwrap().unwrap()[0].position_deg(), Some(45.5));
     // Bad number in a chained command line: offset within the line.
     let e = parse_command_line(b"ALC 0:RAT 1,x,5").unwrap_err();
     assert_eq!((e.offset, e.received.as_slice()), (12, &b"x"[..]));
@@ -195,51 +112,28 @@ fn actidyn_reply_errors_carry_stream_offsets() {
 #[test]
 fn acutrol_commands_byte_exact() {
     use acutrol::Command as C;
-    let long3 = Encoding {
-        form: Form::Long,
-        decimals: 3,
-    };
-    let short3 = Encoding {
-        form: Form::Short,
-        decimals: 3,
-    };
+    let long3 = Encoding { form: Form::Long, decimals: 3 };
+    let short3 = Encoding { form: Form::Short, decimals: 3 };
     let cases: Vec<(C, &[u8], &[u8])> = vec![
         (C::Lockout(true), b":utility:lockout on\r\n", b":U:L ON\r\n"),
         (C::InterlockOpen(1), b":interlock:open 1\r\n", b":I:O 1\r\n"),
-        (
-            C::InterlockReset(1),
-            b":interlock:reset 1\r\n",
-            b":I:R 1\r\n",
-        ),
-        (
-            C::InterlockClose(1),
-            b":interlock:close 1\r\n",
-            b":I:C 1\r\n",
-        ),
+        (C::InterlockReset(1), b":interlock:reset 1\r\n", b":I:R 1\r\n"),
+        (C::InterlockClose(1), b":interlock:close 1\r\n", b":I:C 1\r\n"),
         (C::ModeOff(1), b":mode:off 1\r\n", b":M:O 1\r\n"),
         (C::ModeRate(1), b":mode:rate 1\r\n", b":M:R 1\r\n"),
         (C::ModePosition(2), b":mode:position 2\r\n", b":M:P 2\r\n"),
         (
-            C::DemandRate {
-                axis: 1,
-                rate_deg_s: 10.0,
-            },
+            C::DemandRate { axis: 1, rate_deg_s: 10.0 },
             b":demand:rate 1, 010.000\r\n",
             b":D:R 1, 010.000\r\n",
         ),
         (
-            C::DemandRate {
-                axis: 1,
-                rate_deg_s: -0.5,
-            },
+            C::DemandRate { axis: 1, rate_deg_s: -0.5 },
             b":demand:rate 1, -00.500\r\n",
             b":D:R 1, -00.500\r\n",
         ),
         (
-            C::DemandPosition {
-                axis: 1,
-                position_deg: 90.0,
-            },
+            C::DemandPosition { axis: 1, position_deg: 90.0 },
             b":demand:position 1, 090.000\r\n",
             b":D:P 1, 090.000\r\n",
         ),
@@ -257,19 +151,11 @@ fn acutrol_commands_byte_exact() {
     }
     // Default: 6 decimals, long form.
     assert_eq!(
-        C::DemandRate {
-            axis: 1,
-            rate_deg_s: 10.0 / 60.0
-        }
-        .encode(Encoding::default())
-        .unwrap(),
+        C::DemandRate { axis: 1, rate_deg_s: 10.0 / 60.0 }.encode(Encoding::default()).unwrap(),
         b":demand:rate 1, 000.166667\r\n"
     );
     // Any keyword prefix, any case.
-    assert_eq!(
-        acutrol::parse_command(b":MO:RAT 1").unwrap(),
-        C::ModeRate(1)
-    );
+    assert_eq!(acutrol::parse_command(b":MO:RAT 1").unwrap(), C::ModeRate(1));
 }
 
 #[test]
@@ -277,10 +163,7 @@ fn acutrol_replies_and_errors() {
     let mut dec = acutrol::ReplyDecoder::new();
     dec.push(b"OK\r\n010.500\r\nERR axis 3 not present\r\nK\r\n");
     assert_eq!(dec.next_reply().unwrap().unwrap(), acutrol::Reply::Ok);
-    assert_eq!(
-        dec.next_reply().unwrap().unwrap(),
-        acutrol::Reply::Value(10.5)
-    );
+    assert_eq!(dec.next_reply().unwrap().unwrap(), acutrol::Reply::Value(10.5));
     assert_eq!(
         dec.next_reply().unwrap().unwrap(),
         acutrol::Reply::Error("axis 3 not present".into())
@@ -288,9 +171,7 @@ fn acutrol_replies_and_errors() {
     let e = dec.next_reply().unwrap().unwrap_err();
     assert_eq!((e.offset, e.received.as_slice()), (37, &b"K"[..]));
     assert_eq!(
-        acutrol::Reply::Value(-1.25)
-            .encode(Encoding::default())
-            .unwrap(),
+        acutrol::Reply::Value(-1.25).encode(Encoding::default()).unwrap(),
         b"-01.250000\r\n"
     );
     // Command errors: offsets inside the line.

@@ -94,16 +94,9 @@ impl Mode {
 
     /// Parses a wire token (case-insensitive).
     pub fn from_token(s: &str) -> Option<Mode> {
-        [
-            Mode::ServoOn,
-            Mode::Off,
-            Mode::Position,
-            Mode::Rate,
-            Mode::Sine,
-            Mode::Stop,
-        ]
-        .into_iter()
-        .find(|m| m.token().eq_ignore_ascii_case(s.trim()))
+        [Mode::ServoOn, Mode::Off, Mode::Position, Mode::Rate, Mode::Sine, Mode::Stop]
+            .into_iter()
+            .find(|m| m.token().eq_ignore_ascii_case(s.trim()))
     }
 }
 
@@ -142,18 +135,12 @@ const MNEMONICS: [(Mnemonic, &str); 8] = [
 impl Mnemonic {
     /// Wire text.
     pub fn as_str(self) -> &'static str {
-        MNEMONICS
-            .iter()
-            .find(|(m, _)| *m == self)
-            .map_or("", |(_, s)| s)
+        MNEMONICS.iter().find(|(m, _)| *m == self).map_or("", |(_, s)| s)
     }
 
     /// Parses the wire text (case-insensitive).
     pub fn parse(s: &str) -> Option<Mnemonic> {
-        MNEMONICS
-            .iter()
-            .find(|(_, t)| t.eq_ignore_ascii_case(s))
-            .map(|(m, _)| *m)
+        MNEMONICS.iter().find(|(_, t)| t.eq_ignore_ascii_case(s)).map(|(m, _)| *m)
     }
 }
 
@@ -268,30 +255,17 @@ impl Command {
             | Command::QueryPrv { .. } => {
                 format!("{m} {a},?")
             }
-            Command::Position {
-                position_deg,
-                rate_deg_s,
-                ..
-            } => format!(
+            Command::Position { position_deg, rate_deg_s, .. } => format!(
                 "{m} {a},{},{}",
                 finite("position_deg", position_deg)?,
                 finite("rate_deg_s", rate_deg_s)?
             ),
-            Command::Rate {
-                rate_deg_s,
-                accel_deg_s2,
-                ..
-            } => format!(
+            Command::Rate { rate_deg_s, accel_deg_s2, .. } => format!(
                 "{m} {a},{},{}",
                 finite("rate_deg_s", rate_deg_s)?,
                 finite("accel_deg_s2", accel_deg_s2)?
             ),
-            Command::Sine {
-                amplitude_deg,
-                frequency_hz,
-                phase_deg,
-                ..
-            } => format!(
+            Command::Sine { amplitude_deg, frequency_hz, phase_deg, .. } => format!(
                 "{m} {a},{},{},{}",
                 finite("amplitude_deg", amplitude_deg)?,
                 finite("frequency_hz", frequency_hz)?,
@@ -381,11 +355,7 @@ impl Reply {
 
     /// Success reply carrying values.
     pub fn values(command: &Command, values: Vec<Value>) -> Self {
-        Self {
-            mnemonic: command.mnemonic(),
-            axis: command.axis(),
-            body: ReplyBody::Values(values),
-        }
+        Self { mnemonic: command.mnemonic(), axis: command.axis(), body: ReplyBody::Values(values) }
     }
 
     /// Error reply.
@@ -393,10 +363,7 @@ impl Reply {
         Self {
             mnemonic: command.mnemonic(),
             axis: command.axis(),
-            body: ReplyBody::Error {
-                code,
-                message: message.into(),
-            },
+            body: ReplyBody::Error { code, message: message.into() },
         }
     }
 
@@ -425,11 +392,7 @@ impl Reply {
             return None;
         }
         match self.numbers()?.as_slice() {
-            [p, r, a] => Some(Prv {
-                position_deg: *p,
-                rate_deg_s: *r,
-                accel_deg_s2: *a,
-            }),
+            [p, r, a] => Some(Prv { position_deg: *p, rate_deg_s: *r, accel_deg_s2: *a }),
             _ => None,
         }
     }
@@ -526,20 +489,13 @@ fn split_element(base: usize, element: &str) -> Result<(Mnemonic, Args<'_>), Dec
     let lead = element.len() - element.trim_start().len();
     let body = element.trim();
     let (mne, rest) = body.split_once(' ').unwrap_or((body, ""));
-    let mnemonic = Mnemonic::parse(mne).ok_or_else(|| {
-        err(
-            base + lead,
-            "a mnemonic (RMT LOC ALC MOD POS RAT SIN PRV)",
-            body,
-        )
-    })?;
+    let mnemonic = Mnemonic::parse(mne)
+        .ok_or_else(|| err(base + lead, "a mnemonic (RMT LOC ALC MOD POS RAT SIN PRV)", body))?;
     let args_at = base + lead + mne.len() + 1;
     let args = if rest.trim().is_empty() {
         Vec::new()
     } else {
-        split_offsets(rest, ',')
-            .map(|(o, a)| (args_at + o, a))
-            .collect()
+        split_offsets(rest, ',').map(|(o, a)| (args_at + o, a)).collect()
     };
     Ok((mnemonic, args))
 }
@@ -549,9 +505,7 @@ fn parse_axis(at: usize, s: &str) -> Result<Axis, DecodeError> {
     if t == "&" {
         return Ok(Axis::All);
     }
-    t.parse::<u8>()
-        .map(Axis::Number)
-        .map_err(|_| err(at, "an axis number or '&'", s))
+    t.parse::<u8>().map(Axis::Number).map_err(|_| err(at, "an axis number or '&'", s))
 }
 
 fn parse_num(at: usize, s: &str, what: &str) -> Result<f64, DecodeError> {
@@ -565,11 +519,7 @@ fn parse_command(base: usize, element: &str) -> Result<Command, DecodeError> {
         if args.len() == n {
             Ok(())
         } else {
-            Err(err(
-                base,
-                format!("{} with {what}", mnemonic.as_str()),
-                element,
-            ))
+            Err(err(base, format!("{} with {what}", mnemonic.as_str()), element))
         }
     };
     let axis = |i: usize| -> Result<Axis, DecodeError> {
@@ -642,48 +592,28 @@ fn parse_command(base: usize, element: &str) -> Result<Command, DecodeError> {
 /// count from the start of `line`.
 pub fn parse_command_line(line: &[u8]) -> Result<Vec<Command>, DecodeError> {
     let s = line_str(line)?;
-    split_offsets(s, ':')
-        .map(|(at, e)| parse_command(at, e))
-        .collect()
+    split_offsets(s, ':').map(|(at, e)| parse_command(at, e)).collect()
 }
 
 /// Parses one reply element.
 fn parse_reply(base: usize, element: &str) -> Result<Reply, DecodeError> {
     let (mnemonic, args) = split_element(base, element)?;
     let mut it = args.into_iter();
-    let (at, a) = it
-        .next()
-        .ok_or_else(|| err(base, "an axis after the mnemonic", element))?;
+    let (at, a) = it.next().ok_or_else(|| err(base, "an axis after the mnemonic", element))?;
     let axis = parse_axis(at, a)?;
-    let (at, c) = it
-        .next()
-        .ok_or_else(|| err(base, "a value count or ERR", element))?;
+    let (at, c) = it.next().ok_or_else(|| err(base, "a value count or ERR", element))?;
     if c.trim().eq_ignore_ascii_case("ERR") {
-        let (at, code) = it
-            .next()
-            .ok_or_else(|| err(at, "ERR,<code>,<text>", element))?;
-        let code = code
-            .trim()
-            .parse::<u16>()
-            .map_err(|_| err(at, "an error code", code))?;
+        let (at, code) = it.next().ok_or_else(|| err(at, "ERR,<code>,<text>", element))?;
+        let code = code.trim().parse::<u16>().map_err(|_| err(at, "an error code", code))?;
         let message = it.map(|(_, t)| t).collect::<Vec<_>>().join(",");
-        return Ok(Reply {
-            mnemonic,
-            axis,
-            body: ReplyBody::Error { code, message },
-        });
+        return Ok(Reply { mnemonic, axis, body: ReplyBody::Error { code, message } });
     }
-    let count = c
-        .trim()
-        .parse::<usize>()
-        .map_err(|_| err(at, "a value count or ERR", c))?;
+    let count = c.trim().parse::<usize>().map_err(|_| err(at, "a value count or ERR", c))?;
     let values = it
-        .map(
-            |(at, v)| match Mode::from_token(v).filter(|_| mnemonic == Mnemonic::Mod) {
-                Some(m) => Ok(Value::Mode(m)),
-                None => parse_num(at, v, "a value").map(Value::Number),
-            },
-        )
+        .map(|(at, v)| match Mode::from_token(v).filter(|_| mnemonic == Mnemonic::Mod) {
+            Some(m) => Ok(Value::Mode(m)),
+            None => parse_num(at, v, "a value").map(Value::Number),
+        })
         .collect::<Result<Vec<_>, _>>()?;
     if values.len() != count {
         return Err(err(
@@ -692,20 +622,14 @@ fn parse_reply(base: usize, element: &str) -> Result<Reply, DecodeError> {
             &format!("{} values in {element:?}", values.len()),
         ));
     }
-    Ok(Reply {
-        mnemonic,
-        axis,
-        body: ReplyBody::Values(values),
-    })
+    Ok(Reply { mnemonic, axis, body: ReplyBody::Values(values) })
 }
 
 /// Parses one reply line (without its `\n`) into its chained reply elements. Offsets in errors
 /// count from the start of `line`.
 pub fn parse_reply_line(line: &[u8]) -> Result<Vec<Reply>, DecodeError> {
     let s = line_str(line)?;
-    split_offsets(s, ':')
-        .map(|(at, e)| parse_reply(at, e))
-        .collect()
+    split_offsets(s, ':').map(|(at, e)| parse_reply(at, e)).collect()
 }
 
 /// Incremental decoder of reply lines (host side). Lines that do not parse (including a partial
@@ -724,9 +648,7 @@ impl Default for ReplyDecoder {
 impl ReplyDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", MAX_LINE),
-        }
+        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
     }
 
     /// Feeds received bytes.
@@ -759,9 +681,7 @@ impl Default for CommandDecoder {
 impl CommandDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", MAX_LINE),
-        }
+        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
     }
 
     /// Feeds received bytes.

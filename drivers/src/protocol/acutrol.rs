@@ -51,10 +51,7 @@ pub struct Encoding {
 
 impl Default for Encoding {
     fn default() -> Self {
-        Self {
-            form: Form::Long,
-            decimals: 6,
-        }
+        Self { form: Form::Long, decimals: 6 }
     }
 }
 
@@ -163,10 +160,7 @@ impl Command {
             | Command::ReadRate(a)
             | Command::ReadPosition(a) => a.to_string(),
             Command::DemandRate { axis, rate_deg_s } => {
-                format!(
-                    "{axis}, {}",
-                    fmt_value(finite("rate_deg_s", rate_deg_s)?, enc.decimals)
-                )
+                format!("{axis}, {}", fmt_value(finite("rate_deg_s", rate_deg_s)?, enc.decimals))
             }
             Command::DemandPosition { axis, position_deg } => format!(
                 "{axis}, {}",
@@ -194,42 +188,28 @@ fn err(at: usize, expected: impl Into<String>, got: &[u8]) -> DecodeError {
 fn matches_keyword(word: &str, (long, _): (&str, &str)) -> bool {
     !word.is_empty()
         && word.len() <= long.len()
-        && long
-            .get(..word.len())
-            .is_some_and(|p| p.eq_ignore_ascii_case(word))
+        && long.get(..word.len()).is_some_and(|p| p.eq_ignore_ascii_case(word))
 }
 
 /// Parses one command line (without terminator; controller side). Offsets count from the
 /// start of `line`.
 pub fn parse_command(line: &[u8]) -> Result<Command, DecodeError> {
     let s = std::str::from_utf8(line).map_err(|e| {
-        err(
-            e.valid_up_to(),
-            "ASCII text",
-            line.get(e.valid_up_to()..).unwrap_or_default(),
-        )
+        err(e.valid_up_to(), "ASCII text", line.get(e.valid_up_to()..).unwrap_or_default())
     })?;
     let lead = s.len() - s.trim_start().len();
     let t = s.trim();
     let (path, args) = t.split_once([' ', '\t']).unwrap_or((t, ""));
     let args_at = lead + path.len() + 1;
     let words: Vec<&str> = path.strip_prefix(':').unwrap_or(path).split(':').collect();
-    let bad_path = || {
-        err(
-            lead,
-            "a command path such as :mode:rate or :M:R",
-            path.as_bytes(),
-        )
-    };
+    let bad_path = || err(lead, "a command path such as :mode:rate or :M:R", path.as_bytes());
     let [w1, w2] = words.as_slice() else {
         return Err(bad_path());
     };
     let (w1, w2) = (*w1, *w2);
     let is = |w: &str, k| matches_keyword(w, k);
     let axis = |a: &str| -> Result<u8, DecodeError> {
-        a.trim()
-            .parse::<u8>()
-            .map_err(|_| err(args_at, "an axis number", a.as_bytes()))
+        a.trim().parse::<u8>().map_err(|_| err(args_at, "an axis number", a.as_bytes()))
     };
     let (a0, a1) = match args.split_once(',') {
         Some((a, v)) => (a, Some(v)),
@@ -243,13 +223,8 @@ pub fn parse_command(line: &[u8]) -> Result<Command, DecodeError> {
     };
     let value = |what: &str| -> Result<f64, DecodeError> {
         let v = a1.ok_or_else(|| err(args_at, format!("<axis>, <{what}>"), args.as_bytes()))?;
-        parse_f64(v).ok_or_else(|| {
-            err(
-                args_at + a0.len() + 1,
-                format!("{what} (a number)"),
-                v.as_bytes(),
-            )
-        })
+        parse_f64(v)
+            .ok_or_else(|| err(args_at + a0.len() + 1, format!("{what} (a number)"), v.as_bytes()))
     };
     if is(w1, UTILITY) && is(w2, LOCKOUT) {
         let on = match args.trim().to_ascii_lowercase().as_str() {
@@ -286,15 +261,9 @@ pub fn parse_command(line: &[u8]) -> Result<Command, DecodeError> {
     if is(w1, DEMAND) {
         let axis = axis(a0)?;
         return if is(w2, RATE) {
-            Ok(Command::DemandRate {
-                axis,
-                rate_deg_s: value("rate °/s")?,
-            })
+            Ok(Command::DemandRate { axis, rate_deg_s: value("rate °/s")? })
         } else if is(w2, POSITION) {
-            Ok(Command::DemandPosition {
-                axis,
-                position_deg: value("position °")?,
-            })
+            Ok(Command::DemandPosition { axis, position_deg: value("position °")? })
         } else {
             Err(bad_path())
         };
@@ -331,11 +300,7 @@ impl Reply {
             Reply::Value(v) => fmt_value(finite("reply value", *v)?, enc.decimals),
             Reply::Error(text) => {
                 if text.contains(['\r', '\n']) {
-                    return Err(EncodeError::new(
-                        "error text",
-                        text,
-                        "contains a line break",
-                    ));
+                    return Err(EncodeError::new("error text", text, "contains a line break"));
                 }
                 format!("ERR {text}")
             }
@@ -347,11 +312,7 @@ impl Reply {
 /// Parses one reply line (without terminator).
 pub fn parse_reply(line: &[u8]) -> Result<Reply, DecodeError> {
     let s = std::str::from_utf8(line).map_err(|e| {
-        err(
-            e.valid_up_to(),
-            "ASCII text",
-            line.get(e.valid_up_to()..).unwrap_or_default(),
-        )
+        err(e.valid_up_to(), "ASCII text", line.get(e.valid_up_to()..).unwrap_or_default())
     })?;
     let t = s.trim();
     if t.eq_ignore_ascii_case("OK") {
@@ -361,9 +322,7 @@ pub fn parse_reply(line: &[u8]) -> Result<Reply, DecodeError> {
         let rest = t.get(3..).unwrap_or_default();
         return Ok(Reply::Error(rest.trim_start().to_owned()));
     }
-    parse_f64(t)
-        .map(Reply::Value)
-        .ok_or_else(|| err(0, "OK, a number or ERR <text>", line))
+    parse_f64(t).map(Reply::Value).ok_or_else(|| err(0, "OK, a number or ERR <text>", line))
 }
 
 /// Incremental reply decoder (host side).
@@ -381,9 +340,7 @@ impl Default for ReplyDecoder {
 impl ReplyDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", MAX_LINE),
-        }
+        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
     }
 
     /// Feeds received bytes.
@@ -421,9 +378,7 @@ impl Default for CommandDecoder {
 impl CommandDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", MAX_LINE),
-        }
+        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
     }
 
     /// Feeds received bytes.

@@ -75,12 +75,7 @@ pub struct GyroCanIds {
 
 impl Default for GyroCanIds {
     fn default() -> Self {
-        Self {
-            delta_angle: 0x180,
-            housekeeping: 0x181,
-            info: 0x182,
-            extended: false,
-        }
+        Self { delta_angle: 0x180, housekeeping: 0x181, info: 0x182, extended: false }
     }
 }
 
@@ -136,16 +131,9 @@ impl DeltaAngle {
     pub fn from_rad(seq: u32, delta_rad: f64) -> Result<Self, EncodeError> {
         let c = (finite("delta_rad", delta_rad)? / ANGLE_LSB_RAD).round();
         if c < DELTA_MIN as f64 || c > DELTA_MAX as f64 {
-            return Err(EncodeError::new(
-                "delta_rad",
-                delta_rad,
-                "outside ±32768 rad",
-            ));
+            return Err(EncodeError::new("delta_rad", delta_rad, "outside ±32768 rad"));
         }
-        Ok(Self {
-            seq_lo: seq.to_le_bytes()[0],
-            counts: c as i64,
-        })
+        Ok(Self { seq_lo: seq.to_le_bytes()[0], counts: c as i64 })
     }
 
     /// The delta angle, rad.
@@ -210,11 +198,7 @@ impl GyroCanFrame {
         let raw = match self {
             GyroCanFrame::DeltaAngle(a) => {
                 if !(DELTA_MIN..=DELTA_MAX).contains(&a.counts) {
-                    return Err(EncodeError::new(
-                        "delta counts",
-                        a.counts,
-                        "outside 56 bits",
-                    ));
+                    return Err(EncodeError::new("delta counts", a.counts, "outside 56 bits"));
                 }
                 d[0] = a.seq_lo;
                 let le = a.counts.to_le_bytes();
@@ -246,10 +230,7 @@ impl GyroCanFrame {
         let d: [u8; 8] = frame.data().try_into().map_err(|_| {
             DecodeError::new(
                 u64::from(frame.dlc()),
-                format!(
-                    "8 data bytes in a {kind:?} frame (id {:#x})",
-                    frame.id().raw()
-                ),
+                format!("8 data bytes in a {kind:?} frame (id {:#x})", frame.id().raw()),
                 frame.data(),
             )
         })?;
@@ -334,12 +315,7 @@ impl SampleAssembler {
     /// An assembler for `ids` with a nominal sample interval (s), replaced by the interval in
     /// info frames as they arrive.
     pub fn new(ids: GyroCanIds, interval_s: f64) -> Self {
-        Self {
-            ids,
-            interval_s,
-            angle: None,
-            house: None,
-        }
+        Self { ids, interval_s, angle: None, house: None }
     }
 
     /// The sample interval in use, s.

@@ -98,11 +98,7 @@ impl Frame {
             return Err(DecodeError::new(0, format!("{FRAME_LEN} bytes"), bytes));
         };
         if b.get(..4) != Some(&HEADER[..]) {
-            return Err(DecodeError::new(
-                0,
-                "header FE 81 FF 55",
-                b.get(..4).unwrap_or(b),
-            ));
+            return Err(DecodeError::new(0, "header FE 81 FF 55", b.get(..4).unwrap_or(b)));
         }
         let expected = crc32_mpeg2(b.get(..CRC_LEN).unwrap_or_default());
         let got = be_u32(b, CRC_LEN);
@@ -131,24 +127,17 @@ impl Frame {
 
     /// Whether gyro axis `axis` (0..3) is flagged valid.
     pub fn gyro_valid(&self, axis: usize) -> bool {
-        STATUS_GYRO_VALID
-            .get(axis)
-            .is_some_and(|m| self.status & m != 0)
+        STATUS_GYRO_VALID.get(axis).is_some_and(|m| self.status & m != 0)
     }
 
     /// Whether accelerometer axis `axis` (0..3) is flagged valid.
     pub fn accel_valid(&self, axis: usize) -> bool {
-        STATUS_ACCEL_VALID
-            .get(axis)
-            .is_some_and(|m| self.status & m != 0)
+        STATUS_ACCEL_VALID.get(axis).is_some_and(|m| self.status & m != 0)
     }
 }
 
 fn hex(b: &[u8]) -> String {
-    b.iter()
-        .map(|x| format!("{x:02X}"))
-        .collect::<Vec<_>>()
-        .join(" ")
+    b.iter().map(|x| format!("{x:02X}")).collect::<Vec<_>>().join(" ")
 }
 
 /// Incremental decoder: feed bytes, take frames.

@@ -81,23 +81,13 @@ impl AsciiSample {
                 && f.bytes().all(|b| b.is_ascii_digit())
         });
         let value = parse_f64(v).filter(|_| six_decimals).ok_or_else(|| {
-            DecodeError::new(
-                lead as u64,
-                "a value with 6 decimals such as -0.012345",
-                v.as_bytes(),
-            )
+            DecodeError::new(lead as u64, "a value with 6 decimals such as -0.012345", v.as_bytes())
         })?;
         let flag_at = (lead + v.len() + 1) as u64;
         let valid = match flag {
             "1" => true,
             "0" => false,
-            _ => {
-                return Err(DecodeError::new(
-                    flag_at,
-                    "a validity flag 0 or 1",
-                    flag.as_bytes(),
-                ))
-            }
+            _ => return Err(DecodeError::new(flag_at, "a validity flag 0 or 1", flag.as_bytes())),
         };
         Ok(Self { value, valid })
     }
@@ -120,19 +110,13 @@ impl Default for AsciiDecoder {
 impl AsciiDecoder {
     /// A decoder for a stream that starts on a line boundary (a simulator's pty, a recording).
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", 64),
-            skip_first: false,
-        }
+        Self { lines: LineSplitter::new(b"\n", 64), skip_first: false }
     }
 
     /// A decoder for a port opened while the gyro is already streaming: the first line may be
     /// the tail of a line (`3.456789 1` looks valid on its own), so it is silently dropped.
     pub fn mid_stream() -> Self {
-        Self {
-            lines: LineSplitter::new(b"\n", 64),
-            skip_first: true,
-        }
+        Self { lines: LineSplitter::new(b"\n", 64), skip_first: true }
     }
 
     /// Feeds received bytes.
@@ -228,18 +212,10 @@ impl BinaryWord {
     /// Decodes a word, checking parity and type. The error offset is 0 (the word's first byte).
     pub fn from_u32(word: u32) -> Result<Self, DecodeError> {
         if !parity_ok(word) {
-            return Err(DecodeError::new(
-                0,
-                "a word with odd parity",
-                &word.to_be_bytes(),
-            ));
+            return Err(DecodeError::new(0, "a word with odd parity", &word.to_be_bytes()));
         }
         let data_type = DataType::from_bits((word >> 27) & 0b11).ok_or_else(|| {
-            DecodeError::new(
-                0,
-                "type bits 0, 1 or 2 (type 3 is undefined)",
-                &word.to_be_bytes(),
-            )
+            DecodeError::new(0, "type bits 0, 1 or 2 (type 3 is undefined)", &word.to_be_bytes())
         })?;
         Ok(Self {
             valid: word & (1 << 31) != 0,
@@ -347,23 +323,14 @@ impl BinaryDecoder {
 
     fn word_at(&self, i: usize) -> Option<u32> {
         let b = self.buf.get(i..i.checked_add(4)?)?;
-        Some(u32::from_be_bytes([
-            *b.first()?,
-            *b.get(1)?,
-            *b.get(2)?,
-            *b.get(3)?,
-        ]))
+        Some(u32::from_be_bytes([*b.first()?, *b.get(1)?, *b.get(2)?, *b.get(3)?]))
     }
 
     fn check(&self, w: u32) -> Result<BinaryWord, DecodeError> {
         let word = BinaryWord::from_u32(w)?;
         if let Some(s) = self.sync {
             if word.sync != s {
-                return Err(DecodeError::new(
-                    0,
-                    format!("sync bits {s:#04b}"),
-                    &w.to_be_bytes(),
-                ));
+                return Err(DecodeError::new(0, format!("sync bits {s:#04b}"), &w.to_be_bytes()));
             }
         }
         Ok(word)

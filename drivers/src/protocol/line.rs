@@ -27,13 +27,7 @@ pub(crate) struct LineSplitter {
 
 impl LineSplitter {
     pub(crate) fn new(terminators: &'static [u8], max_len: usize) -> Self {
-        Self {
-            buf: Vec::new(),
-            base: 0,
-            terminators,
-            max_len,
-            discarding: false,
-        }
+        Self { buf: Vec::new(), base: 0, terminators, max_len, discarding: false }
     }
 
     pub(crate) fn push(&mut self, bytes: &[u8]) {
@@ -49,11 +43,7 @@ impl LineSplitter {
     }
 
     fn overlong_error(&self) -> DecodeError {
-        DecodeError::new(
-            self.base,
-            format!("a line of at most {} bytes", self.max_len),
-            &self.buf,
-        )
+        DecodeError::new(self.base, format!("a line of at most {} bytes", self.max_len), &self.buf)
     }
 
     /// The next complete line, an error for an over-long line, or `None` when more bytes are
@@ -83,11 +73,7 @@ impl LineSplitter {
                     if terminator == b'\n' && bytes.last() == Some(&b'\r') {
                         bytes.pop();
                     }
-                    Some(Ok(Line {
-                        offset,
-                        bytes,
-                        terminator,
-                    }))
+                    Some(Ok(Line { offset, bytes, terminator }))
                 }
                 Some(i) => {
                     let err = self.overlong_error();

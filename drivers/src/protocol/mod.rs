@@ -60,11 +60,7 @@ impl DecodeError {
     /// A new error at `offset`; keeps at most [`ERROR_CONTEXT_BYTES`] of `received`.
     pub fn new(offset: u64, expected: impl Into<String>, received: &[u8]) -> Self {
         let keep = received.get(..ERROR_CONTEXT_BYTES).unwrap_or(received);
-        Self {
-            offset,
-            expected: expected.into(),
-            received: keep.to_vec(),
-        }
+        Self { offset, expected: expected.into(), received: keep.to_vec() }
     }
 
     /// The same error moved `by` bytes further into the stream.
@@ -94,11 +90,7 @@ pub struct EncodeError {
 
 impl EncodeError {
     pub(crate) fn new(field: &'static str, value: impl fmt::Display, reason: &'static str) -> Self {
-        Self {
-            field,
-            value: value.to_string(),
-            reason,
-        }
+        Self { field, value: value.to_string(), reason }
     }
 }
 
@@ -140,10 +132,7 @@ pub(crate) fn finite(field: &'static str, v: f64) -> Result<f64, EncodeError> {
 pub(crate) fn parse_f64(s: &str) -> Option<f64> {
     let t = s.trim();
     // Rust accepts "inf", "nan", "infinity": none of them is a device value.
-    if t.is_empty()
-        || t.bytes()
-            .any(|b| b.is_ascii_alphabetic() && b != b'e' && b != b'E')
-    {
+    if t.is_empty() || t.bytes().any(|b| b.is_ascii_alphabetic() && b != b'e' && b != b'E') {
         return None;
     }
     t.parse::<f64>().ok().filter(|v| v.is_finite())

@@ -76,12 +76,7 @@ impl ValueEncoding {
     /// decimals (ignored for floats; for [`Decimals::Register`] pass the value read there).
     /// Error offsets are word indices.
     pub fn decode(&self, words: &[u16], decimals: u8) -> Result<f64, DecodeError> {
-        let bytes = || {
-            words
-                .iter()
-                .flat_map(|w| w.to_be_bytes())
-                .collect::<Vec<_>>()
-        };
+        let bytes = || words.iter().flat_map(|w| w.to_be_bytes()).collect::<Vec<_>>();
         match *self {
             ValueEncoding::Int16 { .. } => {
                 if decimals > MAX_DECIMALS {
@@ -210,9 +205,7 @@ impl RegisterMap {
         match p {
             Preset::WatlowF4 => Self {
                 model: "Watlow F4".into(),
-                encoding: ValueEncoding::Int16 {
-                    decimals: Decimals::Register(606),
-                },
+                encoding: ValueEncoding::Int16 { decimals: Decimals::Register(606) },
                 process_value: 100,
                 set_point: 300,
                 working_set_point: None,
@@ -222,9 +215,7 @@ impl RegisterMap {
             },
             Preset::WatlowF4T => Self {
                 model: "Watlow F4T".into(),
-                encoding: ValueEncoding::Float32 {
-                    word_order: WordOrder::LowWordFirst,
-                },
+                encoding: ValueEncoding::Float32 { word_order: WordOrder::LowWordFirst },
                 process_value: 2820,
                 set_point: 2782,
                 working_set_point: Some(2810),
@@ -234,17 +225,12 @@ impl RegisterMap {
             },
             Preset::Eurotherm3216 => Self {
                 model: "Eurotherm 3216".into(),
-                encoding: ValueEncoding::Int16 {
-                    decimals: Decimals::Fixed(1),
-                },
+                encoding: ValueEncoding::Int16 { decimals: Decimals::Fixed(1) },
                 process_value: 1,
                 set_point: 26,
                 working_set_point: Some(5),
                 ramp_rate: Some(35),
-                on_connect: vec![RegisterWrite {
-                    register: 276,
-                    value: 1,
-                }],
+                on_connect: vec![RegisterWrite { register: 276, value: 1 }],
                 eeprom_registers: vec![2, 24, 25],
             },
         }
@@ -253,22 +239,14 @@ impl RegisterMap {
     /// Checks the map: the cyclic set-point register must not be an EEPROM register, and fixed
     /// decimals must be at most [`MAX_DECIMALS`].
     pub fn validate(&self) -> Result<(), MapError> {
-        let fail = |problem: String| {
-            Err(MapError {
-                model: self.model.clone(),
-                problem,
-            })
-        };
+        let fail = |problem: String| Err(MapError { model: self.model.clone(), problem });
         if self.eeprom_registers.contains(&self.set_point) {
             return fail(format!(
                 "set point register {} is in EEPROM; write through a remote/comms set point",
                 self.set_point
             ));
         }
-        if let ValueEncoding::Int16 {
-            decimals: Decimals::Fixed(d),
-        } = self.encoding
-        {
+        if let ValueEncoding::Int16 { decimals: Decimals::Fixed(d) } = self.encoding {
             if d > MAX_DECIMALS {
                 return fail(format!("{d} implied decimals (at most {MAX_DECIMALS})"));
             }
@@ -279,9 +257,7 @@ impl RegisterMap {
     /// Register to read the implied decimals from, if any.
     pub fn decimals_register(&self) -> Option<u16> {
         match self.encoding {
-            ValueEncoding::Int16 {
-                decimals: Decimals::Register(r),
-            } => Some(r),
+            ValueEncoding::Int16 { decimals: Decimals::Register(r) } => Some(r),
             _ => None,
         }
     }
@@ -289,13 +265,9 @@ impl RegisterMap {
     /// Implied decimals when fixed by the map (`None`: read [`Self::decimals_register`]).
     pub fn fixed_decimals(&self) -> Option<u8> {
         match self.encoding {
-            ValueEncoding::Int16 {
-                decimals: Decimals::Fixed(d),
-            } => Some(d),
+            ValueEncoding::Int16 { decimals: Decimals::Fixed(d) } => Some(d),
             ValueEncoding::Float32 { .. } => Some(0),
-            ValueEncoding::Int16 {
-                decimals: Decimals::Register(_),
-            } => None,
+            ValueEncoding::Int16 { decimals: Decimals::Register(_) } => None,
         }
     }
 

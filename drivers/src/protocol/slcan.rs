@@ -106,42 +106,24 @@ impl CanFrame {
     /// A data frame; `data` holds at most 8 bytes.
     pub fn new_data(id: CanId, data: &[u8]) -> Result<Self, EncodeError> {
         if !id.is_valid() {
-            return Err(EncodeError::new(
-                "CAN id",
-                id.raw(),
-                "outside the identifier range",
-            ));
+            return Err(EncodeError::new("CAN id", id.raw(), "outside the identifier range"));
         }
         let mut d = [0u8; 8];
         d.get_mut(..data.len())
             .ok_or_else(|| EncodeError::new("CAN data length", data.len(), "more than 8 bytes"))?
             .copy_from_slice(data);
-        Ok(Self {
-            id,
-            remote: false,
-            dlc: data.len() as u8,
-            data: d,
-        })
+        Ok(Self { id, remote: false, dlc: data.len() as u8, data: d })
     }
 
     /// A remote (RTR) frame requesting `dlc` bytes (at most 8).
     pub fn new_remote(id: CanId, dlc: u8) -> Result<Self, EncodeError> {
         if !id.is_valid() {
-            return Err(EncodeError::new(
-                "CAN id",
-                id.raw(),
-                "outside the identifier range",
-            ));
+            return Err(EncodeError::new("CAN id", id.raw(), "outside the identifier range"));
         }
         if dlc > 8 {
             return Err(EncodeError::new("CAN dlc", dlc, "more than 8"));
         }
-        Ok(Self {
-            id,
-            remote: true,
-            dlc,
-            data: [0; 8],
-        })
+        Ok(Self { id, remote: true, dlc, data: [0; 8] })
     }
 
     /// Identifier.
@@ -223,10 +205,7 @@ const BITRATES: [(Bitrate, u32); 9] = [
 impl Bitrate {
     /// The `Sn` digit.
     pub fn code(self) -> u8 {
-        BITRATES
-            .iter()
-            .position(|(b, _)| *b == self)
-            .unwrap_or_default() as u8
+        BITRATES.iter().position(|(b, _)| *b == self).unwrap_or_default() as u8
     }
 
     /// From the `Sn` digit.
@@ -236,10 +215,7 @@ impl Bitrate {
 
     /// Bits per second.
     pub fn bits_per_s(self) -> u32 {
-        BITRATES
-            .iter()
-            .find(|(b, _)| *b == self)
-            .map_or(0, |(_, r)| *r)
+        BITRATES.iter().find(|(b, _)| *b == self).map_or(0, |(_, r)| *r)
     }
 
     /// The SLCAN rate for exactly `bps`.
@@ -303,9 +279,9 @@ impl HostCommand {
         };
         match c {
             b'S' => match rest {
-                [d @ b'0'..=b'8'] => Bitrate::from_code(d - b'0')
-                    .map(HostCommand::SetBitrate)
-                    .ok_or_else(bad),
+                [d @ b'0'..=b'8'] => {
+                    Bitrate::from_code(d - b'0').map(HostCommand::SetBitrate).ok_or_else(bad)
+                }
                 _ => Err(DecodeError::new(1, "a bit-rate digit 0..8", rest)),
             },
             b'O' => no_args(HostCommand::Open),
@@ -366,18 +342,14 @@ fn parse_frame(line: &[u8]) -> Result<(CanFrame, Option<u16>), DecodeError> {
         _ => return Err(DecodeError::new(0, "t, T, r or R", line)),
     };
     let raw = hex_field(line, 1, id_len, "identifier")?;
-    let id = if id_len == 3 {
-        CanId::standard(raw as u16)
-    } else {
-        CanId::extended(raw)
-    }
-    .ok_or_else(|| {
-        DecodeError::new(
-            1,
-            "an identifier within range",
-            line.get(1..=id_len).unwrap_or_default(),
-        )
-    })?;
+    let id = if id_len == 3 { CanId::standard(raw as u16) } else { CanId::extended(raw) }
+        .ok_or_else(|| {
+            DecodeError::new(
+                1,
+                "an identifier within range",
+                line.get(1..=id_len).unwrap_or_default(),
+            )
+        })?;
     let dlc_at = 1 + id_len;
     let dlc = match line.get(dlc_at) {
         Some(d @ b'0'..=b'8') => d - b'0',
@@ -465,10 +437,7 @@ impl AdapterMessage {
                 s.extend(n.iter().map(|&b| char::from(b)));
                 s
             }
-            AdapterMessage::Received {
-                frame,
-                timestamp_ms,
-            } => {
+            AdapterMessage::Received { frame, timestamp_ms } => {
                 let mut s = frame.to_text();
                 if let Some(t) = timestamp_ms {
                     s.push_str(&format!("{t:04X}"));
@@ -488,9 +457,7 @@ impl AdapterMessage {
             [b'z'] => Ok(AdapterMessage::TransmitAck { extended: false }),
             [b'Z'] => Ok(AdapterMessage::TransmitAck { extended: true }),
             [b'F', ..] if line.len() == 3 => {
-                Ok(AdapterMessage::Status(
-                    hex_field(line, 1, 2, "status flags")? as u8,
-                ))
+                Ok(AdapterMessage::Status(hex_field(line, 1, 2, "status flags")? as u8))
             }
             [b'V', ..] if line.len() == 5 => Ok(AdapterMessage::Version {
                 hardware: hex_field(line, 1, 2, "hardware version")? as u8,
@@ -501,10 +468,7 @@ impl AdapterMessage {
             }
             [b't' | b'T' | b'r' | b'R', ..] => {
                 let (frame, timestamp_ms) = parse_frame(line)?;
-                Ok(AdapterMessage::Received {
-                    frame,
-                    timestamp_ms,
-                })
+                Ok(AdapterMessage::Received { frame, timestamp_ms })
             }
             _ => Err(DecodeError::new(
                 0,
@@ -532,10 +496,7 @@ impl Default for HostDecoder {
 impl HostDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(&[CR, BEL], MAX_LINE),
-            pending_bel: false,
-        }
+        Self { lines: LineSplitter::new(&[CR, BEL], MAX_LINE), pending_bel: false }
     }
 
     /// Feeds received bytes.
@@ -557,11 +518,7 @@ impl HostDecoder {
                 return Some(Ok(AdapterMessage::Error));
             }
             self.pending_bel = true;
-            return Some(Err(DecodeError::new(
-                line.offset,
-                "nothing before BEL",
-                &line.bytes,
-            )));
+            return Some(Err(DecodeError::new(line.offset, "nothing before BEL", &line.bytes)));
         }
         Some(AdapterMessage::parse(&line.bytes).map_err(|e| e.shifted(line.offset)))
     }
@@ -583,9 +540,7 @@ impl Default for AdapterDecoder {
 impl AdapterDecoder {
     /// A decoder at stream offset 0.
     pub fn new() -> Self {
-        Self {
-            lines: LineSplitter::new(&[CR], MAX_LINE),
-        }
+        Self { lines: LineSplitter::new(&[CR], MAX_LINE) }
     }
 
     /// Feeds received bytes.
