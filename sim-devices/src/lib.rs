@@ -29,6 +29,7 @@
 
 mod config;
 mod devices;
+pub mod faults;
 pub mod ports;
 mod world;
 
