@@ -230,3 +230,48 @@ fn complete_examples_in_the_docs_validate() {
     }
     assert_eq!(checked, 2);
 }
+
+mod mutations {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 1500, ..ProptestConfig::default() })]
+
+        /// The shipped scenarios with random edits (deleted, replaced and inserted characters)
+        /// never panic, and every error is located inside the text.
+        #[test]
+        fn mutated_shipped_scenarios_never_panic(
+            which in 0usize..2,
+            edits in proptest::collection::vec(
+                (any::<proptest::sample::Index>(), 0u8..3, proptest::char::any()),
+                1..6,
+            ),
+        ) {
+            let name = ["seed.toml", "thermal-full.toml"][which];
+            let original = std::fs::read_to_string(scenario(name)).expect("read");
+            let mut chars: Vec<char> = original.chars().collect();
+            for (at, kind, c) in edits {
+                if chars.is_empty() {
+                    break;
+                }
+                let i = at.index(chars.len());
+                match kind {
+                    0 => {
+                        chars.remove(i);
+                    }
+                    1 => chars[i] = c,
+                    _ => chars.insert(i, c),
+                }
+            }
+            let text: String = chars.into_iter().collect();
+            if let Err(e) = bench::scenario::parse(&text, name, &st1300()) {
+                prop_assert!(!e.is_empty());
+                for err in e.iter() {
+                    prop_assert!(err.span.start <= text.len());
+                    prop_assert!(err.line >= 1 && err.column >= 1);
+                }
+            }
+        }
+    }
+}

@@ -6,18 +6,7 @@
 //!
 //! ```
 //! use bench::scenario::{parse, Capabilities};
-//! # use bench_drivers::{DeviceInfo, TableCapabilities, ChamberCapabilities, GyroCapabilities};
-//! # let info = |c| DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities: c };
-//! # let caps = Capabilities {
-//! #     table: info(TableCapabilities { max_rate_rad_s: 17.45, max_accel_rad_s2: 17.45,
-//! #         position_resolution_rad: 4.8481e-6 }),
-//! #     chamber: DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities:
-//! #         ChamberCapabilities { min_temp_c: -55.0, max_temp_c: 185.0,
-//! #         max_heat_rate_c_s: 5.0 / 60.0, max_cool_rate_c_s: 3.5 / 60.0, temp_resolution_c: 0.01 } },
-//! #     gyro: DeviceInfo { model: "m".into(), driver: "sim".into(), capabilities:
-//! #         GyroCapabilities { sample_rates_hz: vec![20.0], max_rate_rad_s: 10.0,
-//! #         operating_temp_c: (-40.0, 60.0), has_temperature: true } },
-//! # };
+//! let caps = Capabilities::from(bench_sim::default_infos()); // ST1300-class simulated bench
 //! let text = r#"
 //! scenario.name = "spin"
 //! site.latitude_deg = 59.94
