@@ -114,6 +114,7 @@ fn seed_scenario_is_the_seeds_procedure() {
         "record",
         "chamber",
         "record",
+        "wait_temperature",
         "record",
         "table_stop",
     ];
@@ -121,7 +122,7 @@ fn seed_scenario_is_the_seeds_procedure() {
 
     // Timeline from the table reaching its rate: 2 min settle, 3 min plateau at 20 °C (the
     // seed's samples 2400..6000), a 5 min ramp at 4 °C/min, 2 min plateau at 40 °C
-    // (12000..14400): 12 minutes.
+    // (12000..14400) once the air has settled on 40 °C.
     assert_eq!(p.steps[3].action, Action::Wait { duration: min(2) });
     assert_eq!(p.steps[5].action, Action::Chamber { target_c: 40.0, ramp_c_s: Some(4.0 / 60.0) });
     let ramp_s = 20.0 / (4.0 / 60.0);
@@ -131,8 +132,12 @@ fn seed_scenario_is_the_seeds_procedure() {
         Action::WaitTemperature { source: TempSource::Gyro, target_c, .. } if target_c == 20.0
     ));
     // The second rotation starts by cooling back to 20 °C at full speed.
-    assert_eq!(p.steps[9].action, Action::Chamber { target_c: 20.0, ramp_c_s: None });
-    assert_eq!(p.steps[9].origin, format!("{}:43:3", scenario("seed.toml").display()));
+    assert!(matches!(
+        p.steps[7].action,
+        Action::WaitTemperature { source: TempSource::Air, target_c, .. } if target_c == 40.0
+    ));
+    assert_eq!(p.steps[10].action, Action::Chamber { target_c: 20.0, ramp_c_s: None });
+    assert_eq!(p.steps[10].origin, format!("{}:44:3", scenario("seed.toml").display()));
 }
 
 #[test]
@@ -197,7 +202,7 @@ fn shipped_scenarios_fail_on_a_slower_chamber_with_located_errors() {
     assert_eq!(
         e.to_string(),
         format!(
-            "{path}:70:10: chamber ramp 4 °C/min (heating from 20 to 40 °C) exceeds the \
+            "{path}:71:10: chamber ramp 4 °C/min (heating from 20 to 40 °C) exceeds the \
              chamber's maximum heating rate 3 °C/min (in loop: dir = cw)"
         )
     );

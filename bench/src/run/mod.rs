@@ -118,6 +118,9 @@ impl Default for FaultPolicy {
     }
 }
 
+/// How long the streams are still recorded after the safe-state commands.
+pub const SAFE_STATE_TAIL: Duration = Duration::from_secs(1);
+
 /// Shared state of one run's tasks.
 pub(crate) struct Ctx {
     pub clock: Arc<dyn Clock>,
@@ -353,6 +356,8 @@ pub async fn execute<S: EventSink>(
             Outcome::Completed => tracing::info!("run completed"),
         }
         sequencer::safe_state(plan, &ctx).await;
+        // Keep recording briefly so the safe-state commands show in the streams.
+        ctx.clock.sleep(SAFE_STATE_TAIL).await;
         let duration = ctx.clock.now();
         aborts.iter().for_each(AbortHandle::abort);
         ctx.tx.close_channel();
