@@ -127,15 +127,16 @@ pub fn run_plan<W: Write + Seek + Send + 'static>(
     let sim = SimBench::new(sim_config(plan, opts.seed), shared.clone())
         .context("the scenario asks for a simulator configuration it cannot run")?;
     let (table, chamber, gyro) = sim.into_parts();
-    let devices = Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
+    let devices =
+        Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
     let recorder = Recorder::new(writer, run_info(plan, opts.epoch_ns))
         .context("cannot start the recording")?;
     // Serialising and compressing run on the second core; batches amortise the hand-over.
     let recorder = ThreadedSink::new(recorder, 4096).context("cannot start the recorder thread")?;
     let live = Arc::new(Live::default());
-    let progress = opts
-        .progress
-        .then(|| crate::progress::Progress::start(live.clone(), plan.estimated_duration(), plan.steps.len()));
+    let progress = opts.progress.then(|| {
+        crate::progress::Progress::start(live.clone(), plan.estimated_duration(), plan.steps.len())
+    });
     let wall = Instant::now();
     let result = run_virtual(&clock, |spawner| {
         execute(plan, devices, shared.clone(), recorder, spawner, live.clone(), console)

@@ -99,7 +99,7 @@ impl FaultCounter {
     /// Count one frame; true when it is the `every`-th.
     pub fn tick(&mut self, every: u32) -> bool {
         self.0 += 1;
-        every > 0 && self.0 % u64::from(every) == 0
+        every > 0 && self.0.is_multiple_of(u64::from(every))
     }
 }
 

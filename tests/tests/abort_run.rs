@@ -51,7 +51,7 @@ fn timed_out_wait_aborts_to_safe_state_and_keeps_the_data() {
     assert!(report.outcome.contains("not within 60 ± 0.1 °C"), "{}", report.outcome);
 
     let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
-    assert_eq!(rec.outcome().as_deref(), Some(report.outcome.as_str()));
+    assert_eq!(rec.outcome(), Some(report.outcome.as_str()));
 
     // Step 2 started and aborted at its timeout; the record step never started.
     let events: Vec<(u64, String)> =

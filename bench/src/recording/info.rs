@@ -223,10 +223,7 @@ fn channel_report(
         Some(m) => ts
             .windows(2)
             .filter(|w| (w[1].saturating_sub(w[0])) as f64 > 1.5 * m as f64)
-            .map(|w| Gap {
-                from_s: rel(w[0]),
-                to_s: rel(w[1]),
-            })
+            .map(|w| Gap { from_s: rel(w[0]), to_s: rel(w[1]) })
             .collect(),
         None => Vec::new(),
     };
@@ -250,8 +247,7 @@ fn channel_report(
 }
 
 fn opt_s(v: Option<f64>) -> String {
-    v.map(|s| format!("{s:.3} s"))
-        .unwrap_or_else(|| "-".to_string())
+    v.map(|s| format!("{s:.3} s")).unwrap_or_else(|| "-".to_string())
 }
 
 /// Longest metadata value shown in full; longer ones (scenario text) are summarised.
@@ -280,10 +276,7 @@ impl fmt::Display for RecordingInfo {
         }
         match &self.outcome {
             Some(o) => writeln!(f, "  outcome: {o}")?,
-            None => writeln!(
-                f,
-                "  outcome: unknown (no bench.run record: the run did not end)"
-            )?,
+            None => writeln!(f, "  outcome: unknown (no bench.run record: the run did not end)")?,
         }
         writeln!(f, "channels:")?;
         for c in &self.channels {
@@ -314,13 +307,7 @@ impl fmt::Display for RecordingInfo {
         }
         writeln!(f, "steps:")?;
         for s in &self.steps {
-            write!(
-                f,
-                "  #{:<3} {:<16} start {:>12}",
-                s.index,
-                s.name,
-                opt_s(s.start_s)
-            )?;
+            write!(f, "  #{:<3} {:<16} start {:>12}", s.index, s.name, opt_s(s.start_s))?;
             if let Some(e) = s.end_s {
                 write!(f, "  end {:>12}", opt_s(Some(e)))?;
             }
@@ -340,12 +327,7 @@ impl fmt::Display for RecordingInfo {
             writeln!(f, "  {name}")?;
             for (k, v) in m {
                 if v.len() > SHOW_VALUE || v.contains('\n') {
-                    writeln!(
-                        f,
-                        "    {k} = ({} bytes, {} lines)",
-                        v.len(),
-                        v.lines().count()
-                    )?;
+                    writeln!(f, "    {k} = ({} bytes, {} lines)", v.len(), v.lines().count())?;
                 } else {
                     writeln!(f, "    {k} = {v}")?;
                 }

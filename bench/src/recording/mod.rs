@@ -308,17 +308,11 @@ const MAX_RECORD: usize = 1 << 30;
 impl RecordingReader<BufReader<File>> {
     /// Open a file.
     pub fn open(path: &Path) -> Result<Self, RecordingError> {
-        let open = |source| RecordingError::Open {
-            path: path.to_path_buf(),
-            source,
-        };
+        let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
         let file = File::open(path).map_err(open)?;
         let len = file.metadata().map_err(open)?.len();
         let limit = usize::try_from(len).unwrap_or(MAX_RECORD).min(MAX_RECORD);
-        Ok(Self::with_limit(
-            BufReader::with_capacity(256 * 1024, file),
-            limit,
-        ))
+        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), limit))
     }
 }
 
@@ -362,15 +356,9 @@ impl<R: Read> RecordingReader<R> {
     fn stop(&mut self, reason: String) -> Option<Result<Item, RecordingError>> {
         self.failed = true;
         if self.records == 0 {
-            return Some(Err(RecordingError::NotMcap {
-                at_byte: self.at_byte,
-                reason,
-            }));
+            return Some(Err(RecordingError::NotMcap { at_byte: self.at_byte, reason }));
         }
-        self.end = End::Cut {
-            at_byte: self.at_byte,
-            reason,
-        };
+        self.end = End::Cut { at_byte: self.at_byte, reason };
         None
     }
 
@@ -378,8 +366,7 @@ impl<R: Read> RecordingReader<R> {
         self.records += 1;
         Ok(match record {
             Record::Schema { header, .. } => {
-                self.schemas
-                    .insert(header.id, (header.name, header.encoding));
+                self.schemas.insert(header.id, (header.name, header.encoding));
                 None
             }
             Record::Channel(c) => {
@@ -406,10 +393,7 @@ impl<R: Read> RecordingReader<R> {
                     message_encoding: c.message_encoding,
                 };
                 // The summary repeats channels; keep the first definition.
-                self.channels.entry(c.id).or_insert(Chan {
-                    info: Arc::new(info),
-                    kind,
-                });
+                self.channels.entry(c.id).or_insert(Chan { info: Arc::new(info), kind });
                 None
             }
             Record::Message { header, data } => {
@@ -452,10 +436,9 @@ impl<R: Read> RecordingReader<R> {
                     }),
                 })
             }
-            Record::Metadata(m) => Some(Item::Metadata(MetadataRecord {
-                name: m.name,
-                entries: m.metadata,
-            })),
+            Record::Metadata(m) => {
+                Some(Item::Metadata(MetadataRecord { name: m.name, entries: m.metadata }))
+            }
             Record::Attachment { header, data, .. } => Some(Item::Attachment(AttachmentRecord {
                 name: header.name,
                 media_type: header.media_type,
@@ -542,11 +525,9 @@ fn diagnose(kind: Kind, data: &[u8], err: &serde_json::Error) -> String {
             ("rate_command", Ty::Number),
             ("status", Ty::Unsigned),
         ],
-        Kind::Chamber => &[
-            ("temperature", Ty::Number),
-            ("setpoint", Ty::Number),
-            ("status", Ty::Unsigned),
-        ],
+        Kind::Chamber => {
+            &[("temperature", Ty::Number), ("setpoint", Ty::Number), ("status", Ty::Unsigned)]
+        }
         Kind::Step => &[
             ("index", Ty::Unsigned),
             ("name", Ty::Text),
@@ -562,15 +543,13 @@ fn diagnose(kind: Kind, data: &[u8], err: &serde_json::Error) -> String {
         let v = map.get(*name);
         let (ok, want) = match ty {
             Ty::Number => (v.is_some_and(Value::is_number), "a number"),
-            Ty::NumberOrNull => (
-                v.is_none_or(|v| v.is_number() || v.is_null()),
-                "a number or null",
-            ),
+            Ty::NumberOrNull => {
+                (v.is_none_or(|v| v.is_number() || v.is_null()), "a number or null")
+            }
             Ty::Unsigned => (v.is_some_and(Value::is_u64), "a non-negative integer"),
             Ty::Text => (v.is_some_and(Value::is_string), "a string"),
             Ty::Event => (
-                v.and_then(Value::as_str)
-                    .is_some_and(|e| ["start", "end", "abort"].contains(&e)),
+                v.and_then(Value::as_str).is_some_and(|e| ["start", "end", "abort"].contains(&e)),
                 "\"start\", \"end\" or \"abort\"",
             ),
         };
@@ -643,11 +622,7 @@ impl Recording {
 
     /// The last metadata record called `name`.
     pub fn metadata(&self, name: &str) -> Option<&BTreeMap<String, String>> {
-        self.metadata
-            .iter()
-            .rev()
-            .find(|m| m.name == name)
-            .map(|m| &m.entries)
+        self.metadata.iter().rev().find(|m| m.name == name).map(|m| &m.entries)
     }
 
     /// `bench.run` `outcome`, if the run recorded one.
@@ -659,10 +634,7 @@ impl Recording {
 /// Message counts per topic from the file's summary section (Statistics record), read without
 /// the data section: `None` when the file has no summary or no statistics (a crashed run).
 pub fn summary_counts(path: &Path) -> Result<Option<BTreeMap<String, u64>>, RecordingError> {
-    let open = |source| RecordingError::Open {
-        path: path.to_path_buf(),
-        source,
-    };
+    let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
     let mut file = File::open(path).map_err(open)?;
     let len = file.metadata().map_err(open)?.len();
     // No end magic: no footer, no summary.
@@ -675,10 +647,7 @@ pub fn summary_counts(path: &Path) -> Result<Option<BTreeMap<String, u64>>, Reco
     if tail != mcap::MAGIC {
         return Ok(None);
     }
-    let summary_err = |source| RecordingError::Summary {
-        path: path.to_path_buf(),
-        source,
-    };
+    let summary_err = |source| RecordingError::Summary { path: path.to_path_buf(), source };
     let mut reader = SummaryReader::new_with_options(
         mcap::sans_io::SummaryReaderOptions::default().with_file_size(len),
     );

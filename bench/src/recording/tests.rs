@@ -15,23 +15,14 @@ use crate::record::{self, Recorder, RecorderOptions, RunInfo, Site};
 const EPOCH: u64 = 1_600_000_000_000_000_000;
 
 fn run_info() -> RunInfo {
-    RunInfo::new(
-        EPOCH,
-        "t",
-        "name = \"t\"\n",
-        Site::at_latitude(45.0),
-        BTreeMap::new(),
-    )
+    RunInfo::new(EPOCH, "t", "name = \"t\"\n", Site::at_latitude(45.0), BTreeMap::new())
 }
 
 /// 20 Hz on three channels for `seconds`, two steps, a gap in the table stream between
 /// 4 s and 5 s, and a step-end flush after each step (so the file has several chunks).
 fn recorder_file(seconds: u64) -> Vec<u8> {
     let sink = Cursor::new(Vec::new());
-    let opts = RecorderOptions {
-        flush_interval: None,
-        ..RecorderOptions::default()
-    };
+    let opts = RecorderOptions { flush_interval: None, ..RecorderOptions::default() };
     let mut r = Recorder::with_options(sink, run_info(), opts).expect("start");
     let half = seconds * 20 / 2;
     for i in 0..seconds * 20 {
@@ -44,11 +35,7 @@ fn recorder_file(seconds: u64) -> Vec<u8> {
             t,
             &GyroSample {
                 rate_rad_s: i as f64 * 1e-6,
-                temperature_c: if i % 2 == 0 {
-                    Some(20.0 + i as f64 / 8.0)
-                } else {
-                    None
-                },
+                temperature_c: if i % 2 == 0 { Some(20.0 + i as f64 / 8.0) } else { None },
                 seq: i,
                 status: 0,
                 device_time: None,
@@ -81,37 +68,26 @@ fn recorder_file(seconds: u64) -> Vec<u8> {
         )
         .expect("chamber");
         if i + 1 == half {
-            r.step(t, 0, "s", StepEvent::End, "record cw")
-                .expect("step");
+            r.step(t, 0, "s", StepEvent::End, "record cw").expect("step");
         }
         if i + 1 == seconds * 20 {
             r.step(t, 1, "s", StepEvent::Abort, "").expect("step");
         }
-        r.log(t, record::LogLevel::Info, "hello", "test", "tests.rs", 1)
-            .expect("log");
+        r.log(t, record::LogLevel::Info, "hello", "test", "tests.rs", 1).expect("log");
     }
-    r.finish(&Outcome::Aborted("operator stop".into()))
-        .expect("finish")
-        .into_inner()
+    r.finish(&Outcome::Aborted("operator stop".into())).expect("finish").into_inner()
 }
 
 /// Byte offset where the data section ends (the DataEnd record) in a finished file.
 fn data_end_offset(file: &[u8]) -> usize {
-    let summary = mcap::Summary::read(file)
-        .expect("summary")
-        .expect("present");
+    let summary = mcap::Summary::read(file).expect("summary").expect("present");
     let last = summary
         .chunk_indexes
         .iter()
         .map(|c| c.chunk_start_offset + c.chunk_length)
         .max()
         .expect("chunks");
-    let meta = summary
-        .metadata_indexes
-        .iter()
-        .map(|m| m.offset + m.length)
-        .max()
-        .unwrap_or(0);
+    let meta = summary.metadata_indexes.iter().map(|m| m.offset + m.length).max().unwrap_or(0);
     last.max(meta) as usize
 }
 
@@ -130,38 +106,15 @@ fn reads_recorder_output_with_everything_decoded() {
     assert_eq!(g.sequence, 3);
     assert_eq!(g.log_time_ns, EPOCH + 150_000_000);
     assert_eq!(g.publish_time_ns, g.log_time_ns);
-    assert_eq!(
-        g.msg,
-        GyroMsg {
-            rate_rad_s: 3e-6,
-            temperature_c: None,
-            seq: 3,
-            status: 0
-        }
-    );
+    assert_eq!(g.msg, GyroMsg { rate_rad_s: 3e-6, temperature_c: None, seq: 3, status: 0 });
     assert_eq!(rec.gyro[4].msg.temperature_c, Some(20.5));
     assert_eq!(
         rec.table[1].msg,
-        TableMsg {
-            angle_rad: 0.01,
-            rate_rad_s: 0.2,
-            rate_command_rad_s: 0.2,
-            status: 0
-        }
+        TableMsg { angle_rad: 0.01, rate_rad_s: 0.2, rate_command_rad_s: 0.2, status: 0 }
     );
+    assert_eq!(rec.chamber[0].msg, ChamberMsg { temperature_c: 20.0, setpoint_c: 21.0, status: 1 });
     assert_eq!(
-        rec.chamber[0].msg,
-        ChamberMsg {
-            temperature_c: 20.0,
-            setpoint_c: 21.0,
-            status: 1
-        }
-    );
-    assert_eq!(
-        rec.steps
-            .iter()
-            .map(|s| (s.msg.index, s.msg.event))
-            .collect::<Vec<_>>(),
+        rec.steps.iter().map(|s| (s.msg.index, s.msg.event)).collect::<Vec<_>>(),
         vec![
             (0, StepEvent::Start),
             (0, StepEvent::End),
@@ -175,15 +128,10 @@ fn reads_recorder_output_with_everything_decoded() {
         Some(Outcome::Aborted("operator stop".into()))
     );
     assert_eq!(
-        rec.metadata("bench.site")
-            .and_then(|m| m.get("latitude_deg"))
-            .map(String::as_str),
+        rec.metadata("bench.site").and_then(|m| m.get("latitude_deg")).map(String::as_str),
         Some("45")
     );
-    assert_eq!(
-        rec.metadata("bench.scenario").map(|m| m["text"].as_str()),
-        Some("name = \"t\"\n")
-    );
+    assert_eq!(rec.metadata("bench.scenario").map(|m| m["text"].as_str()), Some("name = \"t\"\n"));
     assert_eq!(rec.attachments.len(), 1);
     assert_eq!(rec.attachments[0].media_type, "application/toml");
 }
@@ -193,41 +141,18 @@ fn reads_recorder_output_with_everything_decoded() {
 fn foreign_file(options: WriteOptions) -> Vec<u8> {
     let mut w = options.create(Cursor::new(Vec::new())).expect("create");
     let none = BTreeMap::new();
-    let extra = w
-        .add_schema("x.Thing", "jsonschema", b"{}")
-        .expect("schema");
-    let extra_ch = w
-        .add_channel(extra, "/gyro/extra", "json", &none)
-        .expect("channel");
-    let cbor_ch = w
-        .add_channel(0, "/other/raw", "cbor", &none)
-        .expect("channel");
-    let gs = w
-        .add_schema("bench.GyroSample", "jsonschema", b"{\"type\":\"object\"}")
-        .expect("s");
-    let gyro = w
-        .add_channel(gs, "/gyro/rate", "json", &none)
-        .expect("channel");
+    let extra = w.add_schema("x.Thing", "jsonschema", b"{}").expect("schema");
+    let extra_ch = w.add_channel(extra, "/gyro/extra", "json", &none).expect("channel");
+    let cbor_ch = w.add_channel(0, "/other/raw", "cbor", &none).expect("channel");
+    let gs = w.add_schema("bench.GyroSample", "jsonschema", b"{\"type\":\"object\"}").expect("s");
+    let gyro = w.add_channel(gs, "/gyro/rate", "json", &none).expect("channel");
     let ss = w.add_schema("bench.Step", "jsonschema", b"{}").expect("s");
-    let step = w
-        .add_channel(ss, "/bench/step", "json", &none)
-        .expect("channel");
+    let step = w.add_channel(ss, "/bench/step", "json", &none).expect("channel");
     let mut write = |ch: u16, seq: u32, t: u64, body: &str| {
-        let h = MessageHeader {
-            channel_id: ch,
-            sequence: seq,
-            log_time: t,
-            publish_time: t + 1,
-        };
-        w.write_to_known_channel(&h, body.as_bytes())
-            .expect("write");
+        let h = MessageHeader { channel_id: ch, sequence: seq, log_time: t, publish_time: t + 1 };
+        w.write_to_known_channel(&h, body.as_bytes()).expect("write");
     };
-    write(
-        step,
-        0,
-        10,
-        r#"{"index":2,"name":"n","event":"start","label":"record x","new":[1]}"#,
-    );
+    write(step, 0, 10, r#"{"index":2,"name":"n","event":"start","label":"record x","new":[1]}"#);
     for i in 0..50u32 {
         let t = 1_000 + u64::from(i) * 1_000_000;
         write(extra_ch, i, t, "{\"anything\":true}");
@@ -241,12 +166,7 @@ fn foreign_file(options: WriteOptions) -> Vec<u8> {
             ),
         );
     }
-    write(
-        step,
-        1,
-        60_000_000,
-        r#"{"index":2,"name":"n","event":"end","label":"record x"}"#,
-    );
+    write(step, 1, 60_000_000, r#"{"index":2,"name":"n","event":"end","label":"record x"}"#);
     w.finish().expect("finish");
     w.into_inner().into_inner()
 }
@@ -254,24 +174,11 @@ fn foreign_file(options: WriteOptions) -> Vec<u8> {
 #[test]
 fn reads_files_from_other_writers_unchunked_lz4_and_uncompressed() {
     let variants = [
-        (
-            "zstd",
-            WriteOptions::new().compression(Some(Compression::Zstd)),
-        ),
-        (
-            "lz4",
-            WriteOptions::new()
-                .compression(Some(Compression::Lz4))
-                .chunk_size(Some(512)),
-        ),
+        ("zstd", WriteOptions::new().compression(Some(Compression::Zstd))),
+        ("lz4", WriteOptions::new().compression(Some(Compression::Lz4)).chunk_size(Some(512))),
         ("uncompressed", WriteOptions::new().compression(None)),
         ("unchunked", WriteOptions::new().use_chunks(false)),
-        (
-            "no summary",
-            WriteOptions::new()
-                .emit_summary_records(false)
-                .emit_statistics(false),
-        ),
+        ("no summary", WriteOptions::new().emit_summary_records(false).emit_statistics(false)),
     ];
     for (name, opts) in variants {
         let file = foreign_file(opts);
@@ -280,18 +187,9 @@ fn reads_files_from_other_writers_unchunked_lz4_and_uncompressed() {
         assert_eq!(rec.gyro.len(), 50, "{name}");
         assert_eq!(
             rec.gyro[7].msg,
-            GyroMsg {
-                rate_rad_s: -1.5e-7,
-                temperature_c: None,
-                seq: 7,
-                status: 0
-            }
+            GyroMsg { rate_rad_s: -1.5e-7, temperature_c: None, seq: 7, status: 0 }
         );
-        assert_eq!(
-            rec.gyro[7].publish_time_ns,
-            rec.gyro[7].log_time_ns + 1,
-            "{name}"
-        );
+        assert_eq!(rec.gyro[7].publish_time_ns, rec.gyro[7].log_time_ns + 1, "{name}");
         assert_eq!(rec.steps.len(), 2, "{name}");
         assert_eq!(rec.steps[0].msg.label, "record x");
         assert_eq!(rec.other_counts.get("/gyro/extra"), Some(&50), "{name}");
@@ -303,66 +201,29 @@ fn reads_files_from_other_writers_unchunked_lz4_and_uncompressed() {
 
 #[test]
 fn bad_bodies_and_encodings_on_required_channels_are_named() {
-    let mut w = WriteOptions::new()
-        .create(Cursor::new(Vec::new()))
-        .expect("create");
+    let mut w = WriteOptions::new().create(Cursor::new(Vec::new())).expect("create");
     let none = BTreeMap::new();
-    let ch = w
-        .add_channel(0, "/table/state", "json", &none)
-        .expect("channel");
-    let h = MessageHeader {
-        channel_id: ch,
-        sequence: 4,
-        log_time: 99,
-        publish_time: 99,
-    };
-    w.write_to_known_channel(
-        &h,
-        br#"{"angle":1.0,"rate":"fast","rate_command":0,"status":0}"#,
-    )
-    .expect("write");
+    let ch = w.add_channel(0, "/table/state", "json", &none).expect("channel");
+    let h = MessageHeader { channel_id: ch, sequence: 4, log_time: 99, publish_time: 99 };
+    w.write_to_known_channel(&h, br#"{"angle":1.0,"rate":"fast","rate_command":0,"status":0}"#)
+        .expect("write");
     w.finish().expect("finish");
     let file = w.into_inner().into_inner();
     let e = Recording::from_bytes(&file).expect_err("bad body");
     let text = e.to_string();
-    assert!(
-        matches!(
-            e,
-            RecordingError::BadMessage {
-                sequence: 4,
-                log_time_ns: 99,
-                ..
-            }
-        ),
-        "{text}"
-    );
-    assert!(
-        text.contains("/table/state") && text.contains("rate"),
-        "{text}"
-    );
+    assert!(matches!(e, RecordingError::BadMessage { sequence: 4, log_time_ns: 99, .. }), "{text}");
+    assert!(text.contains("/table/state") && text.contains("rate"), "{text}");
 
-    let mut w = WriteOptions::new()
-        .create(Cursor::new(Vec::new()))
-        .expect("create");
-    w.add_channel(0, "/gyro/rate", "cbor", &none)
-        .expect("channel");
+    let mut w = WriteOptions::new().create(Cursor::new(Vec::new())).expect("create");
+    w.add_channel(0, "/gyro/rate", "cbor", &none).expect("channel");
     w.finish().expect("finish");
     let file = w.into_inner().into_inner();
     let e = Recording::from_bytes(&file).expect_err("cbor");
-    assert!(
-        matches!(e, RecordingError::UnsupportedEncoding { .. }),
-        "{e}"
-    );
+    assert!(matches!(e, RecordingError::UnsupportedEncoding { .. }), "{e}");
 
     let e = Recording::from_bytes(b"PK\x03\x04 not an mcap file at all").expect_err("garbage");
-    assert!(
-        matches!(e, RecordingError::NotMcap { at_byte: 8, .. }),
-        "{e}"
-    );
-    assert!(matches!(
-        Recording::from_bytes(b""),
-        Err(RecordingError::NotMcap { .. })
-    ));
+    assert!(matches!(e, RecordingError::NotMcap { at_byte: 8, .. }), "{e}");
+    assert!(matches!(Recording::from_bytes(b""), Err(RecordingError::NotMcap { .. })));
 }
 
 #[test]
@@ -372,20 +233,8 @@ fn truncated_files_yield_a_prefix_and_say_where_they_stop() {
     let data_end = data_end_offset(&file);
     let mut last_count = 0;
     let mut seen_partial = false;
-    assert!(matches!(
-        Recording::from_bytes(&file[..40]),
-        Err(RecordingError::NotMcap { .. })
-    ));
-    for cut in [
-        300,
-        2_000,
-        4_000,
-        6_000,
-        data_end / 2,
-        data_end - 1,
-        data_end,
-        file.len() - 1,
-    ] {
+    assert!(matches!(Recording::from_bytes(&file[..40]), Err(RecordingError::NotMcap { .. })));
+    for cut in [300, 2_000, 4_000, 6_000, data_end / 2, data_end - 1, data_end, file.len() - 1] {
         let cut = cut.min(file.len() - 1);
         let part = &file[..cut];
         let rec = Recording::from_bytes(part).unwrap_or_else(|e| panic!("cut {cut}: {e}"));
@@ -401,11 +250,7 @@ fn truncated_files_yield_a_prefix_and_say_where_they_stop() {
         last_count = rec.gyro.len();
     }
     assert!(seen_partial, "some cut fell inside the data");
-    assert_eq!(
-        last_count,
-        full.gyro.len(),
-        "a file cut in its summary has all messages"
-    );
+    assert_eq!(last_count, full.gyro.len(), "a file cut in its summary has all messages");
 }
 
 #[test]
@@ -426,13 +271,7 @@ fn info_reports_channels_rates_gaps_steps_metadata_and_outcome() {
     assert!(g.gaps.is_empty());
     let t = ch("/table/state");
     assert_eq!(t.count, 180);
-    assert_eq!(
-        t.gaps,
-        vec![Gap {
-            from_s: 3.95,
-            to_s: 5.0
-        }]
-    );
+    assert_eq!(t.gaps, vec![Gap { from_s: 3.95, to_s: 5.0 }]);
     assert_eq!(ch("/log").count, 200);
     assert_eq!(ch("/bench/step").count, 4);
     assert_eq!(i.steps.len(), 2);
@@ -450,22 +289,10 @@ fn info_reports_channels_rates_gaps_steps_metadata_and_outcome() {
     assert_eq!((i.steps[1].start_s, i.steps[1].end_s), (Some(5.0), None));
     assert!((i.steps[1].abort_s.expect("abort") - 9.95).abs() < 1e-9);
     let names: Vec<&str> = i.metadata.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(
-        names,
-        vec![
-            "bench.site",
-            "bench.scenario",
-            "bench.gyro_model",
-            "bench.run"
-        ]
-    );
+    assert_eq!(names, vec!["bench.site", "bench.scenario", "bench.gyro_model", "bench.run"]);
     assert_eq!(
         i.attachments,
-        vec![(
-            "scenario.toml".to_string(),
-            "application/toml".to_string(),
-            11
-        )]
+        vec![("scenario.toml".to_string(), "application/toml".to_string(), 11)]
     );
     let text = i.to_string();
     for needle in [
@@ -482,11 +309,8 @@ fn info_reports_channels_rates_gaps_steps_metadata_and_outcome() {
     }
 
     // Both count paths agree on a finished file.
-    let linear: BTreeMap<String, u64> = i
-        .channels
-        .iter()
-        .map(|c| (c.topic.clone(), c.count))
-        .collect();
+    let linear: BTreeMap<String, u64> =
+        i.channels.iter().map(|c| (c.topic.clone(), c.count)).collect();
     assert_eq!(summary_counts(&path).expect("summary"), Some(linear));
 
     // A crashed file: info still works, the summary path has nothing.
@@ -494,10 +318,7 @@ fn info_reports_channels_rates_gaps_steps_metadata_and_outcome() {
     let i = info(&path).expect("info without summary");
     assert!(matches!(i.end, End::Cut { .. }));
     assert_eq!(i.outcome, None);
-    assert!(i
-        .channels
-        .iter()
-        .any(|c| c.topic == "/gyro/rate" && c.count == 200));
+    assert!(i.channels.iter().any(|c| c.topic == "/gyro/rate" && c.count == 200));
     assert!(i.to_string().contains("FILE INCOMPLETE"));
     assert_eq!(summary_counts(&path).expect("no summary"), None);
 }

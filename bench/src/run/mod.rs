@@ -369,7 +369,6 @@ pub async fn execute<S: EventSink>(
     RunResult { outcome, sink, duration, record_error }
 }
 
-
 impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink for crate::record::Recorder<W> {
     fn record(&mut self, event: &Event) -> anyhow::Result<()> {
         match event {

@@ -79,9 +79,12 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
     let clock = &ctx.clock;
     match *action {
         Action::Chamber { target_c, ramp_c_s } => {
-            ctx.chamber.lock().await.set_target(target_c, ramp_c_s).await.map_err(|e| {
-                format!("chamber refused set point {target_c} °C: {e}")
-            })?;
+            ctx.chamber
+                .lock()
+                .await
+                .set_target(target_c, ramp_c_s)
+                .await
+                .map_err(|e| format!("chamber refused set point {target_c} °C: {e}"))?;
             ctx.live.set_commanded_target(target_c);
         }
         Action::Table { rate_rad_s, accel_rad_s2, settle } => {
@@ -153,7 +156,8 @@ async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(
         let s = ctx.live.snapshot();
         // Judged against the target bench commanded (the readings may predate the command);
         // without a command, against the controller's own target.
-        let target = if s.commanded_target_c.is_finite() { s.commanded_target_c } else { s.target_c };
+        let target =
+            if s.commanded_target_c.is_finite() { s.commanded_target_c } else { s.target_c };
         if (s.setpoint_c - target).abs() <= RAMP_END_TOL_C {
             return Ok(());
         }

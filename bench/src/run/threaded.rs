@@ -24,22 +24,23 @@ impl<S: EventSink> ThreadedSink<S> {
         let batch_len = batch_len.max(1);
         // A few batches in flight: enough to decouple, bounded so memory stays flat.
         let (tx, rx) = mpsc::sync_channel::<Vec<Event>>(8);
-        let thread = std::thread::Builder::new().name("bench-recorder".into()).spawn(move || {
-            let mut sink = sink;
-            let mut error = None;
-            for batch in rx {
-                if error.is_some() {
-                    continue;
-                }
-                for ev in &batch {
-                    if let Err(e) = sink.record(ev) {
-                        error = Some(format!("{e:#}"));
-                        break;
+        let thread =
+            std::thread::Builder::new().name("bench-recorder".into()).spawn(move || {
+                let mut sink = sink;
+                let mut error = None;
+                for batch in rx {
+                    if error.is_some() {
+                        continue;
+                    }
+                    for ev in &batch {
+                        if let Err(e) = sink.record(ev) {
+                            error = Some(format!("{e:#}"));
+                            break;
+                        }
                     }
                 }
-            }
-            (sink, error)
-        })?;
+                (sink, error)
+            })?;
         Ok(Self {
             batch: Vec::with_capacity(batch_len),
             batch_len,
@@ -54,7 +55,9 @@ impl<S: EventSink> ThreadedSink<S> {
         }
         let batch = std::mem::replace(&mut self.batch, Vec::with_capacity(self.batch_len));
         match &self.tx {
-            Some(tx) => tx.send(batch).map_err(|_| anyhow::anyhow!("the recorder thread has stopped")),
+            Some(tx) => {
+                tx.send(batch).map_err(|_| anyhow::anyhow!("the recorder thread has stopped"))
+            }
             None => Err(anyhow::anyhow!("the recorder has finished")),
         }
     }
