@@ -29,19 +29,24 @@ impl Progress {
             .spawn(move || {
                 let bar = ProgressBar::with_draw_target(Some(total_ms), ProgressDrawTarget::stderr());
                 let style = ProgressStyle::with_template(
-                    "{spinner} [{elapsed_precise}] {bar:30} {msg} (ETA {eta})",
+                    "{spinner} [{elapsed_precise}] {bar:30} {msg}",
                 )
                 .unwrap_or_else(|_| ProgressStyle::default_bar());
                 bar.set_style(style);
+                let wall = std::time::Instant::now();
                 while !flag.load(Ordering::Relaxed) {
                     let s = live.snapshot();
+                    // Bench seconds per wall second so far; the ETA assumes it stays so.
+                    let speed = s.bench_time_s / wall.elapsed().as_secs_f64().max(1e-3);
+                    let left_s = (total_ms as f64 * 1e-3 - s.bench_time_s).max(0.0);
+                    let eta = if speed > 0.0 { format!("{:.0} s", left_s / speed) } else { "?".into() };
                     let pos = (s.bench_time_s * 1e3) as u64;
                     if pos > total_ms {
                         bar.set_length(pos);
                     }
                     bar.set_position(pos);
                     bar.set_message(format!(
-                        "bench {} | step {}/{} | table {:+.3} °/min | air {:.1} °C (sp {:.1}) | gyro {:.2} °C",
+                        "bench {} (ETA {eta}) | step {}/{} | table {:+.3} °/min | air {:.1} °C (sp {:.1}) | gyro {:.2} °C",
                         hms(s.bench_time_s),
                         s.step + 1,
                         steps,
