@@ -18,6 +18,7 @@
 
 pub mod plan;
 pub mod progress;
+pub mod realtime;
 pub mod record;
 pub mod recording;
 pub mod run;

@@ -15,7 +15,7 @@ use bench_sim::{SimBench, SimConfig};
 use crate::plan::RunPlan;
 use crate::record::{Axis, Recorder, RunInfo, Site};
 use crate::run::threaded::ThreadedSink;
-use crate::run::{execute, Devices, Live, Outcome};
+use crate::run::{execute, ConsoleLayer, Devices, ExecOptions, Live, Outcome};
 use crate::scenario::Capabilities;
 
 /// Bench time zero of simulated runs: 2026-01-01T00:00:00Z, fixed so that a run is a pure
@@ -41,7 +41,7 @@ impl Default for SimOptions {
 
 /// What a simulated run did.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SimReport {
+pub struct RunReport {
     /// `completed` or `aborted: <reason>`.
     pub outcome: String,
     /// Bench time covered.
@@ -52,7 +52,7 @@ pub struct SimReport {
     pub gyro_samples: u64,
 }
 
-impl SimReport {
+impl RunReport {
     /// Bench time per wall time.
     pub fn speed(&self) -> f64 {
         self.bench_time.as_secs_f64() / self.wall_time.as_secs_f64().max(1e-9)
@@ -101,7 +101,7 @@ pub fn run_scenario_file(
     scenario: &Path,
     out: &Path,
     opts: &SimOptions,
-) -> anyhow::Result<SimReport> {
+) -> anyhow::Result<RunReport> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
     let file =
         File::create(out).with_context(|| format!("cannot create recording {}", out.display()))?;
@@ -120,8 +120,8 @@ pub fn run_plan<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     writer: W,
     opts: &SimOptions,
-    console: Option<Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>>,
-) -> anyhow::Result<(SimReport, W)> {
+    console: Option<ConsoleLayer>,
+) -> anyhow::Result<(RunReport, W)> {
     let clock = VirtualClock::new();
     let shared: Arc<dyn Clock> = Arc::new(clock.clone());
     let sim = SimBench::new(sim_config(plan, opts.seed), shared.clone())
@@ -139,7 +139,15 @@ pub fn run_plan<W: Write + Seek + Send + 'static>(
     });
     let wall = Instant::now();
     let result = run_virtual(&clock, |spawner| {
-        execute(plan, devices, shared.clone(), recorder, spawner, live.clone(), console)
+        execute(
+            plan,
+            devices,
+            shared.clone(),
+            recorder,
+            spawner,
+            live.clone(),
+            ExecOptions { console, stop: None },
+        )
     })
     .context("simulated run stalled")?;
     let wall_time = wall.elapsed();
@@ -150,7 +158,7 @@ pub fn run_plan<W: Write + Seek + Send + 'static>(
         None => result.outcome,
     };
     let writer = recorder.finish(&outcome).context("cannot finish the recording")?;
-    let report = SimReport {
+    let report = RunReport {
         outcome: outcome.to_string(),
         bench_time: result.duration,
         wall_time,

@@ -118,6 +118,41 @@ impl Default for FaultPolicy {
     }
 }
 
+/// A terminal (or other) tracing layer for a run's log events.
+pub type ConsoleLayer =
+    Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>;
+
+/// Asks a running [`execute`] to abort (e.g. on Ctrl-C): the current step ends with an `abort`
+/// event and the bench goes to its safe state.
+#[derive(Clone, Debug)]
+pub struct Stopper(mpsc::UnboundedSender<String>);
+
+impl Stopper {
+    /// A stopper and the signal to hand to [`ExecOptions::stop`].
+    pub fn new() -> (Self, StopSignal) {
+        let (tx, rx) = mpsc::unbounded();
+        (Self(tx), StopSignal(rx))
+    }
+
+    /// Abort the run with `reason` (ignored once the run has ended).
+    pub fn stop(&self, reason: impl Into<String>) {
+        let _ = self.0.unbounded_send(reason.into());
+    }
+}
+
+/// The receiving end of a [`Stopper`].
+#[derive(Debug)]
+pub struct StopSignal(mpsc::UnboundedReceiver<String>);
+
+/// Options of [`execute`].
+#[derive(Default)]
+pub struct ExecOptions {
+    /// Extra tracing layer (the CLI's terminal output); every event also goes to `/log`.
+    pub console: Option<ConsoleLayer>,
+    /// External abort request.
+    pub stop: Option<StopSignal>,
+}
+
 /// How long the streams are still recorded after the safe-state commands.
 pub const SAFE_STATE_TAIL: Duration = Duration::from_secs(1);
 
@@ -297,8 +332,9 @@ pub async fn execute<S: EventSink>(
     sink: S,
     spawner: impl Spawn,
     live: Arc<Live>,
-    console: Option<Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>>,
+    options: ExecOptions,
 ) -> RunResult<S> {
+    let ExecOptions { console, stop } = options;
     let (tx, rx) = mpsc::unbounded();
     let (fault_tx, fault_rx) = mpsc::unbounded();
     let record_error: Arc<Mutex<Option<String>>> = Default::default();
@@ -324,11 +360,20 @@ pub async fn execute<S: EventSink>(
 
     let mut aborts: Vec<AbortHandle> = Vec::new();
     let mut spawn_errors = Vec::new();
-    let device_tasks: [futures::future::BoxFuture<'static, ()>; 3] = [
+    let device_tasks: Vec<futures::future::BoxFuture<'static, ()>> = vec![
         Box::pin(gyro_task(ctx.clone(), devices.gyro)),
         Box::pin(table_poller(ctx.clone(), plan.table_poll_hz)),
         Box::pin(chamber_poller(ctx.clone(), plan.chamber_poll_hz)),
     ];
+    let mut device_tasks = device_tasks;
+    if let Some(StopSignal(mut rx)) = stop {
+        let c = ctx.clone();
+        device_tasks.push(Box::pin(async move {
+            if let Some(reason) = rx.next().await {
+                c.raise_fault(reason);
+            }
+        }));
+    }
     for fut in device_tasks {
         let (h, reg) = AbortHandle::new_pair();
         aborts.push(h);
