@@ -16,6 +16,7 @@ pub mod clock;
 pub mod error;
 pub mod gyro;
 pub mod protocol;
+pub mod real;
 pub mod status;
 pub mod table;
 pub mod transport;
