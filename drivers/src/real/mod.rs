@@ -7,3 +7,4 @@ pub mod gyro_kvh;
 pub mod gyro_link;
 pub mod slcan;
 pub mod socketcan;
+pub mod table;

@@ -1,0 +1,1047 @@
+//! Real rate-table driver: an Actidyn (ST1300 class) or Acutronic ACUTROL controller over a
+//! serial port or TCP, behind the [`RateTable`] trait.
+//!
+//! One driver, [`RateTableDriver`], speaks either [`Dialect`] through the pure codecs in
+//! [`crate::protocol::actidyn`] and [`crate::protocol::acutrol`]. Both command sets are
+//! **inferred from public third-party client code, not from the manufacturers' manuals** (see
+//! `docs/protocols/table.md`); so are the error codes in [`actidyn_errors`].
+//!
+//! What goes on the wire (axis 1):
+//!
+//! | call | Actidyn | ACUTROL |
+//! |---|---|---|
+//! | session start (connect, reconnect) | `RMT 0:ALC 0` | `:utility:lockout on`, `:interlock:open 1`, `:interlock:reset 1`, `:interlock:close 1` |
+//! | [`RateTable::read`] (also the connect probe) | `PRV 1,?:MOD 1,?` | `:read:position 1`, `:read:rate 1` |
+//! | [`RateTable::set_rate`] | `MOD 1,RAT:RAT 1,<°/s>,<°/s²>` | `:mode:rate 1` (when not already in rate mode), `:demand:rate 1, <°/s>` |
+//! | [`RateTable::stop`] | `MOD 1,STP` | `:demand:rate 1, 0` |
+//! | [`RateTable::service`] when due | `ALC 0` (keep-alive) | nothing |
+//! | [`RateTableDriver::release`] | `MOD 1,OFF:LOC 0` | `:mode:off 1`, `:interlock:open 1`, `:utility:lockout off` |
+//!
+//! Link behaviour: every exchange waits at most `reply_timeout_s` (wall-clock time: it bounds
+//! I/O) and is retried `retries` times with a doubling back-off on timeouts, link faults and
+//! unreadable replies. A link fault drops the connection; the next attempt reopens the endpoint
+//! and repeats the session start. An unreadable reply is counted ([`LinkCounters`]), skipped,
+//! and the command is sent again; device error replies are not retried. The keep-alive period is
+//! bench time on the driver's [`Clock`], so a scaled-time run against a simulator keeps the same
+//! 20 s / 30 s relation as the real controller.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), bench_drivers::DeviceError> {
+//! use bench_drivers::real::table::{Dialect, RateTableDriver, TableDriverConfig};
+//! use bench_drivers::transport::Endpoint;
+//! use bench_drivers::RateTable;
+//! let cfg = TableDriverConfig::new(Endpoint::Tcp { addr: "192.168.0.20:62000".into() }, Dialect::Actidyn);
+//! let mut table = RateTableDriver::connect(cfg).await?;
+//! table.set_rate(10.0_f64.to_radians() / 60.0, 1.0_f64.to_radians()).await?;
+//! let reading = table.read().await?;
+//! # let _ = reading; Ok(()) }
+//! ```
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use async_trait::async_trait;
+use bench_physics::units::{ARCSEC, DEG};
+use serde::{Deserialize, Serialize};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
+
+use crate::clock::{Clock, SystemClock};
+use crate::protocol::{actidyn, acutrol};
+use crate::transport::{BoxStream, Endpoint};
+use crate::{
+    status, DeviceError, DeviceInfo, DeviceResult, ErrorKind, RateTable, TableCapabilities,
+    TableMode, TableReading,
+};
+
+/// Which controller language the table speaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dialect {
+    /// Actidyn controller (ST1300 class): `RMT`, `MOD`, `RAT`, `PRV`, `ALC` keep-alive.
+    #[default]
+    Actidyn,
+    /// Acutronic ACUTROL, SCPI-like (`:mode:rate 1`, `:demand:rate 1, 010.000`).
+    Acutrol,
+}
+
+impl std::fmt::Display for Dialect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Dialect::Actidyn => "actidyn",
+            Dialect::Acutrol => "acutrol",
+        })
+    }
+}
+
+/// Error codes of Actidyn `ERR` replies. **bench's own convention** (the controller's codes are
+/// unknown): the simulator answers with them and the driver maps them to an [`ErrorKind`] with
+/// [`actidyn_error_kind`]; codes not listed here are device faults.
+pub mod actidyn_errors {
+    /// The command was not understood (→ [`crate::ErrorKind::Other`]: retrying will not help).
+    pub const SYNTAX: u16 = 1;
+    /// Not in remote control (→ `NotReady`).
+    pub const NOT_REMOTE: u16 = 10;
+    /// An argument is outside the table's limits (→ `OutOfRange`).
+    pub const OUT_OF_RANGE: u16 = 11;
+    /// The axis is not in the mode the command needs (→ `NotReady`).
+    pub const WRONG_MODE: u16 = 12;
+    /// The command or mode is not available (→ `Unsupported`).
+    pub const UNSUPPORTED: u16 = 13;
+    /// Drive alarm, e.g. the drive was switched off because no `ALC` arrived within 30 s
+    /// (→ `DeviceFault`).
+    pub const DRIVE_ALARM: u16 = 20;
+    /// A safety interlock is open (→ `InterlockTripped`).
+    pub const INTERLOCK: u16 = 30;
+}
+
+/// The [`ErrorKind`] of an Actidyn error code ([`actidyn_errors`]).
+pub fn actidyn_error_kind(code: u16) -> ErrorKind {
+    match code {
+        actidyn_errors::SYNTAX => ErrorKind::Other,
+        actidyn_errors::NOT_REMOTE | actidyn_errors::WRONG_MODE => ErrorKind::NotReady,
+        actidyn_errors::OUT_OF_RANGE => ErrorKind::OutOfRange,
+        actidyn_errors::UNSUPPORTED => ErrorKind::Unsupported,
+        actidyn_errors::INTERLOCK => ErrorKind::InterlockTripped,
+        _ => ErrorKind::DeviceFault,
+    }
+}
+
+/// The [`ErrorKind`] of an ACUTROL `ERR <text>` reply, by keyword (the controller's error
+/// format is unknown; this reading is inferred): `interlock` → `InterlockTripped`, `range` or
+/// `limit` → `OutOfRange`, `remote`, `lockout` or `mode` → `NotReady`, anything else →
+/// `DeviceFault`.
+pub fn acutrol_error_kind(text: &str) -> ErrorKind {
+    let t = text.to_ascii_lowercase();
+    if t.contains("interlock") {
+        ErrorKind::InterlockTripped
+    } else if t.contains("range") || t.contains("limit") {
+        ErrorKind::OutOfRange
+    } else if t.contains("remote") || t.contains("lockout") || t.contains("mode") {
+        ErrorKind::NotReady
+    } else {
+        ErrorKind::DeviceFault
+    }
+}
+
+/// Configuration of a real rate table (a `[table]` section of a bench config).
+///
+/// Only `endpoint` is required. Capabilities default to **conservative guesses**: no ST1300
+/// spec sheet is public, so `max_rate_deg_s` and `max_accel_deg_s2` must be set from the lab's
+/// table documentation before scenarios that need more are run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableDriverConfig {
+    /// Where the controller is reached (serial port or TCP; the public Actidyn client used TCP
+    /// port 62000, ACUTROL clients 9888).
+    pub endpoint: Endpoint,
+    /// Controller language (default `actidyn`).
+    #[serde(default)]
+    pub dialect: Dialect,
+    /// Axis number (default 1).
+    #[serde(default = "default_axis")]
+    pub axis: u8,
+    /// Longest wait for one reply, s of wall-clock time (default 0.5). Also the TCP connect
+    /// timeout, with a floor of 1 s.
+    #[serde(default = "default_reply_timeout_s")]
+    pub reply_timeout_s: f64,
+    /// How many times an exchange is retried after a timeout, link fault or unreadable reply
+    /// (default 3, so 4 attempts in all).
+    #[serde(default = "default_retries")]
+    pub retries: u32,
+    /// Wait before the first retry, s of wall-clock time, doubled at each further retry
+    /// (default 0.05: 50, 100, 200 ms).
+    #[serde(default = "default_retry_backoff_s")]
+    pub retry_backoff_s: f64,
+    /// Actidyn keep-alive period, s of bench time (default 20): [`RateTable::service`] sends
+    /// `ALC 0` when this much time has passed since the last one. The controller switches the
+    /// drive off if alarms are not cleared within 30 s. 0 disables the keep-alive (only for
+    /// testing the controller's watchdog). Ignored for ACUTROL.
+    #[serde(default = "default_keep_alive_s")]
+    pub keep_alive_s: f64,
+    /// Acceleration used when a caller passes 0 to `set_rate` or `stop`, °/s² (default 1).
+    #[serde(default = "default_accel_deg_s2")]
+    pub default_accel_deg_s2: f64,
+    /// Largest rate magnitude reported and enforced, °/s (default 100: a conservative guess,
+    /// the ST1300's limit is not public).
+    #[serde(default = "default_max_rate_deg_s")]
+    pub max_rate_deg_s: f64,
+    /// Largest acceleration magnitude reported and enforced, °/s² (default 10: a conservative
+    /// guess, the ST1300's limit is not public).
+    #[serde(default = "default_max_accel_deg_s2")]
+    pub max_accel_deg_s2: f64,
+    /// Position readout resolution, arc-seconds (default 1, the ST1300's positioning accuracy).
+    #[serde(default = "default_resolution_arcsec")]
+    pub position_resolution_arcsec: f64,
+    /// Model reported in [`DeviceInfo`] (default `Actidyn ST1300` or `Acutronic ACUTROL table`).
+    #[serde(default)]
+    pub model: Option<String>,
+    /// ACUTROL: write short keyword forms (`:M:R 1`) instead of long ones (default false).
+    #[serde(default)]
+    pub acutrol_short_form: bool,
+    /// ACUTROL: decimals of demand values (default 6; the public client wrote 3, which limits
+    /// 10 °/min to 0.2 %: set 3 if the controller rejects more).
+    #[serde(default = "default_acutrol_decimals")]
+    pub acutrol_decimals: u8,
+}
+
+fn default_axis() -> u8 {
+    1
+}
+fn default_reply_timeout_s() -> f64 {
+    0.5
+}
+fn default_retries() -> u32 {
+    3
+}
+fn default_retry_backoff_s() -> f64 {
+    0.05
+}
+fn default_keep_alive_s() -> f64 {
+    actidyn::KEEP_ALIVE_S
+}
+fn default_accel_deg_s2() -> f64 {
+    1.0
+}
+fn default_max_rate_deg_s() -> f64 {
+    100.0
+}
+fn default_max_accel_deg_s2() -> f64 {
+    10.0
+}
+fn default_resolution_arcsec() -> f64 {
+    1.0
+}
+fn default_acutrol_decimals() -> u8 {
+    6
+}
+
+impl TableDriverConfig {
+    /// A configuration with every default.
+    pub fn new(endpoint: Endpoint, dialect: Dialect) -> Self {
+        Self {
+            endpoint,
+            dialect,
+            axis: default_axis(),
+            reply_timeout_s: default_reply_timeout_s(),
+            retries: default_retries(),
+            retry_backoff_s: default_retry_backoff_s(),
+            keep_alive_s: default_keep_alive_s(),
+            default_accel_deg_s2: default_accel_deg_s2(),
+            max_rate_deg_s: default_max_rate_deg_s(),
+            max_accel_deg_s2: default_max_accel_deg_s2(),
+            position_resolution_arcsec: default_resolution_arcsec(),
+            model: None,
+            acutrol_short_form: false,
+            acutrol_decimals: default_acutrol_decimals(),
+        }
+    }
+
+    /// Checks that every number is usable; the error names the field.
+    pub fn validate(&self) -> Result<(), DeviceError> {
+        let positive = [
+            ("reply_timeout_s", self.reply_timeout_s),
+            ("default_accel_deg_s2", self.default_accel_deg_s2),
+            ("max_rate_deg_s", self.max_rate_deg_s),
+            ("max_accel_deg_s2", self.max_accel_deg_s2),
+            ("position_resolution_arcsec", self.position_resolution_arcsec),
+        ];
+        let non_negative =
+            [("retry_backoff_s", self.retry_backoff_s), ("keep_alive_s", self.keep_alive_s)];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0 && v < 1e9) {
+                return Err(config_error(format!("{name} = {v}: expected a positive number")));
+            }
+        }
+        for (name, v) in non_negative {
+            if !(v.is_finite() && (0.0..1e9).contains(&v)) {
+                return Err(config_error(format!("{name} = {v}: expected a number ≥ 0")));
+            }
+        }
+        if self.acutrol_decimals > 9 {
+            return Err(config_error(format!(
+                "acutrol_decimals = {}: expected 0..=9",
+                self.acutrol_decimals
+            )));
+        }
+        Ok(())
+    }
+
+    fn acutrol_encoding(&self) -> acutrol::Encoding {
+        acutrol::Encoding {
+            form: if self.acutrol_short_form { acutrol::Form::Short } else { acutrol::Form::Long },
+            decimals: self.acutrol_decimals,
+        }
+    }
+}
+
+fn config_error(msg: String) -> DeviceError {
+    DeviceError::new(ErrorKind::Other, format!("table driver config: {msg}"))
+}
+
+/// What the driver has had to cope with on the link. Counters only grow.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkCounters {
+    /// Replies that could not be decoded (garbled, over-long), skipped.
+    pub corrupt_replies: u64,
+    /// Well-formed replies that did not answer the command in flight (late answers to an
+    /// earlier, timed-out command), skipped.
+    pub stale_replies: u64,
+    /// Exchanges sent again after a transient failure.
+    pub retries: u64,
+    /// Times the endpoint was reopened after a link fault.
+    pub reconnects: u64,
+    /// Keep-alive `ALC 0` commands sent by [`RateTable::service`].
+    pub keep_alives: u64,
+}
+
+/// Tracks whole turns of a position readout that wraps (at 360° or ±180°), so the reported
+/// angle is unwrapped. Needs readings less than half a turn apart.
+#[derive(Debug, Clone, Copy, Default)]
+struct Unwrapper {
+    last_deg: Option<f64>,
+    turns: i64,
+}
+
+impl Unwrapper {
+    fn update(&mut self, raw_deg: f64) -> f64 {
+        if let Some(last) = self.last_deg {
+            let d = raw_deg - last;
+            if d > 180.0 {
+                self.turns -= 1;
+            } else if d < -180.0 {
+                self.turns += 1;
+            }
+        }
+        self.last_deg = Some(raw_deg);
+        raw_deg + 360.0 * self.turns as f64
+    }
+}
+
+/// Reply decoder of the dialect in use.
+#[derive(Debug)]
+enum Decoder {
+    Actidyn(actidyn::ReplyDecoder),
+    Acutrol(acutrol::ReplyDecoder),
+}
+
+impl Decoder {
+    fn new(d: Dialect) -> Self {
+        match d {
+            Dialect::Actidyn => Decoder::Actidyn(actidyn::ReplyDecoder::new()),
+            Dialect::Acutrol => Decoder::Acutrol(acutrol::ReplyDecoder::new()),
+        }
+    }
+}
+
+/// A real rate table (Actidyn or ACUTROL dialect) behind [`RateTable`]. See the module docs
+/// for what each call sends.
+pub struct RateTableDriver {
+    cfg: TableDriverConfig,
+    info: DeviceInfo<TableCapabilities>,
+    clock: Arc<dyn Clock>,
+    stream: Option<BoxStream>,
+    decoder: Decoder,
+    /// Bytes received since the connection was opened.
+    rx_total: u64,
+    /// `rx_total` when the decoder was last reset (its offsets count from there).
+    rx_base: u64,
+    /// Drain stale input before the next send (after a timeout or an unreadable reply).
+    resync: bool,
+    counters: LinkCounters,
+    last_keep_alive: Duration,
+    unwrap: Unwrapper,
+    rate_command_rad_s: f64,
+    /// Mode as commanded by this driver.
+    mode: TableMode,
+    /// A drive alarm was reported and not yet cleared by a successful mode command.
+    alarm: bool,
+}
+
+impl std::fmt::Debug for RateTableDriver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RateTableDriver")
+            .field("driver", &self.info.driver)
+            .field("connected", &self.stream.is_some())
+            .field("counters", &self.counters)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Readable form of a request line for messages: no terminator.
+fn shown(line: &[u8]) -> String {
+    String::from_utf8_lossy(line).trim_end_matches(['\r', '\n']).to_owned()
+}
+
+impl RateTableDriver {
+    /// Open the endpoint, take remote control and probe with a telemetry read, keeping the
+    /// keep-alive on wall-clock time. See [`Self::connect_with_clock`].
+    pub async fn connect(cfg: TableDriverConfig) -> DeviceResult<Self> {
+        Self::connect_with_clock(cfg, Arc::new(SystemClock::new(1.0))).await
+    }
+
+    /// Open the endpoint, take remote control (Actidyn `RMT 0:ALC 0`; ACUTROL lockout and
+    /// interlock close) and probe with a telemetry read. The keep-alive runs on `clock`'s bench
+    /// time. On failure the error says what was sent where and what came back.
+    pub async fn connect_with_clock(
+        cfg: TableDriverConfig,
+        clock: Arc<dyn Clock>,
+    ) -> DeviceResult<Self> {
+        cfg.validate()?;
+        let model = cfg.model.clone().unwrap_or_else(|| {
+            match cfg.dialect {
+                Dialect::Actidyn => "Actidyn ST1300",
+                Dialect::Acutrol => "Acutronic ACUTROL table",
+            }
+            .to_owned()
+        });
+        let info = DeviceInfo {
+            model,
+            driver: format!("{}/{}", cfg.dialect, cfg.endpoint),
+            capabilities: TableCapabilities {
+                max_rate_rad_s: cfg.max_rate_deg_s * DEG,
+                max_accel_rad_s2: cfg.max_accel_deg_s2 * DEG,
+                position_resolution_rad: cfg.position_resolution_arcsec * ARCSEC,
+            },
+        };
+        let mut me = Self {
+            decoder: Decoder::new(cfg.dialect),
+            info,
+            last_keep_alive: clock.now(),
+            clock,
+            stream: None,
+            rx_total: 0,
+            rx_base: 0,
+            resync: false,
+            counters: LinkCounters::default(),
+            unwrap: Unwrapper::default(),
+            rate_command_rad_s: 0.0,
+            mode: TableMode::Off,
+            alarm: false,
+            cfg,
+        };
+        let what = format!("connecting to the {} table on {}", me.cfg.dialect, me.cfg.endpoint);
+        me.open().await.map_err(|e| context(&what, e))?;
+        me.start_session().await.map_err(|e| context(&what, e))?;
+        let r = me.read().await.map_err(|e| context(&what, e))?;
+        // The probe tells the actual mode: do not claim the drive is off if it is running.
+        me.mode = r.mode;
+        me.rate_command_rad_s = if r.mode == TableMode::Rate { r.rate_rad_s } else { 0.0 };
+        me.alarm = false;
+        tracing::info!(driver = %me.info.driver, angle_rad = r.angle_rad, "rate table connected");
+        Ok(me)
+    }
+
+    /// Link statistics.
+    pub fn counters(&self) -> LinkCounters {
+        self.counters
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &TableDriverConfig {
+        &self.cfg
+    }
+
+    /// Clear the controller's alarms now (Actidyn `ALC 0`; ACUTROL `:interlock:reset`,
+    /// `:interlock:close`). After a drive alarm, the next `set_rate` switches the drive on again.
+    pub async fn clear_alarms(&mut self) -> DeviceResult<()> {
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                self.actidyn(&[actidyn::Command::ClearAlarms]).await?;
+                self.last_keep_alive = self.clock.now();
+            }
+            Dialect::Acutrol => {
+                let a = self.cfg.axis;
+                self.acutrol(acutrol::Command::InterlockReset(a)).await?;
+                self.acutrol(acutrol::Command::InterlockClose(a)).await?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Switch the drive off and give control back to the front panel (Actidyn
+    /// `MOD 1,OFF:LOC 0`; ACUTROL `:mode:off 1`, `:interlock:open 1`, `:utility:lockout off`).
+    pub async fn release(&mut self) -> DeviceResult<()> {
+        let axis = self.cfg.axis;
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                self.actidyn(&[
+                    actidyn::Command::SetMode {
+                        axis: actidyn::Axis::Number(axis),
+                        mode: actidyn::Mode::Off,
+                    },
+                    actidyn::Command::Local,
+                ])
+                .await?;
+            }
+            Dialect::Acutrol => {
+                self.acutrol(acutrol::Command::ModeOff(axis)).await?;
+                self.acutrol(acutrol::Command::InterlockOpen(axis)).await?;
+                self.acutrol(acutrol::Command::Lockout(false)).await?;
+            }
+        }
+        self.mode = TableMode::Off;
+        self.rate_command_rad_s = 0.0;
+        Ok(())
+    }
+
+    fn reply_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.cfg.reply_timeout_s)
+    }
+
+    fn reset_decoder(&mut self) {
+        self.decoder = Decoder::new(self.cfg.dialect);
+        self.rx_base = self.rx_total;
+    }
+
+    /// Open the endpoint (no session start).
+    async fn open(&mut self) -> DeviceResult<()> {
+        let timeout = self.reply_timeout().max(Duration::from_secs(1));
+        let stream = self.cfg.endpoint.open(timeout).await?;
+        self.stream = Some(stream);
+        self.rx_total = 0;
+        self.reset_decoder();
+        self.resync = false;
+        Ok(())
+    }
+
+    /// Take remote control: one attempt per command, no reconnect.
+    async fn start_session(&mut self) -> DeviceResult<()> {
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                self.actidyn_once(&[actidyn::Command::Remote, actidyn::Command::ClearAlarms])
+                    .await?;
+                self.last_keep_alive = self.clock.now();
+            }
+            Dialect::Acutrol => {
+                let a = self.cfg.axis;
+                for c in [
+                    acutrol::Command::Lockout(true),
+                    acutrol::Command::InterlockOpen(a),
+                    acutrol::Command::InterlockReset(a),
+                    acutrol::Command::InterlockClose(a),
+                ] {
+                    self.acutrol_once(c).await?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Reopen the endpoint and start the session if the link was dropped.
+    async fn ensure_open(&mut self) -> DeviceResult<()> {
+        if self.stream.is_some() {
+            return Ok(());
+        }
+        self.open().await?;
+        self.counters.reconnects += 1;
+        tracing::info!(endpoint = %self.cfg.endpoint, "rate table link reopened");
+        if let Err(e) = self.start_session().await {
+            if e.kind() == ErrorKind::Link {
+                self.stream = None;
+            }
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Discard whatever is already waiting on the link (late replies) and restart the decoder.
+    fn drain(&mut self) {
+        let mut buf = [0u8; 512];
+        let mut closed = false;
+        if let Some(s) = self.stream.as_mut() {
+            loop {
+                let mut cx = std::task::Context::from_waker(std::task::Waker::noop());
+                let mut rb = tokio::io::ReadBuf::new(&mut buf);
+                match std::pin::Pin::new(&mut *s).poll_read(&mut cx, &mut rb) {
+                    std::task::Poll::Ready(Ok(())) if rb.filled().is_empty() => {
+                        closed = true;
+                        break;
+                    }
+                    std::task::Poll::Ready(Ok(())) => {
+                        self.rx_total = self.rx_total.saturating_add(rb.filled().len() as u64);
+                    }
+                    std::task::Poll::Ready(Err(_)) => {
+                        closed = true;
+                        break;
+                    }
+                    std::task::Poll::Pending => break,
+                }
+            }
+        }
+        if closed {
+            self.stream = None;
+        }
+        self.reset_decoder();
+    }
+
+    /// Prepare for the next attempt after `e`.
+    fn note_failure(&mut self, e: &DeviceError) {
+        match e.kind() {
+            ErrorKind::Link => self.stream = None,
+            ErrorKind::Timeout | ErrorKind::Protocol => self.resync = true,
+            _ => {}
+        }
+    }
+
+    fn backoff(&self, attempt: u32) -> Duration {
+        let factor = 2f64.powi(i32::try_from(attempt).unwrap_or(i32::MAX).min(16));
+        Duration::from_secs_f64(self.cfg.retry_backoff_s * factor)
+    }
+
+    async fn send(&mut self, line: &[u8]) -> DeviceResult<()> {
+        if self.resync {
+            self.resync = false;
+            self.drain();
+        }
+        let ep = &self.cfg.endpoint;
+        let Some(s) = self.stream.as_mut() else {
+            return Err(DeviceError::new(ErrorKind::Link, format!("{ep} is not open")));
+        };
+        let r = async {
+            s.write_all(line).await?;
+            s.flush().await
+        };
+        r.await.map_err(|e| {
+            DeviceError::new(ErrorKind::Link, format!("sending `{}` on {ep}: {e}", shown(line)))
+                .with_source(e)
+        })
+    }
+
+    /// Read more bytes into the decoder before `deadline`.
+    async fn fill(&mut self, line: &[u8], deadline: tokio::time::Instant) -> DeviceResult<()> {
+        let ep = self.cfg.endpoint.to_string();
+        let timeout_ms = self.reply_timeout().as_millis();
+        let Some(s) = self.stream.as_mut() else {
+            return Err(DeviceError::new(ErrorKind::Link, format!("{ep} is not open")));
+        };
+        let mut buf = [0u8; 512];
+        match tokio::time::timeout_at(deadline, s.read(&mut buf)).await {
+            Err(_) => Err(DeviceError::new(
+                ErrorKind::Timeout,
+                format!("sent `{}` on {ep}, no reply within {timeout_ms} ms", shown(line)),
+            )),
+            Ok(Ok(0)) => Err(DeviceError::new(
+                ErrorKind::Link,
+                format!("sent `{}` on {ep}, the connection was closed", shown(line)),
+            )),
+            Ok(Err(e)) => Err(DeviceError::new(
+                ErrorKind::Link,
+                format!("sent `{}` on {ep}, read failed: {e}", shown(line)),
+            )
+            .with_source(e)),
+            Ok(Ok(n)) => {
+                let got = buf.get(..n).unwrap_or_default();
+                self.rx_total = self.rx_total.saturating_add(n as u64);
+                match &mut self.decoder {
+                    Decoder::Actidyn(d) => d.push(got),
+                    Decoder::Acutrol(d) => d.push(got),
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn protocol_error(&mut self, line: &[u8], e: crate::protocol::DecodeError) -> DeviceError {
+        self.counters.corrupt_replies += 1;
+        let e = e.shifted(self.rx_base);
+        tracing::warn!(error = %e, "unreadable rate-table reply skipped");
+        DeviceError::new(
+            ErrorKind::Protocol,
+            format!(
+                "sent `{}` on {}, got an unreadable reply: {e}",
+                shown(line),
+                self.cfg.endpoint
+            ),
+        )
+        .with_source(e)
+    }
+
+    /// One Actidyn exchange, one attempt: the replies, one per command, or the first error.
+    async fn actidyn_once(
+        &mut self,
+        cmds: &[actidyn::Command],
+    ) -> DeviceResult<Vec<actidyn::Reply>> {
+        let line = actidyn::encode_commands(cmds)?;
+        self.send(&line).await?;
+        let deadline = tokio::time::Instant::now() + self.reply_timeout();
+        loop {
+            let next = match &mut self.decoder {
+                Decoder::Actidyn(d) => d.next_line(),
+                Decoder::Acutrol(_) => None,
+            };
+            match next {
+                None => self.fill(&line, deadline).await?,
+                Some(Err(e)) => return Err(self.protocol_error(&line, e)),
+                Some(Ok(replies)) => {
+                    let answers = replies.len() == cmds.len()
+                        && replies.iter().zip(cmds).all(|(r, c)| r.answers(c));
+                    if !answers {
+                        self.counters.stale_replies += 1;
+                        tracing::debug!(?replies, "reply to another command skipped");
+                        continue;
+                    }
+                    for r in &replies {
+                        if let actidyn::ReplyBody::Error { code, message } = &r.body {
+                            let kind = actidyn_error_kind(*code);
+                            if *code == actidyn_errors::DRIVE_ALARM {
+                                self.alarm = true;
+                            }
+                            return Err(DeviceError::new(
+                                kind,
+                                format!(
+                                    "sent `{}` on {}, the controller refused `{} {}`: error {code} {message}",
+                                    shown(&line),
+                                    self.cfg.endpoint,
+                                    r.mnemonic.as_str(),
+                                    r.axis
+                                ),
+                            ));
+                        }
+                    }
+                    return Ok(replies);
+                }
+            }
+        }
+    }
+
+    /// One ACUTROL exchange, one attempt.
+    async fn acutrol_once(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
+        let line = cmd.encode(self.cfg.acutrol_encoding())?;
+        self.send(&line).await?;
+        let deadline = tokio::time::Instant::now() + self.reply_timeout();
+        loop {
+            let next = match &mut self.decoder {
+                Decoder::Acutrol(d) => d.next_reply(),
+                Decoder::Actidyn(_) => None,
+            };
+            let reply = match next {
+                None => {
+                    self.fill(&line, deadline).await?;
+                    continue;
+                }
+                Some(Err(e)) => return Err(self.protocol_error(&line, e)),
+                Some(Ok(r)) => r,
+            };
+            return match (&reply, cmd.is_query()) {
+                (acutrol::Reply::Error(text), _) => Err(DeviceError::new(
+                    acutrol_error_kind(text),
+                    format!(
+                        "sent `{}` on {}, the controller refused it: ERR {text}",
+                        shown(&line),
+                        self.cfg.endpoint
+                    ),
+                )),
+                (acutrol::Reply::Value(_), true) | (acutrol::Reply::Ok, false) => Ok(reply),
+                (other, query) => {
+                    // A late answer to an earlier command: the stream is out of step.
+                    self.counters.stale_replies += 1;
+                    Err(DeviceError::new(
+                        ErrorKind::Protocol,
+                        format!(
+                            "sent `{}` on {}, expected {}, got {other:?}",
+                            shown(&line),
+                            self.cfg.endpoint,
+                            if query { "a number" } else { "OK" }
+                        ),
+                    ))
+                }
+            };
+        }
+    }
+
+    /// Retry policy around one exchange: `attempt` runs it once.
+    async fn with_retries<T, F>(&mut self, mut attempt: F) -> DeviceResult<T>
+    where
+        F: for<'a> FnMut(
+            &'a mut Self,
+        ) -> std::pin::Pin<
+            Box<dyn std::future::Future<Output = DeviceResult<T>> + Send + 'a>,
+        >,
+    {
+        let mut n: u32 = 0;
+        loop {
+            let r = match self.ensure_open().await {
+                Ok(()) => attempt(self).await,
+                Err(e) => Err(e),
+            };
+            match r {
+                Ok(v) => return Ok(v),
+                Err(e) => {
+                    self.note_failure(&e);
+                    if !e.kind().is_transient() {
+                        return Err(e);
+                    }
+                    if n >= self.cfg.retries {
+                        return Err(DeviceError::new(
+                            e.kind(),
+                            format!("{} ({} attempts)", e.message(), n + 1),
+                        ));
+                    }
+                    tracing::debug!(error = %e, attempt = n + 1, "rate-table exchange retried");
+                    tokio::time::sleep(self.backoff(n)).await;
+                    n += 1;
+                    self.counters.retries += 1;
+                }
+            }
+        }
+    }
+
+    /// An Actidyn exchange with retries.
+    async fn actidyn(&mut self, cmds: &[actidyn::Command]) -> DeviceResult<Vec<actidyn::Reply>> {
+        let cmds = cmds.to_vec();
+        self.with_retries(move |me| {
+            let cmds = cmds.clone();
+            Box::pin(async move { me.actidyn_once(&cmds).await })
+        })
+        .await
+    }
+
+    /// An ACUTROL exchange with retries.
+    async fn acutrol(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
+        self.with_retries(move |me| Box::pin(me.acutrol_once(cmd))).await
+    }
+
+    fn axis(&self) -> actidyn::Axis {
+        actidyn::Axis::Number(self.cfg.axis)
+    }
+
+    fn check_rate(&self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<f64> {
+        let caps = &self.info.capabilities;
+        if !(rate_rad_s.is_finite() && rate_rad_s.abs() <= caps.max_rate_rad_s) {
+            return Err(DeviceError::new(
+                ErrorKind::OutOfRange,
+                format!(
+                    "rate {:.6} °/s is outside ±{} °/s (table driver config max_rate_deg_s)",
+                    rate_rad_s / DEG,
+                    self.cfg.max_rate_deg_s
+                ),
+            ));
+        }
+        self.check_accel(accel_rad_s2)
+    }
+
+    /// The acceleration to send, °/s² (0 → the configured default).
+    fn check_accel(&self, accel_rad_s2: f64) -> DeviceResult<f64> {
+        if accel_rad_s2 == 0.0 {
+            return Ok(self.cfg.default_accel_deg_s2.min(self.cfg.max_accel_deg_s2));
+        }
+        let caps = &self.info.capabilities;
+        if !(accel_rad_s2.is_finite()
+            && accel_rad_s2 > 0.0
+            && accel_rad_s2 <= caps.max_accel_rad_s2 * (1.0 + 1e-12))
+        {
+            return Err(DeviceError::new(
+                ErrorKind::OutOfRange,
+                format!(
+                    "acceleration {:.6} °/s² is outside (0, {}] °/s² (table driver config max_accel_deg_s2)",
+                    accel_rad_s2 / DEG,
+                    self.cfg.max_accel_deg_s2
+                ),
+            ));
+        }
+        Ok(accel_rad_s2 / DEG)
+    }
+
+    fn reading(
+        &mut self,
+        raw_position_deg: f64,
+        rate_deg_s: f64,
+        mode: TableMode,
+        drive_off_unexpected: bool,
+    ) -> TableReading {
+        let angle_deg = self.unwrap.update(raw_position_deg);
+        let rate_rad_s = rate_deg_s * DEG;
+        let mut st = 0;
+        if mode == TableMode::Off {
+            st |= status::table::DRIVE_OFF;
+        }
+        if self.alarm || drive_off_unexpected {
+            st |= status::table::ALARM;
+        }
+        let tol = 1e-3 * self.rate_command_rad_s.abs() + 1e-4;
+        if mode == TableMode::Rate && (rate_rad_s - self.rate_command_rad_s).abs() > tol {
+            st |= status::table::SLEWING;
+        }
+        TableReading {
+            angle_rad: angle_deg * DEG,
+            rate_rad_s,
+            rate_command_rad_s: self.rate_command_rad_s,
+            mode,
+            status: st,
+            device_time: None,
+        }
+    }
+}
+
+fn context(what: &str, e: DeviceError) -> DeviceError {
+    DeviceError::new(e.kind(), format!("{what}: {}", e.message()))
+}
+
+fn table_mode(m: actidyn::Mode) -> TableMode {
+    match m {
+        actidyn::Mode::Off => TableMode::Off,
+        actidyn::Mode::Rate => TableMode::Rate,
+        // Sine motion is a position trajectory; servo-on holds position.
+        actidyn::Mode::Position | actidyn::Mode::Sine => TableMode::Position,
+        actidyn::Mode::ServoOn | actidyn::Mode::Stop => TableMode::Stopped,
+    }
+}
+
+#[async_trait]
+impl RateTable for RateTableDriver {
+    fn info(&self) -> &DeviceInfo<TableCapabilities> {
+        &self.info
+    }
+
+    async fn set_rate(&mut self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<()> {
+        let accel_deg_s2 = self.check_rate(rate_rad_s, accel_rad_s2)?;
+        let rate_deg_s = rate_rad_s / DEG;
+        let axis = self.axis();
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                self.actidyn(&[
+                    actidyn::Command::SetMode { axis, mode: actidyn::Mode::Rate },
+                    actidyn::Command::Rate { axis, rate_deg_s, accel_deg_s2 },
+                ])
+                .await?;
+            }
+            Dialect::Acutrol => {
+                // The known ACUTROL command set has no acceleration argument: the controller's
+                // own limits apply.
+                let a = self.cfg.axis;
+                if self.mode != TableMode::Rate {
+                    self.acutrol(acutrol::Command::ModeRate(a)).await?;
+                    self.mode = TableMode::Rate;
+                }
+                self.acutrol(acutrol::Command::DemandRate { axis: a, rate_deg_s }).await?;
+            }
+        }
+        self.mode = TableMode::Rate;
+        self.rate_command_rad_s = rate_rad_s;
+        self.alarm = false;
+        Ok(())
+    }
+
+    /// Actidyn: `MOD 1,STP`, the controller's own controlled stop (its deceleration, not
+    /// `decel_rad_s2`, which is only checked). ACUTROL: demand rate 0, held in rate mode.
+    async fn stop(&mut self, decel_rad_s2: f64) -> DeviceResult<()> {
+        self.check_accel(decel_rad_s2)?;
+        let axis = self.axis();
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                self.actidyn(&[actidyn::Command::SetMode { axis, mode: actidyn::Mode::Stop }])
+                    .await?;
+                self.mode = TableMode::Stopped;
+            }
+            Dialect::Acutrol => {
+                let a = self.cfg.axis;
+                self.acutrol(acutrol::Command::DemandRate { axis: a, rate_deg_s: 0.0 }).await?;
+                if self.mode == TableMode::Rate {
+                    self.mode = TableMode::Stopped;
+                }
+            }
+        }
+        self.rate_command_rad_s = 0.0;
+        Ok(())
+    }
+
+    async fn read(&mut self) -> DeviceResult<TableReading> {
+        let axis = self.axis();
+        match self.cfg.dialect {
+            Dialect::Actidyn => {
+                let cmds =
+                    [actidyn::Command::QueryPrv { axis }, actidyn::Command::QueryMode { axis }];
+                let replies = self.actidyn(&cmds).await?;
+                let prv = replies.first().and_then(actidyn::Reply::prv);
+                let mode =
+                    replies.get(1).and_then(actidyn::Reply::modes).and_then(|m| m.first().copied());
+                let (Some(prv), Some(mode)) = (prv, mode) else {
+                    self.counters.corrupt_replies += 1;
+                    return Err(DeviceError::new(
+                        ErrorKind::Protocol,
+                        format!(
+                            "sent `PRV {axis},?:MOD {axis},?` on {}, expected 3 values and a mode, got {replies:?}",
+                            self.cfg.endpoint
+                        ),
+                    ));
+                };
+                let mode = table_mode(mode);
+                let unexpected = mode == TableMode::Off && self.mode != TableMode::Off;
+                if unexpected {
+                    tracing::warn!(
+                        "the controller switched the drive off (alarm or lost keep-alive)"
+                    );
+                    self.alarm = true;
+                    self.mode = TableMode::Off;
+                    self.rate_command_rad_s = 0.0;
+                }
+                Ok(self.reading(prv.position_deg, prv.rate_deg_s, mode, unexpected))
+            }
+            Dialect::Acutrol => {
+                let a = self.cfg.axis;
+                let pos = self.acutrol(acutrol::Command::ReadPosition(a)).await?;
+                let rate = self.acutrol(acutrol::Command::ReadRate(a)).await?;
+                let (acutrol::Reply::Value(p), acutrol::Reply::Value(r)) = (pos, rate) else {
+                    return Err(DeviceError::new(ErrorKind::Protocol, "expected two values"));
+                };
+                let mode = self.mode;
+                Ok(self.reading(p, r, mode, false))
+            }
+        }
+    }
+
+    /// Actidyn: sends `ALC 0` when `keep_alive_s` of bench time has passed since the last one.
+    async fn service(&mut self) -> DeviceResult<()> {
+        if self.cfg.dialect != Dialect::Actidyn || self.cfg.keep_alive_s <= 0.0 {
+            return Ok(());
+        }
+        let now = self.clock.now();
+        if now.saturating_sub(self.last_keep_alive).as_secs_f64() < self.cfg.keep_alive_s {
+            return Ok(());
+        }
+        self.actidyn(&[actidyn::Command::ClearAlarms]).await?;
+        self.last_keep_alive = now;
+        self.counters.keep_alives += 1;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unwrapper_counts_turns_both_ways() {
+        let mut u = Unwrapper::default();
+        let got: Vec<f64> = [350.0, 359.0, 1.0, 10.0, 355.0, 181.0, 90.0]
+            .into_iter()
+            .map(|d| u.update(d))
+            .collect();
+        assert_eq!(got, vec![350.0, 359.0, 361.0, 370.0, 355.0, 181.0, 90.0]);
+        let mut u = Unwrapper::default();
+        let got: Vec<f64> = [170.0, -170.0, -10.0].into_iter().map(|d| u.update(d)).collect();
+        assert_eq!(got, vec![170.0, 190.0, 350.0]);
+    }
+
+    #[test]
+    fn error_codes_map_to_kinds() {
+        assert_eq!(actidyn_error_kind(actidyn_errors::DRIVE_ALARM), ErrorKind::DeviceFault);
+        assert_eq!(actidyn_error_kind(actidyn_errors::INTERLOCK), ErrorKind::InterlockTripped);
+        assert_eq!(actidyn_error_kind(actidyn_errors::OUT_OF_RANGE), ErrorKind::OutOfRange);
+        assert_eq!(actidyn_error_kind(actidyn_errors::NOT_REMOTE), ErrorKind::NotReady);
+        assert_eq!(actidyn_error_kind(999), ErrorKind::DeviceFault);
+        assert_eq!(acutrol_error_kind("interlock open"), ErrorKind::InterlockTripped);
+        assert_eq!(acutrol_error_kind("rate out of range"), ErrorKind::OutOfRange);
+        assert_eq!(acutrol_error_kind("not in rate mode"), ErrorKind::NotReady);
+        assert_eq!(acutrol_error_kind("amplifier fault"), ErrorKind::DeviceFault);
+    }
+
+    #[test]
+    fn config_defaults_and_validation() {
+        let c = TableDriverConfig::new(Endpoint::Tcp { addr: "x:1".into() }, Dialect::Actidyn);
+        assert!(c.validate().is_ok());
+        let bad = TableDriverConfig { reply_timeout_s: 0.0, ..c };
+        let e = bad.validate().err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("reply_timeout_s = 0"), "{e}");
+    }
+}
