@@ -31,6 +31,7 @@ mod config;
 mod devices;
 pub mod faults;
 pub mod ports;
+pub mod serve;
 mod world;
 
 use std::sync::{Arc, Mutex};
