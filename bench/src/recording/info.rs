@@ -41,6 +41,9 @@ pub struct ChannelReport {
     pub median_period_s: Option<f64>,
     /// Intervals longer than 1.5 × the median period.
     pub gaps: Vec<Gap>,
+    /// Whether the channel is a periodic stream (nine in ten periods within 10 % of the
+    /// median); gaps are only looked for in periodic channels.
+    pub periodic: bool,
 }
 
 /// A step as its events record it (times in s from the recording's first message).
@@ -219,7 +222,14 @@ fn channel_report(
         let (_, m, _) = periods.select_nth_unstable(mid);
         Some(*m)
     };
-    let gaps = match median {
+    // A channel is periodic (a device stream) when nine in ten of its periods lie within 10 %
+    // of the median; event channels (steps, log) have no gaps to speak of.
+    let periodic = median.is_some_and(|m| {
+        let near =
+            periods.iter().filter(|&&p| (p as f64 - m as f64).abs() <= 0.1 * m as f64).count();
+        m > 0 && near * 10 >= periods.len() * 9
+    });
+    let gaps = match median.filter(|_| periodic) {
         Some(m) => ts
             .windows(2)
             .filter(|w| (w[1].saturating_sub(w[0])) as f64 > 1.5 * m as f64)
@@ -242,6 +252,7 @@ fn channel_report(
         last_s: last.map(rel),
         mean_rate_hz,
         median_period_s: median.map(|m| m as f64 * 1e-9),
+        periodic,
         gaps,
     }
 }
@@ -280,6 +291,14 @@ impl fmt::Display for RecordingInfo {
         }
         writeln!(f, "channels:")?;
         for c in &self.channels {
+            if !c.periodic {
+                writeln!(
+                    f,
+                    "  {:<16} {:<20} {:>9} msgs  event channel (no fixed rate)",
+                    c.topic, c.schema_name, c.count
+                )?;
+                continue;
+            }
             writeln!(
                 f,
                 "  {:<16} {:<20} {:>9} msgs  {}  median period {}  {} gap(s)",

@@ -274,6 +274,9 @@ fn info_reports_channels_rates_gaps_steps_metadata_and_outcome() {
     assert_eq!(t.gaps, vec![Gap { from_s: 3.95, to_s: 5.0 }]);
     assert_eq!(ch("/log").count, 200);
     assert_eq!(ch("/bench/step").count, 4);
+    // Device streams are periodic; step events are not, and have no gaps to report.
+    assert!(g.periodic && t.periodic);
+    assert!(!ch("/bench/step").periodic && ch("/bench/step").gaps.is_empty());
     assert_eq!(i.steps.len(), 2);
     assert_eq!(
         i.steps[0],
