@@ -421,7 +421,7 @@ impl RateTableDriver {
         };
         let what = format!("connecting to the {} table on {}", me.cfg.dialect, me.cfg.endpoint);
         me.open().await.map_err(|e| context(&what, e))?;
-        me.start_session().await.map_err(|e| context(&what, e))?;
+        me.with_retries(|me| Box::pin(me.start_session())).await.map_err(|e| context(&what, e))?;
         let r = me.read().await.map_err(|e| context(&what, e))?;
         // The probe tells the actual mode: do not claim the drive is off if it is running.
         me.mode = r.mode;
