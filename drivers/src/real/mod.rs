@@ -2,6 +2,7 @@
 //! a codec from [`crate::protocol`].
 
 pub mod can;
+pub mod chamber;
 pub mod gyro_can;
 pub mod gyro_kvh;
 pub mod gyro_link;

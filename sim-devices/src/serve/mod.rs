@@ -2,4 +2,5 @@
 //! ([`crate::ports`]), with faults from a [`crate::faults::FaultSwitch`], so that the real
 //! drivers are tested end to end.
 
+pub mod chamber;
 pub mod table;
