@@ -35,7 +35,13 @@ impl SocketCanBus {
     #[cfg(feature = "socketcan")]
     pub fn open(iface: &str) -> DeviceResult<Self> {
         let socket = socketcan::tokio::CanSocket::open(iface).map_err(|e| {
-            let af_missing = e.raw_os_error() == Some(libc_eafnosupport());
+            // The interface is looked up before the socket is made, so a kernel without AF_CAN
+            // first shows as "no such device": probe by making a socket bound to any interface.
+            let af_missing = e.raw_os_error() == Some(libc_eafnosupport())
+                || <socketcan::CanSocket as socketcan::Socket>::open_iface(0)
+                    .err()
+                    .and_then(|p| p.raw_os_error())
+                    == Some(libc_eafnosupport());
             if af_missing {
                 DeviceError::new(ErrorKind::Unsupported, format!("socketcan {iface}: {NO_AF_CAN}"))
                     .with_source(e)

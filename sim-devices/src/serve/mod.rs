@@ -3,4 +3,5 @@
 //! drivers are tested end to end.
 
 pub mod chamber;
+pub mod gyro;
 pub mod table;
