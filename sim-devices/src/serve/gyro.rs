@@ -431,6 +431,8 @@ mod tests {
         let got = asm.push(&h).expect("pair").expect("ok").to_gyro_sample();
         assert_eq!(got.seq, 0x1234_56AB);
         assert_eq!(got.status, status::gyro::INVALID);
-        assert!((got.rate_rad_s - 20e-6).abs() < 1e-12);
+        // Half an LSB of delta angle over the 50 ms period.
+        let lsb = bench_drivers::protocol::gyro_can::ANGLE_LSB_RAD;
+        assert!((got.rate_rad_s - 20e-6).abs() <= 0.5 * lsb * 20.0);
     }
 }
