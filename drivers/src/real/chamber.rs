@@ -713,10 +713,9 @@ impl Chamber for ModbusChamber {
             None => self.setpoint_c,
         };
         let mut st = 0;
-        let ramping = match self.stepping {
-            Some(s) => (s.written_c - s.target_c).abs() > res / 2.0,
-            None => (setpoint_c - self.target_c).abs() > res / 2.0,
-        };
+        // Ramping until both the set point written and the working set point read are there.
+        let stepping = self.stepping.is_some_and(|s| (s.written_c - s.target_c).abs() > res / 2.0);
+        let ramping = stepping || (setpoint_c - self.target_c).abs() > res / 2.0;
         if ramping {
             st |= status::chamber::RAMPING;
         }
