@@ -16,6 +16,7 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod bench_config;
 pub mod plan;
 pub mod progress;
 pub mod realtime;

@@ -26,6 +26,8 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Summarise a recording: duration, channels, gaps, steps, metadata, outcome.
     Info(cli::info::InfoArgs),
+    /// List the serial ports of this machine.
+    Ports,
 }
 
 fn main() -> ExitCode {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
         Command::Run(a) => cli::run::run(a, args.verbose),
         Command::Validate(a) => cli::validate::run(a),
         Command::Info(a) => cli::info::run(a),
+        Command::Ports => cli::ports::run(),
     };
     match result {
         Ok(code) => code,

@@ -90,7 +90,7 @@ fn map_from_bench_config_toml() {
     )
     .unwrap();
     assert_eq!(f.encoding, ValueEncoding::Float32 { word_order: WordOrder::LowWordFirst });
-    let p: Preset = toml::from_str::<toml::Table>("p = \"eurotherm3216\"").unwrap()["p"]
+    let p: Preset = toml::from_str::<toml::Table>("p = \"eurotherm_3216\"").unwrap()["p"]
         .clone()
         .try_into()
         .unwrap();

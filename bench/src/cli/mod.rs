@@ -1,6 +1,7 @@
 //! One file per subcommand.
 
 pub mod info;
+pub mod ports;
 pub mod run;
 pub mod validate;
 

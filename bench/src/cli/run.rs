@@ -1,12 +1,19 @@
 //! `bench run SCENARIO`: run a scenario and record it.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::Context as _;
-use bench::scenario::LoadError;
-use bench::simulate::{SimOptions, SIM_EPOCH_NS};
+use bench::bench_config::BenchConfig;
+use bench::plan::RunPlan;
+use bench::realtime::{run_plan_realtime, RealtimeOptions};
+use bench::record::TomlAttachment;
+use bench::run::Stopper;
+use bench::scenario::{Capabilities, LoadError};
+use bench::simulate::{RunReport, SimOptions, SIM_EPOCH_NS};
+use bench_drivers::{Clock, SystemClock};
 
 /// Arguments of `bench run`.
 #[derive(clap::Args, Debug)]
@@ -17,50 +24,63 @@ pub struct RunArgs {
     /// directory).
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Seed of the simulator's random streams; the same seed gives the same recording.
+    /// Seed of the simulator's random streams; the same seed gives the same recording
+    /// (simulated bench only).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Bench config (TOML): real drivers, or simulators behind virtual ports. Without it the
+    /// embedded simulated bench runs in virtual time.
+    #[arg(long, short)]
+    pub bench: Option<PathBuf>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
 }
 
-/// Run on the embedded simulated bench (virtual time).
+/// Load and validate; print every problem. `None` when invalid (already reported).
+fn load_plan(path: &Path, caps: &Capabilities) -> anyhow::Result<Option<RunPlan>> {
+    match bench::scenario::load(path, caps) {
+        Ok(p) => Ok(Some(p)),
+        Err(LoadError::Invalid(errors)) => {
+            for e in errors.iter() {
+                eprintln!("{e}");
+            }
+            eprintln!("{}: {} error(s); nothing was run", path.display(), errors.len());
+            Ok(None)
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Run on the embedded simulated bench, or on the bench a config describes.
 pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args.scenario.file_stem().map(|s| s.to_os_string()).unwrap_or_default();
         PathBuf::from(stem).with_extension("mcap")
     });
-    let plan = match bench::scenario::load(&args.scenario, &bench::simulate::capabilities()) {
-        Ok(p) => p,
-        Err(LoadError::Invalid(errors)) => {
-            for e in errors.iter() {
-                eprintln!("{e}");
-            }
-            eprintln!("{}: {} error(s); nothing was run", args.scenario.display(), errors.len());
-            return Ok(ExitCode::from(2));
+    let progress = !args.quiet && std::io::stderr().is_terminal();
+    let report = match &args.bench {
+        None => {
+            let Some(plan) = load_plan(&args.scenario, &bench::simulate::capabilities())? else {
+                return Ok(ExitCode::from(2));
+            };
+            let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress };
+            let file = std::fs::File::create(&out)
+                .with_context(|| format!("cannot create recording {}", out.display()))?;
+            let (report, writer) = bench::simulate::run_plan(
+                &plan,
+                std::io::BufWriter::new(file),
+                &opts,
+                Some(super::console_layer(verbose)),
+            )?;
+            finish_file(writer, &out)?;
+            report
         }
-        Err(e) => return Err(e.into()),
+        Some(config) => match run_on_bench(&args, config, &out, progress, verbose)? {
+            Some(r) => r,
+            None => return Ok(ExitCode::from(2)),
+        },
     };
-    let opts = SimOptions {
-        seed: args.seed,
-        epoch_ns: SIM_EPOCH_NS,
-        progress: !args.quiet && std::io::stderr().is_terminal(),
-    };
-    let file = std::fs::File::create(&out)
-        .with_context(|| format!("cannot create recording {}", out.display()))?;
-    let (report, writer) = bench::simulate::run_plan(
-        &plan,
-        std::io::BufWriter::new(file),
-        &opts,
-        Some(super::console_layer(verbose)),
-    )?;
-    writer
-        .into_inner()
-        .map_err(|e| e.into_error())
-        .and_then(|f| f.sync_all())
-        .with_context(|| format!("cannot write recording {}", out.display()))?;
-    let peak_rss_mb = peak_rss_mb();
     println!(
         "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, peak RSS {}",
         out.display(),
@@ -69,9 +89,90 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
         report.wall_time.as_secs_f64(),
         report.speed(),
         report.gyro_samples,
-        peak_rss_mb.map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
+        peak_rss_mb().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
     );
     Ok(if report.outcome == "completed" { ExitCode::SUCCESS } else { ExitCode::from(3) })
+}
+
+fn finish_file(writer: std::io::BufWriter<std::fs::File>, out: &Path) -> anyhow::Result<()> {
+    writer
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .and_then(|f| f.sync_all())
+        .with_context(|| format!("cannot write recording {}", out.display()))
+}
+
+/// Real time on tokio: connect every device (failing before anything moves), validate the
+/// scenario against what they report, run with Ctrl-C aborting to the safe state.
+fn run_on_bench(
+    args: &RunArgs,
+    config_path: &Path,
+    out: &Path,
+    progress: bool,
+    verbose: u8,
+) -> anyhow::Result<Option<RunReport>> {
+    let config = BenchConfig::load(config_path)?;
+    let config_text = std::fs::read_to_string(config_path)
+        .with_context(|| format!("cannot read {}", config_path.display()))?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")?;
+    rt.block_on(async {
+        let clock = SystemClock::new(config.bench.time_scale);
+        // Bench time zero is now: log times are wall-clock times (scaled around this instant
+        // for simulators behind virtual ports).
+        let epoch_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos() as u64)
+            .unwrap_or(0);
+        let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+        let (devices, caps) = config.connect(shared).await?;
+        let Some(mut plan) = load_plan(&args.scenario, &caps)? else {
+            return Ok(None);
+        };
+        if let Some(site) = config.site() {
+            if site.latitude_deg != plan.site.latitude_deg {
+                tracing::warn!(
+                    "bench config latitude {}° overrides the scenario's {}°",
+                    site.latitude_deg,
+                    plan.site.latitude_deg
+                );
+            }
+            plan.site = site;
+        }
+        let mut info = bench::simulate::run_info(&plan, epoch_ns);
+        info.config = Some(TomlAttachment {
+            name: config_path
+                .file_name()
+                .map_or("bench.toml".into(), |n| n.to_string_lossy().into_owned()),
+            text: config_text,
+        });
+        let (stopper, stop) = Stopper::new();
+        tokio::spawn(async move {
+            if tokio::signal::ctrl_c().await.is_ok() {
+                stopper.stop("interrupted by the operator (Ctrl-C)");
+            }
+        });
+        let file = std::fs::File::create(out)
+            .with_context(|| format!("cannot create recording {}", out.display()))?;
+        let (report, writer) = run_plan_realtime(
+            &plan,
+            devices,
+            clock,
+            std::io::BufWriter::new(file),
+            info,
+            RealtimeOptions {
+                progress,
+                stop: Some(stop),
+                console: Some(super::console_layer(verbose)),
+            },
+        )
+        .await?;
+        finish_file(writer, out)?;
+        Ok(Some(report))
+    })
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), MB.

@@ -241,10 +241,11 @@ fn period(hz: f64) -> Duration {
 async fn table_poller(ctx: Arc<Ctx>, hz: f64) {
     let mut budget = ErrorBudget { device: "rate table", consecutive: 0 };
     let dt = period(hz);
+    let t0 = ctx.clock.now();
     let mut k: u32 = 0;
     loop {
         k += 1;
-        ctx.clock.sleep_until(dt * k).await;
+        ctx.clock.sleep_until(t0 + dt * k).await;
         let r = {
             let mut table = ctx.table.lock().await;
             match table.service().await {
@@ -272,10 +273,11 @@ async fn table_poller(ctx: Arc<Ctx>, hz: f64) {
 async fn chamber_poller(ctx: Arc<Ctx>, hz: f64) {
     let mut budget = ErrorBudget { device: "chamber", consecutive: 0 };
     let dt = period(hz);
+    let t0 = ctx.clock.now();
     let mut k: u32 = 0;
     loop {
         k += 1;
-        ctx.clock.sleep_until(dt * k).await;
+        ctx.clock.sleep_until(t0 + dt * k).await;
         let r = {
             let mut chamber = ctx.chamber.lock().await;
             match chamber.service().await {

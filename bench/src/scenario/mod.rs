@@ -24,6 +24,8 @@
 mod build;
 mod doc;
 pub mod quantity;
+
+pub(crate) use doc::line_col;
 #[cfg(test)]
 mod tests;
 

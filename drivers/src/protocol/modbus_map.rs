@@ -181,11 +181,14 @@ pub struct RegisterMap {
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
     /// Watlow F4: int16, decimals from register 606, PV 100, SP 300.
+    #[serde(rename = "watlow_f4")]
     WatlowF4,
     /// Watlow F4T loop 1: float32 low word first, PV 2820, SP 2782, WSP 2810.
+    #[serde(rename = "watlow_f4t")]
     WatlowF4T,
     /// Eurotherm 3216: int16 (1 decimal by default), PV 1, set point written to the remote SP
     /// 26 (selected with 276 = 1), working SP 5, SP rate limit 35; registers 2, 24, 25 are EEPROM.
+    #[serde(rename = "eurotherm_3216")]
     Eurotherm3216,
 }
 

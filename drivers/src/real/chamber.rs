@@ -38,7 +38,7 @@
 //! use bench_drivers::real::chamber::ModbusChamberConfig;
 //! let cfg: ModbusChamberConfig = toml::from_str(r#"
 //!     endpoint = { tcp = { addr = "192.168.0.30:502" } }
-//!     map = "eurotherm3216"
+//!     map = "eurotherm_3216"
 //! "#).unwrap();
 //! assert_eq!(cfg.unit_id, 1);
 //! assert_eq!(cfg.request_timeout_ms, 300);
@@ -64,13 +64,36 @@ use crate::{
 };
 
 /// A built-in map by name, or a map spelled out in the config.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(untagged)]
 pub enum MapChoice {
-    /// `map = "watlow_f4" | "watlow_f4t" | "eurotherm3216"`.
+    /// `map = "watlow_f4" | "watlow_f4t" | "eurotherm_3216"`.
     Preset(Preset),
     /// `[chamber.map]` with the fields of [`RegisterMap`].
     Custom(RegisterMap),
+}
+
+impl<'de> Deserialize<'de> for MapChoice {
+    /// A preset by name (`"watlow_f4"`, `"watlow_f4t"`, `"eurotherm_3216"`) or a custom map as a
+    /// table; a wrong name is reported with the allowed ones.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = MapChoice;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a preset name (\"watlow_f4\", \"watlow_f4t\", \"eurotherm_3216\") or a register map table")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<MapChoice, E> {
+                Preset::deserialize(serde::de::value::StrDeserializer::<E>::new(v))
+                    .map(MapChoice::Preset)
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, m: A) -> Result<MapChoice, A::Error> {
+                RegisterMap::deserialize(serde::de::value::MapAccessDeserializer::new(m))
+                    .map(MapChoice::Custom)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl MapChoice {

@@ -1,0 +1,299 @@
+//! Bench configuration: which driver and transport reaches each device, and where the bench
+//! stands. Documented in `docs/bench-config.md`.
+//!
+//! ```toml
+//! [site]
+//! latitude_deg = 43.56
+//!
+//! [table]
+//! dialect = "actidyn"
+//! endpoint = { tcp = { addr = "192.168.10.20:62000" } }
+//!
+//! [chamber]
+//! endpoint = { serial = { path = "/dev/ttyUSB0", baud = 9600 } }
+//! unit_id = 1
+//! map = "watlow_f4t"
+//!
+//! [gyro]
+//! driver = "can"
+//! transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } }
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use bench_drivers::real::chamber::{ModbusChamber, ModbusChamberConfig};
+use bench_drivers::real::gyro_can::{CanGyro, CanGyroConfig};
+use bench_drivers::real::gyro_kvh::{Dsp3000Config, Dsp3000Gyro, Kvh1750Config, Kvh1750Gyro};
+use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
+use bench_drivers::{Clock, DeviceError, Gyro};
+use serde::{Deserialize, Serialize};
+
+use crate::plan::Site;
+use crate::run::Devices;
+use crate::scenario::Capabilities;
+
+/// A bench configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchConfig {
+    /// Where the bench stands; overrides the scenario's `[site]` (the lab knows where it is).
+    #[serde(default)]
+    pub site: Option<SiteConfig>,
+    /// Settings of bench itself.
+    #[serde(default)]
+    pub bench: BenchSettings,
+    /// The rate table's driver.
+    pub table: TableDriverConfig,
+    /// The chamber's driver (Modbus RTU or TCP).
+    pub chamber: ModbusChamberConfig,
+    /// The gyro's driver.
+    pub gyro: GyroConfig,
+}
+
+/// `[bench]`: settings of the controller itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BenchSettings {
+    /// Bench time per wall time (default 1). Only for simulators behind virtual ports, which
+    /// run faster than real time (`bench sim serve --time-scale`): both sides must agree.
+    pub time_scale: f64,
+}
+
+impl Default for BenchSettings {
+    fn default() -> Self {
+        Self { time_scale: 1.0 }
+    }
+}
+
+/// `[site]` of a bench config.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteConfig {
+    /// Geodetic latitude, degrees north.
+    pub latitude_deg: f64,
+    /// Longitude, degrees east.
+    #[serde(default)]
+    pub longitude_deg: Option<f64>,
+    /// Height, m.
+    #[serde(default)]
+    pub height_m: Option<f64>,
+    /// `up` (default) or `down`: where the gyro's sensing axis points.
+    #[serde(default = "default_axis")]
+    pub axis: String,
+}
+
+fn default_axis() -> String {
+    "up".into()
+}
+
+/// The gyro's driver, chosen by `driver`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "snake_case")]
+pub enum GyroConfig {
+    /// bench's CAN frame set over SLCAN or socketcan.
+    Can(CanGyroConfig),
+    /// KVH 1750/1775 format A over serial.
+    Kvh1750(Kvh1750Config),
+    /// KVH DSP-3000 over serial.
+    Dsp3000(Dsp3000Config),
+}
+
+/// A bench config that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read bench config {}: {source}", path.display())]
+    Io {
+        /// Path.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The file is not a valid bench config.
+    #[error("{file}:{line}:{column}: {message}")]
+    Invalid {
+        /// File name.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A device could not be reached or did not answer as expected.
+    #[error("{device}: {source}")]
+    Connect {
+        /// Which device.
+        device: &'static str,
+        /// What was tried and what came back.
+        source: DeviceError,
+    },
+}
+
+impl BenchConfig {
+    /// Read and parse a bench config file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ConfigError::Io { path: path.to_path_buf(), source })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parse bench config `text`; errors name `file:line:column`.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let cfg: Self = toml::from_str(text).map_err(|e| {
+            let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
+            ConfigError::Invalid {
+                file: file.to_string(),
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        let bad = |message: String| ConfigError::Invalid {
+            file: file.to_string(),
+            line: 1,
+            column: 1,
+            message,
+        };
+        if !(cfg.bench.time_scale.is_finite() && cfg.bench.time_scale > 0.0) {
+            return Err(bad(format!(
+                "[bench] time_scale must be a positive number, got {}",
+                cfg.bench.time_scale
+            )));
+        }
+        if let Some(site) = &cfg.site {
+            if !(-90.0..=90.0).contains(&site.latitude_deg) {
+                return Err(bad(format!(
+                    "[site] latitude_deg {} is outside -90..90",
+                    site.latitude_deg
+                )));
+            }
+            if site.axis != "up" && site.axis != "down" {
+                return Err(bad(format!(
+                    "[site] axis must be \"up\" or \"down\", got \"{}\"",
+                    site.axis
+                )));
+            }
+        }
+        Ok(cfg)
+    }
+
+    /// The site as the plan holds it.
+    pub fn site(&self) -> Option<Site> {
+        self.site.as_ref().map(|s| Site {
+            latitude_deg: s.latitude_deg,
+            longitude_deg: s.longitude_deg,
+            height_m: s.height_m,
+            axis_up: s.axis == "up",
+        })
+    }
+
+    /// Connect to every device, one after the other, failing on the first that cannot be
+    /// reached (nothing has moved yet). Returns the devices and their capabilities.
+    pub async fn connect(
+        &self,
+        clock: Arc<dyn Clock>,
+    ) -> Result<(Devices, Capabilities), ConfigError> {
+        let table = RateTableDriver::connect_with_clock(self.table.clone(), clock.clone())
+            .await
+            .map_err(|source| ConfigError::Connect { device: "rate table", source })?;
+        let chamber = ModbusChamber::connect(self.chamber.clone(), clock.clone())
+            .await
+            .map_err(|source| ConfigError::Connect { device: "chamber", source })?;
+        let gyro: Box<dyn Gyro> = match &self.gyro {
+            GyroConfig::Can(c) => Box::new(
+                CanGyro::open(c, clock.clone())
+                    .await
+                    .map_err(|source| ConfigError::Connect { device: "gyro (CAN)", source })?,
+            ),
+            GyroConfig::Kvh1750(c) => Box::new(
+                Kvh1750Gyro::open(c, clock.clone())
+                    .map_err(|source| ConfigError::Connect { device: "gyro (KVH 1750)", source })?,
+            ),
+            GyroConfig::Dsp3000(c) => {
+                Box::new(Dsp3000Gyro::open(c, clock.clone()).map_err(|source| {
+                    ConfigError::Connect { device: "gyro (KVH DSP-3000)", source }
+                })?)
+            }
+        };
+        use bench_drivers::{Chamber, RateTable};
+        let caps = Capabilities {
+            table: table.info().clone(),
+            chamber: chamber.info().clone(),
+            gyro: gyro.info().clone(),
+        };
+        Ok((Devices { table: Box::new(table), chamber: Box::new(chamber), gyro }, caps))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[site]
+latitude_deg = 43.56
+
+[table]
+dialect = "actidyn"
+endpoint = { tcp = { addr = "127.0.0.1:62000" } }
+
+[chamber]
+endpoint = { serial = { path = "/dev/ttyUSB0", baud = 9600 } }
+unit_id = 1
+map = "watlow_f4t"
+
+[gyro]
+driver = "can"
+transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } }
+"#;
+
+    #[test]
+    fn a_lab_config_parses_with_defaults() {
+        let c = BenchConfig::parse(GOOD, "lab.toml").expect("valid");
+        assert_eq!(c.bench.time_scale, 1.0);
+        assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up)), Some((43.56, true)));
+        assert!(matches!(c.gyro, GyroConfig::Can(_)));
+        assert_eq!(c.chamber.unit_id, 1);
+    }
+
+    #[test]
+    fn unknown_key_is_located() {
+        let text = GOOD.replace("unit_id = 1", "unit_id = 1\nbaudrate = 9600");
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
+        assert!(e.starts_with("lab.toml:12:1: unknown field `baudrate`"), "{e}");
+    }
+
+    #[test]
+    fn unknown_gyro_driver_names_the_allowed_ones() {
+        let text = GOOD.replace("driver = \"can\"", "driver = \"imu\"");
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
+        assert!(e.starts_with("lab.toml:15:10: unknown variant `imu`"), "{e}");
+        assert!(e.contains("`can`") && e.contains("`kvh1750`") && e.contains("`dsp3000`"), "{e}");
+    }
+
+    #[test]
+    fn bad_time_scale_and_latitude_are_rejected() {
+        let text = format!("[bench]\ntime_scale = 0\n{GOOD}");
+        let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
+        assert!(e.contains("time_scale must be a positive number, got 0"), "{e}");
+        let text = GOOD.replace("43.56", "95.0");
+        let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
+        assert!(e.contains("latitude_deg 95 is outside -90..90"), "{e}");
+    }
+
+    #[tokio::test]
+    async fn a_closed_port_fails_before_anything_moves_naming_what_was_tried() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.expect("bind");
+        let addr = listener.local_addr().expect("addr");
+        drop(listener);
+        let text = GOOD.replace("127.0.0.1:62000", &addr.to_string());
+        let c = BenchConfig::parse(&text, "lab.toml").expect("valid");
+        let clock: Arc<dyn Clock> = Arc::new(bench_drivers::SystemClock::new(1.0));
+        let e = c.connect(clock).await.err().expect("nothing listens").to_string();
+        assert!(e.starts_with("rate table:"), "{e}");
+        assert!(e.contains(&addr.to_string()), "{e}");
+    }
+}
