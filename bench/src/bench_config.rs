@@ -228,6 +228,43 @@ impl BenchConfig {
     }
 }
 
+/// The bench config that reaches a served simulated bench (`bench sim serve`): the table's
+/// Actidyn port, the chamber's Modbus RTU port and the gyro's SLCAN adapter, at the served
+/// time scale and the simulator's latitude.
+pub fn for_served_bench(
+    endpoints: &bench_sim::serve::bench::ServedEndpoints,
+    time_scale: f64,
+    latitude_deg: f64,
+    axis_up: bool,
+) -> BenchConfig {
+    use bench_drivers::real::chamber::MapChoice;
+    use bench_drivers::real::table::Dialect;
+    let mut gyro = CanGyroConfig::slcan(endpoints.gyro_slcan.path.clone());
+    gyro.sample_rate_hz = endpoints.gyro_rate_hz;
+    BenchConfig {
+        site: Some(SiteConfig {
+            latitude_deg,
+            longitude_deg: None,
+            height_m: None,
+            axis: if axis_up { "up" } else { "down" }.into(),
+        }),
+        bench: BenchSettings { time_scale },
+        table: TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn),
+        chamber: ModbusChamberConfig::new(
+            endpoints.chamber_rtu.clone(),
+            MapChoice::Preset(endpoints.chamber_preset),
+        ),
+        gyro: GyroConfig::Can(gyro),
+    }
+}
+
+impl BenchConfig {
+    /// As TOML text (the format [`BenchConfig::load`] reads).
+    pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -28,6 +28,9 @@ enum Command {
     Info(cli::info::InfoArgs),
     /// List the serial ports of this machine.
     Ports,
+    /// The simulated bench behind virtual ports.
+    #[command(subcommand)]
+    Sim(cli::sim::SimCommand),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +40,7 @@ fn main() -> ExitCode {
         Command::Validate(a) => cli::validate::run(a),
         Command::Info(a) => cli::info::run(a),
         Command::Ports => cli::ports::run(),
+        Command::Sim(c) => cli::sim::run(c),
     };
     match result {
         Ok(code) => code,

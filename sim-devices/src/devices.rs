@@ -16,6 +16,7 @@ use bench_physics::table::AxisMode;
 use crate::world::{lock, SharedWorld};
 
 /// Simulated rate table.
+#[derive(Clone)]
 pub struct SimTable {
     pub(crate) world: SharedWorld,
     pub(crate) clock: Arc<dyn Clock>,
@@ -23,6 +24,7 @@ pub struct SimTable {
 }
 
 /// Simulated climatic chamber.
+#[derive(Clone)]
 pub struct SimChamber {
     pub(crate) world: SharedWorld,
     pub(crate) clock: Arc<dyn Clock>,
@@ -31,6 +33,7 @@ pub struct SimChamber {
 
 /// Simulated FOG. Sample `k` (k = 1, 2, …) is the mean over `((k−1)/fs, k/fs]` and is returned
 /// at bench time `k/fs` with `seq = k − 1`.
+#[derive(Clone)]
 pub struct SimGyro {
     pub(crate) world: SharedWorld,
     pub(crate) clock: Arc<dyn Clock>,
@@ -159,11 +162,20 @@ impl Gyro for SimGyro {
             self.clock.sleep_until(t).await;
         }
         // Nothing above changed any state, so dropping the future while it slept lost nothing.
-        let (terms, temp) = lock(&self.world).gyro_sample(secs(t));
-        let mut rate = terms.total();
+        let sample = lock(&self.world).gyro_sample(secs(t));
         let mut st = 0;
+        // A consumer too far behind the others gets an invalid placeholder for the samples the
+        // world no longer remembers, then catches up.
+        let (terms, temp) = sample.unwrap_or_else(|| {
+            st |= status::gyro::INVALID;
+            (Default::default(), f64::NAN)
+        });
+        let mut rate = terms.total();
         let max = self.info.capabilities.max_rate_rad_s;
-        if rate.is_nan() || rate.abs() > max {
+        if !rate.is_finite() {
+            rate = 0.0;
+            st |= status::gyro::INVALID;
+        } else if rate.abs() > max {
             rate = rate.clamp(-max, max);
             st |= status::gyro::INVALID;
         }
@@ -176,7 +188,8 @@ impl Gyro for SimGyro {
                 .info
                 .capabilities
                 .has_temperature
-                .then(|| GyroSampler::temperature_readout(temp)),
+                .then(|| GyroSampler::temperature_readout(temp))
+                .filter(|t| t.is_finite()),
             seq,
             status: st,
             device_time: Some(t),

@@ -28,6 +28,9 @@ pub(crate) struct World {
     pub(crate) chamber: ChamberModel,
     pub(crate) chamber_rng: ChaCha8Rng,
     pub(crate) gyro: GyroSampler,
+    /// Recent gyro samples by end time (ns): one physical output that several consumers (the
+    /// SLCAN and KVH outputs of `bench sim serve`) read at their own pace.
+    gyro_recent: std::collections::VecDeque<(u64, GyroTerms, f64)>,
     /// Latest time anything was evaluated at, s: commands never start before it.
     last_t_s: f64,
 }
@@ -59,6 +62,7 @@ impl World {
                 mounting,
                 cfg.initial_temp_c,
             ),
+            gyro_recent: std::collections::VecDeque::with_capacity(GYRO_RECENT),
             last_t_s: 0.0,
         }
     }
@@ -77,15 +81,38 @@ impl World {
         self.seen(now_s.max(self.last_t_s))
     }
 
-    /// The gyro sample ending at `t_s` and the gyro's true temperature then.
+    /// The gyro sample ending at `t_s` and the gyro's true temperature then. Each sample is
+    /// computed once, in order; asking again for a recent one returns the same values. `None`
+    /// for a sample too old to be remembered (a consumer more than [`GYRO_RECENT`] samples
+    /// behind the others).
     #[inline]
-    pub(crate) fn gyro_sample(&mut self, t_s: f64) -> (GyroTerms, f64) {
+    pub(crate) fn gyro_sample(&mut self, t_s: f64) -> Option<(GyroTerms, f64)> {
+        let key = (t_s * 1e9).round() as u64;
+        match self.gyro_recent.back() {
+            Some(&(last, ..)) if key <= last => {
+                return self
+                    .gyro_recent
+                    .iter()
+                    .rev()
+                    .find(|(k, ..)| *k == key)
+                    .map(|&(_, terms, temp)| (terms, temp));
+            }
+            _ => {}
+        }
         self.seen(t_s);
         let angle = self.table.true_angle(t_s);
         let temp = self.chamber.state(t_s).payload_c;
-        (self.gyro.sample(t_s, angle, temp), temp)
+        let terms = self.gyro.sample(t_s, angle, temp);
+        if self.gyro_recent.len() == GYRO_RECENT {
+            self.gyro_recent.pop_front();
+        }
+        self.gyro_recent.push_back((key, terms, temp));
+        Some((terms, temp))
     }
 }
+
+/// How many recent gyro samples the world remembers for consumers that lag behind.
+pub(crate) const GYRO_RECENT: usize = 8192;
 
 /// Shared handle on the world.
 pub(crate) type SharedWorld = Arc<Mutex<World>>;

@@ -208,3 +208,29 @@ fn infos_are_available_without_a_world_and_config_is_validated() {
     let bad = SimConfig { initial_temp_c: 300.0, ..SimConfig::default() };
     assert!(SimBench::new(bad, clock).is_err());
 }
+
+#[test]
+fn several_outputs_of_one_gyro_read_the_same_samples_at_their_own_pace() {
+    // `bench sim serve` serves one simulated coil on SLCAN and KVH outputs at once: clones of
+    // the gyro must see one physical stream, whichever reads first or lags.
+    let (clock, b) = bench(SimConfig { seed: 9, ..SimConfig::default() });
+    let (mut fast, mut slow) = (b.gyro.clone(), b.gyro.clone());
+    let c = clock.clone();
+    let (a, l) = run_virtual(&clock, |_| async move {
+        let mut a = Vec::new();
+        for _ in 0..100 {
+            a.push(fast.next_sample().await.expect("sample"));
+        }
+        // The lagging output starts 5 s late and catches up from the remembered samples.
+        c.sleep_until(Duration::from_secs(6)).await;
+        let mut l = Vec::new();
+        for _ in 0..100 {
+            l.push(slow.next_sample().await.expect("sample"));
+        }
+        (a, l)
+    })
+    .expect("runs");
+    assert_eq!(a, l);
+    assert!(a.iter().all(|s| s.status == 0 && s.rate_rad_s.is_finite()));
+    assert!(a.windows(2).any(|w| w[0].rate_rad_s != w[1].rate_rad_s));
+}

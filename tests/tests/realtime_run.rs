@@ -100,7 +100,10 @@ async fn scaled_real_time_run_matches_the_virtual_run() {
     // grid: the device clock does not jitter, only the host's receive time does.
     for r in [&a, &b] {
         assert!(r.gyro.windows(2).all(|w| w[1].msg.seq == w[0].msg.seq + 1));
-        assert!(r.gyro.iter().all(|g| (g.publish_time_ns - SIM_EPOCH_NS).is_multiple_of(50_000_000)));
+        assert!(r
+            .gyro
+            .iter()
+            .all(|g| (g.publish_time_ns - SIM_EPOCH_NS).is_multiple_of(50_000_000)));
     }
 
     // Sample by sample, the gyro agrees: the noise streams are indexed by sample number, so

@@ -3,6 +3,7 @@
 pub mod info;
 pub mod ports;
 pub mod run;
+pub mod sim;
 pub mod validate;
 
 use tracing_subscriber::EnvFilter;
