@@ -122,9 +122,20 @@ pub fn run_plan<W: Write + Seek + Send + 'static>(
     opts: &SimOptions,
     console: Option<ConsoleLayer>,
 ) -> anyhow::Result<(RunReport, W)> {
+    run_plan_with(plan, sim_config(plan, opts.seed), writer, opts, console)
+}
+
+/// [`run_plan`] with a simulator configuration of the caller's (e.g. with sensor noise off).
+pub fn run_plan_with<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    config: SimConfig,
+    writer: W,
+    opts: &SimOptions,
+    console: Option<ConsoleLayer>,
+) -> anyhow::Result<(RunReport, W)> {
     let clock = VirtualClock::new();
     let shared: Arc<dyn Clock> = Arc::new(clock.clone());
-    let sim = SimBench::new(sim_config(plan, opts.seed), shared.clone())
+    let sim = SimBench::new(config, shared.clone())
         .context("the scenario asks for a simulator configuration it cannot run")?;
     let (table, chamber, gyro) = sim.into_parts();
     let devices =

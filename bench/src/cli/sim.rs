@@ -162,15 +162,22 @@ mod tests {
     #[test]
     fn control_commands_switch_faults() {
         let f = BenchFaults::default();
-        assert_eq!(apply_fault_command(&f, r#"{"device":"table","fault":"silence"}"#), "ok: Silence");
+        assert_eq!(
+            apply_fault_command(&f, r#"{"device":"table","fault":"silence"}"#),
+            "ok: Silence"
+        );
         assert!(f.table.silent());
         let r = apply_fault_command(&f, r#"{"device":"gyro","fault":"drop","every":10}"#);
         assert_eq!(r, "ok: Drop { every: 10 }");
         assert_eq!(f.gyro.active(), vec![Fault::Drop { every: 10 }]);
         assert_eq!(apply_fault_command(&f, r#"{"device":"table","clear":true}"#), "ok: cleared");
         assert!(!f.table.silent());
-        assert!(apply_fault_command(&f, r#"{"device":"oven","fault":"silence"}"#).starts_with("error"));
-        assert!(apply_fault_command(&f, r#"{"device":"table","fault":"melt"}"#).starts_with("error"));
+        assert!(
+            apply_fault_command(&f, r#"{"device":"oven","fault":"silence"}"#).starts_with("error")
+        );
+        assert!(
+            apply_fault_command(&f, r#"{"device":"table","fault":"melt"}"#).starts_with("error")
+        );
         assert!(apply_fault_command(&f, "nonsense").starts_with("error: not JSON"));
     }
 }

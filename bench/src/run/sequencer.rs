@@ -14,6 +14,8 @@ use crate::plan::{Action, PlannedStep, RunPlan, TempSource};
 const SETTLE_REL: f64 = 1e-3;
 /// …or this absolute rate, rad/s (≈ 0.2 °/h), whichever is larger.
 const SETTLE_ABS_RAD_S: f64 = 1e-6;
+/// Margin on temperature-band edges for binary rounding of decimal readings, °C.
+const BAND_EDGE_C: f64 = 1e-9;
 /// The chamber's working set point has reached its target within this, °C.
 const RAMP_END_TOL_C: f64 = 0.05;
 
@@ -119,7 +121,10 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
                     TempSource::Gyro => snap.air_temp_c,
                 };
                 let now = clock.now();
-                if (temp - target_c).abs() <= band_c {
+                // Readings are decimal (0.1 °C): 39.8 is "within 0.2 of 40" however the wire's
+                // decoding rounded it in binary, so the edge gets a margin far below any
+                // resolution.
+                if (temp - target_c).abs() <= band_c + BAND_EDGE_C {
                     let since = *in_band_since.get_or_insert(now);
                     if now - since >= hold {
                         return Ok(());
