@@ -1,0 +1,137 @@
+//! Faults injected into the served simulators while a scenario runs through the real drivers
+//! (60× real time), each judged from the recording: transient faults are recovered and flagged,
+//! persistent ones abort the run to its safe state with the reason in `bench.run` `outcome`,
+//! keeping every sample received before.
+
+use std::io::Cursor;
+use std::sync::Arc;
+use std::time::Duration;
+
+use bench::bench_config::for_served_bench;
+use bench::realtime::{run_plan_realtime, RealtimeOptions};
+use bench::recording::Recording;
+use bench::simulate::{capabilities, run_info, sim_config, SIM_EPOCH_NS};
+use bench_drivers::status;
+use bench_drivers::{Clock, SystemClock};
+use bench_sim::faults::Fault;
+use bench_sim::serve::bench::{serve_bench, BenchFaults};
+
+const SCALE: f64 = 60.0;
+
+const MINI: &str = r#"
+[scenario]
+name = "faults"
+
+[site]
+latitude_deg = 48.0
+
+[[step]]
+label = "spin cw"
+spin = "10 °/min"
+direction = "cw"
+accel = "1 °/s²"
+settle = true
+
+[[step]]
+label = "record cw 20C"
+record = "3 min"
+
+[[step]]
+stop = "table"
+"#;
+
+/// Run MINI through the wire; `inject` switches faults at bench time `at` (of the simulator).
+async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'static) -> Recording {
+    let plan = bench::scenario::parse(MINI, "faults.toml", &capabilities()).expect("valid");
+    let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
+    let served = serve_bench(sim_config(&plan, 5), sim_clock.clone()).await.expect("served");
+    let mut config =
+        for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up);
+    // Short wall-clock reply timeouts keep the test quick; the policy is the same.
+    config.table.reply_timeout_s = 0.05;
+    config.table.retries = 1;
+    config.chamber.request_timeout_ms = 50;
+    let clock = SystemClock::new(SCALE);
+    let (devices, _) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");
+    let faults = served.faults.clone();
+    let injector = tokio::spawn(async move {
+        sim_clock.sleep_until(at).await;
+        inject(&faults);
+    });
+    let (report, cur) = run_plan_realtime(
+        &plan,
+        devices,
+        clock,
+        Cursor::new(Vec::new()),
+        run_info(&plan, SIM_EPOCH_NS),
+        RealtimeOptions::default(),
+    )
+    .await
+    .expect("run ends (completed or aborted)");
+    injector.abort();
+    drop(served);
+    let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
+    assert_eq!(rec.outcome().map(str::to_string), Some(report.outcome));
+    rec
+}
+
+fn last_step_event(rec: &Recording) -> (String, String) {
+    rec.steps
+        .last()
+        .map(|s| (s.msg.label.clone(), s.msg.event.as_str().to_string()))
+        .unwrap_or_default()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn corrupt_and_dropped_gyro_frames_are_flagged_and_the_run_completes() {
+    let rec = run_with(Duration::from_secs(30), |f| {
+        f.gyro.inject(Fault::Corrupt { every: 97 });
+        f.gyro.inject(Fault::Drop { every: 113 });
+    })
+    .await;
+    assert_eq!(rec.outcome(), Some("completed"));
+    let flagged = |bit: u32| rec.gyro.iter().filter(|g| g.msg.status & bit != 0).count();
+    let (gaps, after_corrupt) =
+        (flagged(status::gyro::SEQ_GAP), flagged(status::gyro::AFTER_CORRUPT));
+    // ≈ 3 min at 20 Hz after the faults start: ≥ 30 drops and ≥ 30 corrupt frames.
+    assert!(gaps >= 30, "{gaps} samples flagged SEQ_GAP");
+    assert!(after_corrupt >= 30, "{after_corrupt} samples flagged AFTER_CORRUPT");
+    // Every device counter jump is flagged, and nothing else is.
+    for w in rec.gyro.windows(2) {
+        let jumped = w[1].msg.seq != w[0].msg.seq + 1;
+        assert_eq!(jumped, w[1].msg.status & status::gyro::SEQ_GAP != 0, "{:?}", w[1].msg);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_silent_table_aborts_to_the_safe_state_keeping_the_data() {
+    // 5 polls × 2 attempts × 50 ms (+ backoff) of wall time ≈ 45 s of bench time to give up.
+    let rec = run_with(Duration::from_secs(30), |f| f.table.inject(Fault::Silence)).await;
+    let outcome = rec.outcome().unwrap_or_default().to_string();
+    assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
+    assert!(
+        outcome.contains("rate table failed after 5 consecutive error(s): timeout"),
+        "{outcome}"
+    );
+    assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
+    // The gyro kept streaming until the end: every sample up to the abort is there, in order.
+    let abort_t = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    assert!(rec.gyro.last().map_or(0, |g| g.log_time_ns) >= abort_t);
+    assert!(rec.gyro.windows(2).all(|w| w[1].msg.seq == w[0].msg.seq + 1));
+    // The table's last good reading came before the silence (bench time 60 s of the simulator).
+    assert!(rec.table.last().map_or(0, |t| t.log_time_ns) < abort_t);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_chamber_device_failure_aborts_at_once() {
+    let rec =
+        run_with(Duration::from_secs(60), |f| f.chamber.inject(Fault::ModbusException { code: 4 }))
+            .await;
+    let outcome = rec.outcome().unwrap_or_default().to_string();
+    assert!(
+        outcome.contains("chamber failed after 1 consecutive error(s): device fault"),
+        "{outcome}"
+    );
+    assert!(outcome.contains("Modbus exception 0x04"), "{outcome}");
+    assert_eq!(last_step_event(&rec).1, "abort");
+}
