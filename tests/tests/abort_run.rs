@@ -86,3 +86,68 @@ fn timed_out_wait_aborts_to_safe_state_and_keeps_the_data() {
     let log_text: Vec<&str> = rec.other_counts.keys().map(String::as_str).collect();
     assert!(log_text.contains(&"/log"), "log channel present: {log_text:?}");
 }
+
+/// A gyro whose driver hangs: no error, no sample, ever.
+struct HangingGyro(bench_drivers::DeviceInfo<bench_drivers::GyroCapabilities>);
+
+#[async_trait::async_trait]
+impl bench_drivers::Gyro for HangingGyro {
+    fn info(&self) -> &bench_drivers::DeviceInfo<bench_drivers::GyroCapabilities> {
+        &self.0
+    }
+    async fn next_sample(&mut self) -> bench_drivers::DeviceResult<bench_drivers::GyroSample> {
+        futures::future::pending().await
+    }
+    fn sample_rate_hz(&self) -> f64 {
+        20.0
+    }
+}
+
+#[test]
+fn a_hanging_stream_is_caught_by_the_watchdog() {
+    use bench_drivers::clock::{run_virtual, VirtualClock};
+    use bench_drivers::Clock;
+    use std::sync::Arc;
+
+    let plan = bench::scenario::parse(IMPOSSIBLE_WAIT, "abort.toml", &capabilities())
+        .expect("valid scenario");
+    let clock = VirtualClock::new();
+    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let sim = bench_sim::SimBench::new(bench::simulate::sim_config(&plan, 1), shared.clone())
+        .expect("sim");
+    let gyro_info = bench::simulate::capabilities().gyro;
+    let (table, chamber, _) = sim.into_parts();
+    let devices = bench::run::Devices {
+        table: Box::new(table),
+        chamber: Box::new(chamber),
+        gyro: Box::new(HangingGyro(gyro_info)),
+    };
+    let recorder = bench::record::Recorder::new(
+        Cursor::new(Vec::new()),
+        bench::simulate::run_info(&plan, bench::simulate::SIM_EPOCH_NS),
+    )
+    .expect("recorder");
+    let live = Arc::new(bench::run::Live::default());
+    let result = run_virtual(&clock, |spawner| {
+        bench::run::execute(
+            &plan,
+            devices,
+            shared.clone(),
+            recorder,
+            spawner,
+            live,
+            Default::default(),
+        )
+    })
+    .expect("no deadlock");
+    let outcome = result.outcome.to_string();
+    assert!(outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"), "{outcome}");
+    assert!(
+        outcome.contains("gyro data stale: no good reading for 6.0 s (limit 5.0 s)"),
+        "{outcome}"
+    );
+    let bytes = result.sink.finish(&result.outcome).expect("finished").into_inner();
+    let rec = Recording::from_bytes(&bytes).expect("readable");
+    assert!(rec.gyro.is_empty() && !rec.table.is_empty());
+    assert_eq!(rec.steps.last().map(|s| s.msg.event.as_str()), Some("abort"));
+}

@@ -17,6 +17,32 @@ pub struct Live {
     gyro_rate_rad_s: AtomicU64,
     step: AtomicUsize,
     gyro_samples: AtomicU64,
+    /// Bench time (ns) of the latest good reading of each stream, by [`Stream`].
+    fresh_ns: [AtomicU64; 3],
+}
+
+/// The device streams the watchdog looks after.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stream {
+    /// `/gyro/rate`.
+    Gyro = 0,
+    /// `/table/state`.
+    Table = 1,
+    /// `/chamber/state`.
+    Chamber = 2,
+}
+
+impl Stream {
+    /// Every stream.
+    pub const ALL: [Stream; 3] = [Stream::Gyro, Stream::Table, Stream::Chamber];
+    /// Device name for messages.
+    pub fn device(self) -> &'static str {
+        match self {
+            Stream::Gyro => "gyro",
+            Stream::Table => "rate table",
+            Stream::Chamber => "chamber",
+        }
+    }
 }
 
 fn load(a: &AtomicU64) -> f64 {
@@ -41,6 +67,7 @@ impl Default for Live {
             gyro_rate_rad_s: nan(),
             step: AtomicUsize::new(0),
             gyro_samples: AtomicU64::new(0),
+            fresh_ns: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
         }
     }
 }
@@ -99,6 +126,14 @@ impl Live {
             store(&self.gyro_temp_c, t);
         }
         self.gyro_samples.fetch_add(1, Ordering::Relaxed);
+    }
+    /// Note a good reading of `stream` at bench time `t`.
+    pub fn set_fresh(&self, stream: Stream, t: std::time::Duration) {
+        self.fresh_ns[stream as usize].fetch_max(t.as_nanos() as u64, Ordering::Relaxed);
+    }
+    /// Bench time of the latest good reading of `stream`.
+    pub fn fresh(&self, stream: Stream) -> std::time::Duration {
+        std::time::Duration::from_nanos(self.fresh_ns[stream as usize].load(Ordering::Relaxed))
     }
     /// Note the running step.
     pub fn set_step(&self, index: usize) {

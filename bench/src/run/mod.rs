@@ -33,7 +33,7 @@ use tracing_subscriber::layer::SubscriberExt;
 
 use crate::plan::RunPlan;
 pub use crate::record::{LogLevel, Outcome, StepEvent};
-pub use live::{Live, Snapshot};
+pub use live::{Live, Snapshot, Stream};
 
 /// Everything a run records, in the order it happened per source.
 #[derive(Debug, Clone, PartialEq)]
@@ -110,11 +110,17 @@ pub struct FaultPolicy {
     pub max_consecutive_errors: u32,
     /// How long a safe-state command may take before it is given up, bench time.
     pub safe_state_timeout: Duration,
+    /// A stream with no good reading for this long is stale: the run aborts.
+    pub stale_after: Duration,
 }
 
 impl Default for FaultPolicy {
     fn default() -> Self {
-        Self { max_consecutive_errors: 5, safe_state_timeout: Duration::from_secs(10) }
+        Self {
+            max_consecutive_errors: 5,
+            safe_state_timeout: Duration::from_secs(10),
+            stale_after: Duration::from_secs(5),
+        }
     }
 }
 
@@ -223,6 +229,7 @@ async fn gyro_task(ctx: Arc<Ctx>, mut gyro: Box<dyn Gyro>) {
                 budget.ok();
                 let t = ctx.clock.now();
                 ctx.live.set_gyro(s.rate_rad_s, s.temperature_c);
+                ctx.live.set_fresh(Stream::Gyro, t);
                 ctx.send(Event::Gyro(t, s));
             }
             Err(e) => {
@@ -259,6 +266,7 @@ async fn table_poller(ctx: Arc<Ctx>, hz: f64) {
                 let t = ctx.clock.now();
                 ctx.live.set_time(t);
                 ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
+                ctx.live.set_fresh(Stream::Table, t);
                 ctx.send(Event::Table(t, r));
             }
             Err(e) => {
@@ -291,12 +299,37 @@ async fn chamber_poller(ctx: Arc<Ctx>, hz: f64) {
                 let t = ctx.clock.now();
                 ctx.live.set_time(t);
                 ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
+                ctx.live.set_fresh(Stream::Chamber, t);
                 ctx.send(Event::Chamber(t, r));
             }
             Err(e) => {
                 if budget.err(&ctx, &e) {
                     return;
                 }
+            }
+        }
+    }
+}
+
+/// Watches every device stream: none may go without a good reading for longer than the
+/// policy's `stale_after` (a driver that hangs, or answers with errors that each stay under the
+/// retry budget, still goes stale). Checks once per second of bench time.
+async fn watchdog_task(ctx: Arc<Ctx>) {
+    let start = ctx.clock.now();
+    let limit = ctx.policy.stale_after;
+    loop {
+        ctx.clock.sleep(Duration::from_secs(1)).await;
+        let now = ctx.clock.now();
+        for s in Stream::ALL {
+            let last = ctx.live.fresh(s).max(start);
+            if now.saturating_sub(last) > limit {
+                ctx.raise_fault(format!(
+                    "{} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                    s.device(),
+                    (now - last).as_secs_f64(),
+                    limit.as_secs_f64()
+                ));
+                return;
             }
         }
     }
@@ -366,6 +399,7 @@ pub async fn execute<S: EventSink>(
         Box::pin(gyro_task(ctx.clone(), devices.gyro)),
         Box::pin(table_poller(ctx.clone(), plan.table_poll_hz)),
         Box::pin(chamber_poller(ctx.clone(), plan.chamber_poll_hz)),
+        Box::pin(watchdog_task(ctx.clone())),
     ];
     let mut device_tasks = device_tasks;
     if let Some(StopSignal(mut rx)) = stop {
