@@ -236,7 +236,7 @@ async fn faults_map_to_error_kinds_and_clear() {
         assert_eq!(e.kind(), ErrorKind::DeviceFault, "{wire:?}: {e}");
         assert!(e.message().contains("0x04 (server device failure)"), "{e}");
         rig.faults.inject(Fault::ModbusException { code: 2 });
-        assert_eq!(d.read().await.expect_err("exception").kind(), ErrorKind::Protocol);
+        assert_eq!(d.read().await.expect_err("exception").kind(), ErrorKind::Unsupported);
         rig.faults.inject(Fault::ModbusException { code: 3 });
         let e = d.set_target(30.0, None).await.expect_err("exception");
         assert_eq!(e.kind(), ErrorKind::OutOfRange, "{e}");

@@ -354,13 +354,15 @@ pub fn exception_meaning(code: u8) -> &'static str {
     }
 }
 
+/// An exception is the controller's considered answer, so none is transient: resending the
+/// same request cannot help. Illegal function and illegal address mean the register map does not
+/// fit this controller (`Unsupported`).
 fn exception_kind(code: u8) -> ErrorKind {
     match code {
-        1 => ErrorKind::Unsupported,
+        1 | 2 => ErrorKind::Unsupported,
         3 => ErrorKind::OutOfRange,
-        4 => ErrorKind::DeviceFault,
         5 | 6 => ErrorKind::NotReady,
-        _ => ErrorKind::Protocol,
+        _ => ErrorKind::DeviceFault,
     }
 }
 
@@ -838,8 +840,9 @@ mod tests {
         );
         assert_eq!(
             Failure::Exception(ExceptionCode::IllegalDataAddress).kind(),
-            ErrorKind::Protocol
+            ErrorKind::Unsupported
         );
+        assert!(!ErrorKind::Unsupported.is_transient() && !ErrorKind::DeviceFault.is_transient());
         assert_eq!(Failure::NoReply { bytes: 0 }.kind(), ErrorKind::Timeout);
         assert_eq!(Failure::NoReply { bytes: 7 }.kind(), ErrorKind::Protocol);
         let io = std::io::Error::from(std::io::ErrorKind::BrokenPipe);
