@@ -143,7 +143,7 @@ fn a_hanging_stream_is_caught_by_the_watchdog() {
     let outcome = result.outcome.to_string();
     assert!(outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"), "{outcome}");
     assert!(
-        outcome.contains("gyro data stale: no good reading for 6.0 s (limit 5.0 s)"),
+        outcome.contains("gyro data stale: no good reading for 31.0 s (limit 30.0 s)"),
         "{outcome}"
     );
     let bytes = result.sink.finish(&result.outcome).expect("finished").into_inner();

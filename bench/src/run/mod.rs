@@ -21,7 +21,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use bench_drivers::{
-    Chamber, ChamberReading, Clock, DeviceError, Gyro, GyroSample, RateTable, TableReading,
+    Chamber, ChamberReading, Clock, DeviceError, DeviceResult, ErrorKind, Gyro, GyroSample,
+    RateTable, TableReading,
 };
 use futures::channel::mpsc;
 use futures::future::{AbortHandle, Abortable};
@@ -119,7 +120,7 @@ impl Default for FaultPolicy {
         Self {
             max_consecutive_errors: 5,
             safe_state_timeout: Duration::from_secs(10),
-            stale_after: Duration::from_secs(5),
+            stale_after: Duration::from_secs(30),
         }
     }
 }
@@ -245,62 +246,46 @@ fn period(hz: f64) -> Duration {
     Duration::from_secs_f64(1.0 / hz)
 }
 
-async fn table_poller(ctx: Arc<Ctx>, hz: f64) {
-    let mut budget = ErrorBudget { device: "rate table", consecutive: 0 };
-    let dt = period(hz);
-    let t0 = ctx.clock.now();
-    let mut k: u32 = 0;
-    loop {
-        k += 1;
-        ctx.clock.sleep_until(t0 + dt * k).await;
-        let r = {
+/// One poll of the table or the chamber: the device's housekeeping, then a reading, noted in
+/// the live values; the event to record and its bench time.
+async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)> {
+    match stream {
+        Stream::Table => {
             let mut table = ctx.table.lock().await;
-            match table.service().await {
-                Ok(()) => table.read().await,
-                Err(e) => Err(e),
-            }
-        };
-        match r {
-            Ok(r) => {
-                budget.ok();
-                let t = ctx.clock.now();
-                ctx.live.set_time(t);
-                ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
-                ctx.live.set_fresh(Stream::Table, t);
-                ctx.send(Event::Table(t, r));
-            }
-            Err(e) => {
-                if budget.err(&ctx, &e) {
-                    return;
-                }
-            }
+            table.service().await?;
+            let r = table.read().await?;
+            let t = ctx.clock.now();
+            ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
+            Ok((t, Event::Table(t, r)))
         }
+        Stream::Chamber => {
+            let mut chamber = ctx.chamber.lock().await;
+            chamber.service().await?;
+            let r = chamber.read().await?;
+            let t = ctx.clock.now();
+            ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
+            Ok((t, Event::Chamber(t, r)))
+        }
+        // The gyro streams by itself (`gyro_task`).
+        Stream::Gyro => Err(DeviceError::new(ErrorKind::Unsupported, "the gyro is not polled")),
     }
 }
 
-async fn chamber_poller(ctx: Arc<Ctx>, hz: f64) {
-    let mut budget = ErrorBudget { device: "chamber", consecutive: 0 };
+/// Polls the table or the chamber at `hz` on the run's clock, from the run's first instant.
+async fn poller(ctx: Arc<Ctx>, stream: Stream, hz: f64) {
+    let mut budget = ErrorBudget { device: stream.device(), consecutive: 0 };
     let dt = period(hz);
     let t0 = ctx.clock.now();
     let mut k: u32 = 0;
     loop {
         k += 1;
         ctx.clock.sleep_until(t0 + dt * k).await;
-        let r = {
-            let mut chamber = ctx.chamber.lock().await;
-            match chamber.service().await {
-                Ok(()) => chamber.read().await,
-                Err(e) => Err(e),
-            }
-        };
-        match r {
-            Ok(r) => {
+        match poll_once(&ctx, stream).await {
+            Ok((t, event)) => {
                 budget.ok();
-                let t = ctx.clock.now();
                 ctx.live.set_time(t);
-                ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
-                ctx.live.set_fresh(Stream::Chamber, t);
-                ctx.send(Event::Chamber(t, r));
+                ctx.live.set_fresh(stream, t);
+                ctx.send(event);
             }
             Err(e) => {
                 if budget.err(&ctx, &e) {
@@ -397,8 +382,8 @@ pub async fn execute<S: EventSink>(
     let mut spawn_errors = Vec::new();
     let device_tasks: Vec<futures::future::BoxFuture<'static, ()>> = vec![
         Box::pin(gyro_task(ctx.clone(), devices.gyro)),
-        Box::pin(table_poller(ctx.clone(), plan.table_poll_hz)),
-        Box::pin(chamber_poller(ctx.clone(), plan.chamber_poll_hz)),
+        Box::pin(poller(ctx.clone(), Stream::Table, plan.table_poll_hz)),
+        Box::pin(poller(ctx.clone(), Stream::Chamber, plan.chamber_poll_hz)),
         Box::pin(watchdog_task(ctx.clone())),
     ];
     let mut device_tasks = device_tasks;
