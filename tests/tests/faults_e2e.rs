@@ -134,3 +134,30 @@ async fn a_chamber_device_failure_aborts_at_once() {
     assert!(outcome.contains("Modbus exception 0x04"), "{outcome}");
     assert_eq!(last_step_event(&rec).1, "abort");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stuck_table_fails_to_settle_and_the_run_aborts() {
+    // The controller acknowledges the rate command but the axis does not follow.
+    let rec = run_with(Duration::ZERO, |f| f.table.inject(Fault::StuckTable)).await;
+    let outcome = rec.outcome().unwrap_or_default().to_string();
+    assert!(outcome.starts_with("aborted: step 0 (table spin cw)"), "{outcome}");
+    assert!(outcome.contains("did not settle on -2.908882e-3 rad/s"), "{outcome}");
+    assert!(rec.table.iter().all(|t| t.msg.rate_rad_s.abs() < 1e-4), "the axis never moved");
+    assert_eq!(last_step_event(&rec), ("spin cw".into(), "abort".into()));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_short_table_line_outage_is_ridden_out() {
+    // 3 s of bench time without replies (50 ms of wall time): retries cover it.
+    let rec =
+        run_with(Duration::from_secs(60), |f| f.table.inject(Fault::Disconnect { seconds: 3.0 }))
+            .await;
+    assert_eq!(rec.outcome(), Some("completed"));
+    // The outage shows as a hole in the table's stream, shorter than the watchdog's limit.
+    let longest = rec
+        .table
+        .windows(2)
+        .map(|w| (w[1].log_time_ns - w[0].log_time_ns) as f64 * 1e-9)
+        .fold(0.0, f64::max);
+    assert!((1.0..30.0).contains(&longest), "longest table gap {longest:.2} s");
+}
