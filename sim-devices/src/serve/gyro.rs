@@ -284,8 +284,8 @@ where
 /// (0, 0, 1) g, status 0x77 (the sensing axis' valid bit cleared for an invalid sample),
 /// sequence = the gyro's counter modulo 128, temperature rounded to 1 °C.
 pub async fn serve_kvh1750<G, S>(
-    mut gyro: G,
-    mut port: S,
+    gyro: G,
+    port: S,
     axis: usize,
     faults: FaultSwitch,
     clock: Arc<dyn Clock>,
@@ -294,48 +294,33 @@ where
     G: Gyro,
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    let mut gate = FaultGate::new(faults, clock);
-    let mut sink = [0u8; 256];
-    loop {
-        tokio::select! {
-            r = port.read(&mut sink) => {
-                if r? == 0 {
-                    return Err(io::Error::new(io::ErrorKind::UnexpectedEof, "host closed"));
-                }
-            }
-            s = gyro.next_sample() => {
-                let s = s.map_err(sample_err)?;
-                let action = gate.action();
-                if action == Action::Skip {
-                    continue;
-                }
-                let mut gyro_xyz = [0f32; 3];
-                if let Some(g) = gyro_xyz.get_mut(axis) {
-                    *g = (s.rate_rad_s / gyro.sample_rate_hz()) as f32;
-                }
-                let mut st = 0x77u8;
-                if s.status & status::gyro::INVALID != 0 {
-                    st &= !kvh1750::STATUS_GYRO_VALID.get(axis).copied().unwrap_or(0);
-                }
-                let temp = s.temperature_c.unwrap_or(0.0).round();
-                let frame = kvh1750::Frame {
-                    gyro: gyro_xyz,
-                    accel: [0.0, 0.0, 1.0],
-                    status: st,
-                    seq: (s.seq % 128) as u8,
-                    temp_c: temp.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16,
-                };
-                let mut bytes = frame.encode();
-                if action == Action::Corrupt {
-                    // A flipped payload bit: the CRC no longer matches.
-                    if let Some(b) = bytes.get_mut(10) {
-                        *b ^= 0x01;
-                    }
-                }
-                port.write_all(&bytes).await?;
+    stream_output(gyro, port, faults, clock, |s, rate_hz, action| {
+        let mut gyro_xyz = [0f32; 3];
+        if let Some(g) = gyro_xyz.get_mut(axis) {
+            *g = (s.rate_rad_s / rate_hz) as f32;
+        }
+        let mut st = 0x77u8;
+        if s.status & status::gyro::INVALID != 0 {
+            st &= !kvh1750::STATUS_GYRO_VALID.get(axis).copied().unwrap_or(0);
+        }
+        let temp = s.temperature_c.unwrap_or(0.0).round();
+        let frame = kvh1750::Frame {
+            gyro: gyro_xyz,
+            accel: [0.0, 0.0, 1.0],
+            status: st,
+            seq: (s.seq % 128) as u8,
+            temp_c: temp.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16,
+        };
+        let mut bytes = frame.encode().to_vec();
+        if action == Action::Corrupt {
+            // A flipped payload bit: the CRC no longer matches.
+            if let Some(b) = bytes.get_mut(10) {
+                *b ^= 0x01;
             }
         }
-    }
+        Ok(bytes)
+    })
+    .await
 }
 
 /// DSP-3000 output format served by [`serve_dsp3000`].
@@ -350,11 +335,57 @@ pub enum Dsp3000Output {
 /// Serve `gyro` as a KVH DSP-3000 on `port`: one ASCII line or binary word per sample, the
 /// rate in °/s, valid unless the sample is flagged invalid.
 pub async fn serve_dsp3000<G, S>(
-    mut gyro: G,
-    mut port: S,
+    gyro: G,
+    port: S,
     output: Dsp3000Output,
     faults: FaultSwitch,
     clock: Arc<dyn Clock>,
+) -> io::Result<()>
+where
+    G: Gyro,
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    stream_output(gyro, port, faults, clock, |s, _, action| {
+        let valid = s.status & status::gyro::INVALID == 0;
+        let rate_deg_s = s.rate_rad_s.to_degrees();
+        let mut bytes = match output {
+            Dsp3000Output::Ascii => {
+                AsciiSample { value: rate_deg_s, valid }.encode().map_err(io_err)?
+            }
+            Dsp3000Output::BinaryRate => {
+                let mut w = BinaryWord::from_rate_deg_s(rate_deg_s, 0).map_err(io_err)?;
+                w.valid = valid;
+                w.encode().to_vec()
+            }
+        };
+        if action == Action::Corrupt {
+            match output {
+                Dsp3000Output::Ascii => {
+                    if let Some(b) = bytes.iter_mut().find(|b| **b == b'.') {
+                        *b = b'x';
+                    }
+                }
+                Dsp3000Output::BinaryRate => {
+                    if let Some(b) = bytes.last_mut() {
+                        *b ^= 0x01;
+                    }
+                }
+            }
+        }
+        Ok(bytes)
+    })
+    .await
+}
+
+/// The loop of an output-only gyro (KVH formats): every sample is encoded by `encode` (given
+/// the sample, the output rate in Hz and the fault action) and written, unless a fault skips
+/// it; whatever the host sends is read and ignored; ends when the host closes the port.
+async fn stream_output<G, S>(
+    mut gyro: G,
+    mut port: S,
+    faults: FaultSwitch,
+    clock: Arc<dyn Clock>,
+    mut encode: impl FnMut(&GyroSample, f64, Action) -> io::Result<Vec<u8>>,
 ) -> io::Result<()>
 where
     G: Gyro,
@@ -375,32 +406,7 @@ where
                 if action == Action::Skip {
                     continue;
                 }
-                let valid = s.status & status::gyro::INVALID == 0;
-                let rate_deg_s = s.rate_rad_s.to_degrees();
-                let mut bytes = match output {
-                    Dsp3000Output::Ascii => {
-                        AsciiSample { value: rate_deg_s, valid }.encode().map_err(io_err)?
-                    }
-                    Dsp3000Output::BinaryRate => {
-                        let mut w = BinaryWord::from_rate_deg_s(rate_deg_s, 0).map_err(io_err)?;
-                        w.valid = valid;
-                        w.encode().to_vec()
-                    }
-                };
-                if action == Action::Corrupt {
-                    match output {
-                        Dsp3000Output::Ascii => {
-                            if let Some(b) = bytes.iter_mut().find(|b| **b == b'.') {
-                                *b = b'x';
-                            }
-                        }
-                        Dsp3000Output::BinaryRate => {
-                            if let Some(b) = bytes.last_mut() {
-                                *b ^= 0x01;
-                            }
-                        }
-                    }
-                }
+                let bytes = encode(&s, gyro.sample_rate_hz(), action)?;
                 port.write_all(&bytes).await?;
             }
         }
