@@ -1,0 +1,24 @@
+//! Calibration analysis of bench recordings: pure functions over arrays, no I/O.
+//!
+//! - [`windows`]: the input type, one record window (a `record …` step of a recording) as
+//!   arrays of time, gyro rate, table rate and temperatures.
+//! - [`temperature_rate`]: dT/dt from quantised temperature readings (local linear regression).
+//! - [`seed_method`]: the seed's plateau method reproduced (`shared/seed/README.md`):
+//!   K = (k1 + k2)/2 per plateau, a two-point line for the temperature coefficient and a slope
+//!   through the origin for the temperature-rate coefficient.
+//! - [`joint_fit`]: one least-squares fit of bias, scale-factor error, temperature and
+//!   temperature-rate coefficients over all windows, Earth's rotation removed, with
+//!   moving-block-bootstrap standard errors that respect coloured noise.
+//! - [`allan_fit`]: IEEE Std 952 noise terms (N, B, K) with confidence intervals from an
+//!   overlapping Allan deviation.
+//!
+//! Coefficients use the `bench.gyro_model` keys and units of the recording contract
+//! (`shared/spec/recording.md`).
+
+pub mod error;
+pub mod seed_method;
+pub mod temperature_rate;
+pub mod windows;
+
+pub use error::AnalysisError;
+pub use windows::{Direction, RecordWindow};
