@@ -16,6 +16,7 @@
 //! (`shared/spec/recording.md`).
 
 pub mod error;
+pub mod joint_fit;
 pub mod seed_method;
 pub mod temperature_rate;
 pub mod windows;

@@ -1,0 +1,464 @@
+//! One joint least-squares fit of the thermal error model over all record windows, with
+//! standard errors that respect coloured noise.
+//!
+//! # Model
+//!
+//! For every sample of every window (rotating or at rest, plateau or ramp):
+//!
+//! ```text
+//! V − Ω_in = bias + scale_factor_error·Ω_in + temp_coeff·(T − T0) + temp_rate_coeff·dT/dt + e
+//! Ω_in     = Ω_table + Ω_E·sin(latitude)      (sign of the Earth term flips for axis down)
+//! ```
+//!
+//! which is the contract's `bench.gyro_model` output equation rearranged. `T` is the window's
+//! model temperature ([`RecordWindow::temperature_c`]: the gyro's sensor, else chamber air) and
+//! `dT/dt` comes from it by [`local_linear_rate`] over `rate_window_s`. Without a latitude the
+//! Earth term is zero and Earth's rotation (×(1 + s)) ends up in `bias`.
+//!
+//! The columns are scaled to unit RMS and the problem solved by nalgebra's SVD, which also
+//! reports a design that cannot separate the four terms (e.g. no temperature change, or the
+//! table never turned).
+//!
+//! # Standard errors
+//!
+//! Gyro noise is coloured (bias instability, thermal effects not in the model), so the naive
+//! OLS covariance `σ̂²·(XᵀX)⁻¹`, which assumes independent residuals, is far too small. The
+//! standard errors here come from a **moving-block residual bootstrap** with the design fixed:
+//! the residuals (windows concatenated in order) are cut into blocks of `L` consecutive
+//! samples starting at uniformly drawn positions (circularly wrapped), laid end to end to a
+//! series `e*` of the original length, and each replicate's coefficients are
+//! `β* = β̂ + X⁺·e*`. The standard error is the standard deviation of `β*` over the replicates
+//! (ChaCha8, fixed seed: deterministic).
+//!
+//! Block-length rule (when not given): `k_e` = the first lag at which the residual's sample
+//! autocorrelation falls below `1/e` (its correlation time in samples, searched up to `n/50`);
+//! `L = max(10·k_e, ⌈n^{1/3}⌉)`, at most `n/5`. Ten correlation times keep the bootstrap
+//! variance's downward bias near `k_e/L` ≈ 10 % for Gauss–Markov noise; a residual still
+//! correlated at `n/50` means the record is too short for honest errors, and
+//! [`JointFit::block_len`] at the cap says so.
+
+use std::collections::BTreeMap;
+
+use bench_physics::earth::vertical_rate_rad_s;
+use bench_physics::GyroModel;
+use nalgebra::{DMatrix, DVector};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::AnalysisError;
+use crate::temperature_rate::local_linear_rate;
+use crate::windows::RecordWindow;
+
+/// Settings of the joint fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointFitOptions {
+    /// Reference temperature T0, °C. Default 20.
+    pub reference_temperature_c: f64,
+    /// Site latitude, degrees north; `None` leaves Earth's rotation in the bias. Default `None`.
+    pub latitude_deg: Option<f64>,
+    /// Sensing axis points up. Default true.
+    pub axis_up: bool,
+    /// Window of the dT/dt filter, s. Default 60.
+    pub rate_window_s: f64,
+    /// Bootstrap replicates. Default 400.
+    pub replicates: usize,
+    /// Block length in samples; `None` applies the module's rule. Default `None`.
+    pub block_len: Option<usize>,
+    /// Seed of the bootstrap's random generator. Default 0.
+    pub seed: u64,
+}
+
+impl Default for JointFitOptions {
+    fn default() -> Self {
+        Self {
+            reference_temperature_c: 20.0,
+            latitude_deg: None,
+            axis_up: true,
+            rate_window_s: 60.0,
+            replicates: 400,
+            block_len: None,
+            seed: 0,
+        }
+    }
+}
+
+/// One fitted coefficient.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// Least-squares value.
+    pub value: f64,
+    /// Moving-block-bootstrap standard error (the one to use).
+    pub std_err: f64,
+    /// Naive OLS standard error `σ̂·√((XᵀX)⁻¹)_jj`, for comparison; too small for coloured noise.
+    pub naive_std_err: f64,
+}
+
+/// Result of [`joint_fit`]; coefficients in `bench.gyro_model` units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointFit {
+    /// T0, °C.
+    pub reference_temperature_c: f64,
+    /// Bias at T0, rad/s.
+    pub bias: Estimate,
+    /// k_sf − 1.
+    pub scale_factor_error: Estimate,
+    /// rad/s per °C.
+    pub temp_coeff: Estimate,
+    /// rad/s per (°C/s).
+    pub temp_rate_coeff: Estimate,
+    /// RMS of the residual, rad/s.
+    pub residual_rms_rad_s: f64,
+    /// Samples used.
+    pub n_samples: usize,
+    /// Residual correlation time `k_e` in samples (first lag with autocorrelation < 1/e).
+    pub correlation_lag: usize,
+    /// Bootstrap block length, samples.
+    pub block_len: usize,
+    /// Bootstrap replicates.
+    pub replicates: usize,
+}
+
+impl JointFit {
+    /// The fitted coefficients written over `base` (noise terms and other keys kept); Earth
+    /// rate is flagged as modelled when a latitude was used.
+    pub fn to_model(&self, base: &GyroModel) -> GyroModel {
+        GyroModel {
+            bias: self.bias.value,
+            scale_factor_error: self.scale_factor_error.value,
+            reference_temperature: self.reference_temperature_c,
+            temp_coeff: self.temp_coeff.value,
+            temp_rate_coeff: self.temp_rate_coeff.value,
+            ..base.clone()
+        }
+    }
+
+    /// The coefficients as `bench.gyro_model` keys (decimal text).
+    pub fn to_metadata(&self) -> BTreeMap<String, String> {
+        let mut m = BTreeMap::new();
+        m.insert("bias".into(), format!("{:e}", self.bias.value));
+        m.insert("scale_factor_error".into(), format!("{:e}", self.scale_factor_error.value));
+        m.insert("reference_temperature".into(), format!("{}", self.reference_temperature_c));
+        m.insert("temp_coeff".into(), format!("{:e}", self.temp_coeff.value));
+        m.insert("temp_rate_coeff".into(), format!("{:e}", self.temp_rate_coeff.value));
+        m
+    }
+}
+
+const NAMES: [&str; 4] = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"];
+
+/// Fit the model (module docs) over all `windows`.
+pub fn joint_fit(
+    windows: &[RecordWindow],
+    opts: &JointFitOptions,
+) -> Result<JointFit, AnalysisError> {
+    let earth = opts.latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, opts.axis_up));
+    let t0 = opts.reference_temperature_c;
+    let n: usize = windows.iter().map(RecordWindow::len).sum();
+    if n < 8 {
+        return Err(AnalysisError::TooFewSamples { what: "joint fit".into(), got: n, min: 8 });
+    }
+    let mut x = DMatrix::<f64>::zeros(n, 4);
+    let mut y = DVector::<f64>::zeros(n);
+    let mut row = 0;
+    for w in windows {
+        let temp = w.temperature_c();
+        let rate = local_linear_rate(w.time_s(), temp, opts.rate_window_s)?;
+        for (((v, o), t), d) in
+            w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate)
+        {
+            let omega_in = o + earth;
+            y[row] = v - omega_in;
+            x[(row, 0)] = 1.0;
+            x[(row, 1)] = omega_in;
+            x[(row, 2)] = t - t0;
+            x[(row, 3)] = *d;
+            row += 1;
+        }
+    }
+    // Scale columns to unit RMS so the SVD's rank test compares like with like.
+    let mut scale = [0.0; 4];
+    for (j, s) in scale.iter_mut().enumerate() {
+        let rms = (x.column(j).norm_squared() / n as f64).sqrt();
+        if rms == 0.0 {
+            return Err(AnalysisError::Insufficient(format!(
+                "joint fit: the data never excite `{}` (its regressor is zero everywhere)",
+                NAMES[j]
+            )));
+        }
+        *s = rms;
+        x.column_mut(j).scale_mut(1.0 / rms);
+    }
+    let svd = x.clone().svd(true, true);
+    let sv = &svd.singular_values;
+    let (smax, smin) = (sv.max(), sv.min());
+    if smin.is_nan() || smin <= 1e-9 * smax {
+        return Err(AnalysisError::Insufficient(format!(
+            "joint fit: the windows cannot separate bias, scale factor, temperature and \
+             temperature-rate terms (condition number {:.3e})",
+            smax / smin
+        )));
+    }
+    let pinv = svd
+        .pseudo_inverse(1e-12 * smax)
+        .map_err(|e| AnalysisError::Insufficient(format!("joint fit: {e}")))?;
+    let beta_s = &pinv * &y;
+    let resid = &y - &x * &beta_s;
+    let rss = resid.norm_squared();
+    let sigma2 = rss / (n - 4) as f64;
+
+    let r = resid.as_slice();
+    let correlation_lag = correlation_lag(r, (n / 50).max(1));
+    let block_len = match opts.block_len {
+        Some(l) if l >= 1 => l.min(n),
+        Some(_) => {
+            return Err(AnalysisError::InvalidParameter {
+                name: "block_len",
+                value: 0.0,
+                why: "must be at least 1 sample",
+            })
+        }
+        None => block_len_rule(correlation_lag, n),
+    };
+    if opts.replicates < 2 {
+        return Err(AnalysisError::InvalidParameter {
+            name: "replicates",
+            value: opts.replicates as f64,
+            why: "need at least 2 bootstrap replicates",
+        });
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let mut sum = [0.0; 4];
+    let mut sum2 = [0.0; 4];
+    for _ in 0..opts.replicates {
+        let mut d = [0.0; 4];
+        let mut pos = 0;
+        while pos < n {
+            let start = rng.random_range(0..n);
+            let len = block_len.min(n - pos);
+            for k in 0..len {
+                let e = r[(start + k) % n];
+                for (j, dj) in d.iter_mut().enumerate() {
+                    *dj += pinv[(j, pos + k)] * e;
+                }
+            }
+            pos += len;
+        }
+        for j in 0..4 {
+            sum[j] += d[j];
+            sum2[j] += d[j] * d[j];
+        }
+    }
+    let b = opts.replicates as f64;
+    let est = |j: usize| {
+        let var = (sum2[j] - sum[j] * sum[j] / b) / (b - 1.0);
+        let naive = (sigma2 * pinv.row(j).norm_squared()).sqrt();
+        Estimate {
+            value: beta_s[j] / scale[j],
+            std_err: var.max(0.0).sqrt() / scale[j],
+            naive_std_err: naive / scale[j],
+        }
+    };
+    Ok(JointFit {
+        reference_temperature_c: t0,
+        bias: est(0),
+        scale_factor_error: est(1),
+        temp_coeff: est(2),
+        temp_rate_coeff: est(3),
+        residual_rms_rad_s: (rss / n as f64).sqrt(),
+        n_samples: n,
+        correlation_lag,
+        block_len,
+        replicates: opts.replicates,
+    })
+}
+
+/// First lag `k ≥ 1` at which the sample autocorrelation of `r` drops below `1/e`, searched up
+/// to `max_lag` (returned if never).
+pub fn correlation_lag(r: &[f64], max_lag: usize) -> usize {
+    let n = r.len();
+    if n < 2 {
+        return 1;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c: Vec<f64> = r.iter().map(|v| v - m).collect();
+    let c0: f64 = c.iter().map(|v| v * v).sum();
+    if c0 == 0.0 {
+        return 1;
+    }
+    let limit = (-1.0f64).exp();
+    for k in 1..=max_lag.min(n - 1) {
+        let ck: f64 = c.iter().zip(&c[k..]).map(|(a, b)| a * b).sum();
+        if ck / c0 < limit {
+            return k;
+        }
+    }
+    max_lag.min(n - 1).max(1)
+}
+
+/// Block length from a correlation lag (module docs): `max(10·k_e, ⌈n^{1/3}⌉)`, at most `n/5`,
+/// at least 1.
+pub fn block_len_rule(correlation_lag: usize, n: usize) -> usize {
+    let floor = (n as f64).cbrt().ceil() as usize;
+    (10 * correlation_lag).max(floor).min(n / 5).max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bench_physics::units::{quantise, DEG_PER_MIN};
+    use rand_distr::{Distribution, StandardNormal};
+
+    const DT: f64 = 0.05;
+    const OMEGA: f64 = 10.0 * DEG_PER_MIN;
+    const TRUE: [f64; 4] = [3e-6, 2e-4, -1e-7, 5e-5];
+    const T0: f64 = 20.0;
+
+    /// Six windows: CW/CCW at 20 °C, CW/CCW on a 2 °C/min ramp, CW/CCW at 40 °C; the gyro
+    /// output follows the model with the *true* dT/dt plus `noise(i)`; temperatures quantised to
+    /// `q` (0 = exact).
+    fn windows(earth: f64, q: f64, mut noise: impl FnMut() -> f64) -> Vec<RecordWindow> {
+        let ramp_rate = 2.0 / 60.0;
+        let specs: [(&str, f64, f64, f64, f64); 6] = [
+            ("record cw 20C", -OMEGA, 20.0, 0.0, 180.0),
+            ("record ccw 20C", OMEGA, 20.0, 0.0, 180.0),
+            ("record cw ramp", -OMEGA, 20.0, ramp_rate, 600.0),
+            ("record ccw ramp", OMEGA, 40.0, -ramp_rate, 600.0),
+            ("record cw 40C", -OMEGA, 40.0, 0.0, 180.0),
+            ("record ccw 40C", OMEGA, 40.0, 0.0, 180.0),
+        ];
+        specs
+            .iter()
+            .map(|&(label, table, temp0, rate, secs)| {
+                let n = (secs / DT) as usize;
+                let t: Vec<f64> = (0..n).map(|i| i as f64 * DT).collect();
+                let temp: Vec<f64> = t.iter().map(|&t| temp0 + rate * t).collect();
+                let v: Vec<f64> = temp
+                    .iter()
+                    .map(|&tc| {
+                        let w_in = table + earth;
+                        w_in * (1.0 + TRUE[1])
+                            + TRUE[0]
+                            + TRUE[2] * (tc - T0)
+                            + TRUE[3] * rate
+                            + noise()
+                    })
+                    .collect();
+                let read: Vec<f64> = temp.iter().map(|&x| quantise(x, q)).collect();
+                RecordWindow::new(label, t, v, vec![table; n], Some(read.clone()), read)
+                    .expect("valid synthetic window")
+            })
+            .collect()
+    }
+
+    fn values(f: &JointFit) -> [Estimate; 4] {
+        [f.bias, f.scale_factor_error, f.temp_coeff, f.temp_rate_coeff]
+    }
+
+    #[test]
+    fn noise_free_data_give_the_model_back_with_earth_rate_removed() {
+        let lat = 59.94;
+        let earth = vertical_rate_rad_s(lat, true);
+        let ws = windows(earth, 0.0, || 0.0);
+        let opts = JointFitOptions {
+            latitude_deg: Some(lat),
+            replicates: 10,
+            ..JointFitOptions::default()
+        };
+        let fit = joint_fit(&ws, &opts).expect("identifiable");
+        for (e, want) in values(&fit).iter().zip(TRUE) {
+            assert!((e.value / want - 1.0).abs() < 1e-6, "{} vs {want}", e.value);
+        }
+        assert!(fit.residual_rms_rad_s < 1e-15);
+        // Without the latitude, Earth's rotation (×(1 + s)) lands in the bias.
+        let fit = joint_fit(&ws, &JointFitOptions { replicates: 10, ..JointFitOptions::default() })
+            .expect("identifiable");
+        assert!((fit.bias.value - TRUE[0] - earth * (1.0 + TRUE[1])).abs() < 1e-12);
+        let meta = fit.to_metadata();
+        assert_eq!(meta.len(), 5);
+    }
+
+    #[test]
+    fn a_design_without_temperature_change_is_refused() {
+        let ws: Vec<RecordWindow> = windows(0.0, 0.0, || 0.0)
+            .into_iter()
+            .filter(|w| w.temperature_span_c() == 0.0)
+            .collect();
+        // Plateaus only: dT/dt is zero everywhere.
+        let e = joint_fit(&ws, &JointFitOptions::default());
+        assert!(
+            matches!(e, Err(AnalysisError::Insufficient(ref m)) if m.contains("temp_rate_coeff"))
+        );
+        // One plateau only: T − T0 is zero everywhere too.
+        let e = joint_fit(&ws[..2], &JointFitOptions::default());
+        assert!(matches!(e, Err(AnalysisError::Insufficient(_))));
+    }
+
+    #[test]
+    fn block_rule_and_correlation_lag_of_ar1() {
+        // AR(1) with φ = e^{−1/40}: correlation lag 40 samples.
+        let phi = (-1.0f64 / 40.0).exp();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut x = 0.0;
+        let r: Vec<f64> = (0..200_000)
+            .map(|_| {
+                let w: f64 = StandardNormal.sample(&mut rng);
+                x = phi * x + w;
+                x
+            })
+            .collect();
+        let k = correlation_lag(&r, 4000);
+        assert!((30..=50).contains(&k), "lag {k}");
+        assert_eq!(block_len_rule(40, 200_000), 400);
+        assert_eq!(block_len_rule(1, 1_000_000), 100);
+        assert_eq!(block_len_rule(10_000, 1000), 200);
+        assert_eq!(block_len_rule(0, 3), 1);
+    }
+
+    /// Gauss–Markov noise (τ = 2 s, σ = 1 µrad/s ≈ 0.2 °/h) at 20 Hz: the naive OLS errors are
+    /// about √((1+φ)/(1−φ)) ≈ 9 times too small and miss the truth; the block-bootstrap errors
+    /// cover it and match the scatter over realisations.
+    #[test]
+    fn bootstrap_errors_cover_the_truth_under_gauss_markov_noise_where_naive_ones_do_not() {
+        let sigma = 1e-6;
+        let phi = (-DT / 2.0f64).exp();
+        let drive = sigma * (1.0 - phi * phi).sqrt();
+        let runs = 16;
+        let mut est = vec![[0.0; 4]; runs];
+        let (mut cover_boot, mut cover_naive, mut ratio_sum) = (0, 0, 0.0);
+        let mut boot_se_mean = [0.0; 4];
+        for (run, est_run) in est.iter_mut().enumerate() {
+            let mut rng = ChaCha8Rng::seed_from_u64(1000 + run as u64);
+            let n0: f64 = StandardNormal.sample(&mut rng);
+            let mut x = sigma * n0;
+            let ws = windows(0.0, 0.01, || {
+                let w: f64 = StandardNormal.sample(&mut rng);
+                x = phi * x + drive * w;
+                x
+            });
+            let opts = JointFitOptions { replicates: 200, seed: run as u64, ..Default::default() };
+            let fit = joint_fit(&ws, &opts).expect("identifiable");
+            for (j, e) in values(&fit).iter().enumerate() {
+                let err = (e.value - TRUE[j]).abs();
+                cover_boot += usize::from(err <= 2.0 * e.std_err);
+                cover_naive += usize::from(err <= 2.0 * e.naive_std_err);
+                ratio_sum += e.std_err / e.naive_std_err;
+                boot_se_mean[j] += e.std_err / runs as f64;
+                est_run[j] = e.value;
+            }
+        }
+        let cases = 4 * runs;
+        let ratio = ratio_sum / cases as f64;
+        assert!(ratio > 5.0 && ratio < 14.0, "bootstrap/naive ratio {ratio}");
+        // 95 % nominal: expect ≈ 61 of 64; naive at ±2σ_naive ≈ ±0.22σ_true covers ≈ 18 %.
+        assert!(cover_boot >= 54, "bootstrap covered {cover_boot}/{cases}");
+        assert!(cover_naive <= 32, "naive covered {cover_naive}/{cases}");
+        // Bootstrap SE against the empirical scatter over realisations (16 runs: ±18 % 1σ).
+        for j in 0..4 {
+            let m = est.iter().map(|e| e[j]).sum::<f64>() / runs as f64;
+            let sd =
+                (est.iter().map(|e| (e[j] - m).powi(2)).sum::<f64>() / (runs - 1) as f64).sqrt();
+            let q = boot_se_mean[j] / sd;
+            assert!((0.55..1.8).contains(&q), "{}: boot SE / scatter = {q}", NAMES[j]);
+        }
+    }
+}
