@@ -15,6 +15,7 @@
 //! Coefficients use the `bench.gyro_model` keys and units of the recording contract
 //! (`shared/spec/recording.md`).
 
+pub mod allan_fit;
 pub mod error;
 pub mod joint_fit;
 pub mod seed_method;
