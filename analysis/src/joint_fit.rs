@@ -36,6 +36,12 @@
 //! variance's downward bias near `k_e/L` ≈ 10 % for Gauss–Markov noise; a residual still
 //! correlated at `n/50` means the record is too short for honest errors, and
 //! [`JointFit::block_len`] at the cap says so.
+//!
+//! Known limit: noise correlated over times comparable to the whole record — bias
+//! instability (flicker), whose synthesised form has correlation times up to 30 000 s — is
+//! invisible to any block shorter than the record, so the bootstrap errors are then too small
+//! (`tests/physics_truth.rs` pins a case). An error model that carries the Allan deviation's
+//! long-τ level into the coefficients is the next step.
 
 use std::collections::BTreeMap;
 
