@@ -125,8 +125,8 @@ pub struct JointFit {
 }
 
 impl JointFit {
-    /// The fitted coefficients written over `base` (noise terms and other keys kept); Earth
-    /// rate is flagged as modelled when a latitude was used.
+    /// The fitted coefficients written over `base` (noise terms, `earth_rate` and the thermal
+    /// time constant kept).
     pub fn to_model(&self, base: &GyroModel) -> GyroModel {
         GyroModel {
             bias: self.bias.value,
