@@ -30,7 +30,7 @@ use bench_drivers::{Clock, DeviceError, Gyro};
 use serde::{Deserialize, Serialize};
 
 use crate::plan::Site;
-use crate::run::Devices;
+use crate::run::{Devices, FaultPolicy};
 use crate::scenario::Capabilities;
 
 /// A bench configuration file.
@@ -58,11 +58,36 @@ pub struct BenchSettings {
     /// Bench time per wall time (default 1). Only for simulators behind virtual ports, which
     /// run faster than real time (`bench sim serve --time-scale`): both sides must agree.
     pub time_scale: f64,
+    /// Consecutive failed reads of one device (each after the driver's own retries) before the
+    /// run aborts (default 5).
+    pub max_consecutive_errors: u32,
+    /// A stream with no good reading for this long, in bench seconds, aborts the run
+    /// (default 30).
+    pub stale_after_s: f64,
+    /// How long each safe-state command may take, bench seconds (default 10).
+    pub safe_state_timeout_s: f64,
 }
 
 impl Default for BenchSettings {
     fn default() -> Self {
-        Self { time_scale: 1.0 }
+        let p = FaultPolicy::default();
+        Self {
+            time_scale: 1.0,
+            max_consecutive_errors: p.max_consecutive_errors,
+            stale_after_s: p.stale_after.as_secs_f64(),
+            safe_state_timeout_s: p.safe_state_timeout.as_secs_f64(),
+        }
+    }
+}
+
+impl BenchSettings {
+    /// The orchestrator's fault policy these settings give.
+    pub fn policy(&self) -> FaultPolicy {
+        FaultPolicy {
+            max_consecutive_errors: self.max_consecutive_errors,
+            stale_after: std::time::Duration::from_secs_f64(self.stale_after_s),
+            safe_state_timeout: std::time::Duration::from_secs_f64(self.safe_state_timeout_s),
+        }
     }
 }
 
@@ -163,6 +188,19 @@ impl BenchConfig {
                 cfg.bench.time_scale
             )));
         }
+        let b = &cfg.bench;
+        for (key, v) in
+            [("stale_after_s", b.stale_after_s), ("safe_state_timeout_s", b.safe_state_timeout_s)]
+        {
+            if !(v.is_finite() && v > 0.0 && v < 1e9) {
+                return Err(bad(format!(
+                    "[bench] {key} must be a positive number of seconds, got {v}"
+                )));
+            }
+        }
+        if b.max_consecutive_errors == 0 {
+            return Err(bad("[bench] max_consecutive_errors must be at least 1".into()));
+        }
         if let Some(site) = &cfg.site {
             if !(-90.0..=90.0).contains(&site.latitude_deg) {
                 return Err(bad(format!(
@@ -248,7 +286,7 @@ pub fn for_served_bench(
             height_m: None,
             axis: if axis_up { "up" } else { "down" }.into(),
         }),
-        bench: BenchSettings { time_scale },
+        bench: BenchSettings { time_scale, ..BenchSettings::default() },
         table: TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn),
         chamber: ModbusChamberConfig::new(
             endpoints.chamber_rtu.clone(),
@@ -291,6 +329,8 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
     fn a_lab_config_parses_with_defaults() {
         let c = BenchConfig::parse(GOOD, "lab.toml").expect("valid");
         assert_eq!(c.bench.time_scale, 1.0);
+        assert_eq!(c.bench.policy().stale_after, std::time::Duration::from_secs(30));
+        assert_eq!(c.bench.policy().max_consecutive_errors, 5);
         assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up)), Some((43.56, true)));
         assert!(matches!(c.gyro, GyroConfig::Can(_)));
         assert_eq!(c.chamber.unit_id, 1);
@@ -316,6 +356,9 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         let text = format!("[bench]\ntime_scale = 0\n{GOOD}");
         let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
         assert!(e.contains("time_scale must be a positive number, got 0"), "{e}");
+        let text = format!("[bench]\nstale_after_s = -1\n{GOOD}");
+        let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
+        assert!(e.contains("stale_after_s must be a positive number of seconds, got -1"), "{e}");
         let text = GOOD.replace("43.56", "95.0");
         let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
         assert!(e.contains("latitude_deg 95 is outside -90..90"), "{e}");

@@ -13,7 +13,9 @@ use bench_drivers::{Clock, SystemClock};
 use crate::plan::RunPlan;
 use crate::record::{Recorder, RunInfo};
 use crate::run::threaded::ThreadedSink;
-use crate::run::{execute, ConsoleLayer, Devices, ExecOptions, Live, Outcome, StopSignal};
+use crate::run::{
+    execute, ConsoleLayer, Devices, ExecOptions, FaultPolicy, Live, Outcome, StopSignal,
+};
 use crate::simulate::RunReport;
 
 /// Options of a real-time run.
@@ -25,6 +27,8 @@ pub struct RealtimeOptions {
     pub stop: Option<StopSignal>,
     /// Terminal log layer.
     pub console: Option<ConsoleLayer>,
+    /// Limits of the fault handling.
+    pub policy: FaultPolicy,
 }
 
 /// Run `plan` on `devices` with `clock` on the current tokio runtime, recording into `writer`
@@ -54,7 +58,7 @@ pub async fn run_plan_realtime<W: Write + Seek + Send + 'static>(
         sink,
         TokioSpawner,
         live.clone(),
-        ExecOptions { console: opts.console, stop: opts.stop },
+        ExecOptions { console: opts.console, stop: opts.stop, policy: opts.policy },
     )
     .await;
     let wall_time = wall.elapsed();

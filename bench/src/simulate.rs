@@ -157,7 +157,7 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
             recorder,
             spawner,
             live.clone(),
-            ExecOptions { console, stop: None },
+            ExecOptions { console, ..Default::default() },
         )
     })
     .context("simulated run stalled")?;

@@ -167,6 +167,7 @@ fn run_on_bench(
                 progress,
                 stop: Some(stop),
                 console: Some(super::console_layer(verbose)),
+                policy: config.bench.policy(),
             },
         )
         .await?;

@@ -158,6 +158,8 @@ pub struct ExecOptions {
     pub console: Option<ConsoleLayer>,
     /// External abort request.
     pub stop: Option<StopSignal>,
+    /// Limits of the fault handling.
+    pub policy: FaultPolicy,
 }
 
 /// How long the streams are still recorded after the safe-state commands.
@@ -354,7 +356,7 @@ pub async fn execute<S: EventSink>(
     live: Arc<Live>,
     options: ExecOptions,
 ) -> RunResult<S> {
-    let ExecOptions { console, stop } = options;
+    let ExecOptions { console, stop, policy } = options;
     let (tx, rx) = mpsc::unbounded();
     let (fault_tx, fault_rx) = mpsc::unbounded();
     let record_error: Arc<Mutex<Option<String>>> = Default::default();
@@ -373,7 +375,7 @@ pub async fn execute<S: EventSink>(
         chamber: AsyncMutex::new(devices.chamber),
         fault: Mutex::new(None),
         fault_notify: fault_tx.clone(),
-        policy: FaultPolicy::default(),
+        policy,
     });
 
     let recording = recorder_task(rx, sink, fault_tx, record_error.clone());
