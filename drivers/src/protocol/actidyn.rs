@@ -691,15 +691,6 @@ impl CommandDecoder {
 
     /// The commands of the next complete non-empty line, or `None` until one is complete.
     pub fn next_line(&mut self) -> Option<Result<Vec<Command>, DecodeError>> {
-        loop {
-            let line = match self.lines.next_line()? {
-                Ok(l) => l,
-                Err(e) => return Some(Err(e)),
-            };
-            if line.bytes.iter().all(u8::is_ascii_whitespace) {
-                continue;
-            }
-            return Some(parse_command_line(&line.bytes).map_err(|e| e.shifted(line.offset)));
-        }
+        self.lines.next_parsed(parse_command_line)
     }
 }

@@ -350,16 +350,7 @@ impl ReplyDecoder {
 
     /// The next reply, or `None` until a line is complete. Empty lines are skipped.
     pub fn next_reply(&mut self) -> Option<Result<Reply, DecodeError>> {
-        loop {
-            let line = match self.lines.next_line()? {
-                Ok(l) => l,
-                Err(e) => return Some(Err(e)),
-            };
-            if line.bytes.iter().all(u8::is_ascii_whitespace) {
-                continue;
-            }
-            return Some(parse_reply(&line.bytes).map_err(|e| e.shifted(line.offset)));
-        }
+        self.lines.next_parsed(parse_reply)
     }
 }
 
@@ -388,15 +379,6 @@ impl CommandDecoder {
 
     /// The next command, or `None` until a line is complete. Empty lines are skipped.
     pub fn next_command(&mut self) -> Option<Result<Command, DecodeError>> {
-        loop {
-            let line = match self.lines.next_line()? {
-                Ok(l) => l,
-                Err(e) => return Some(Err(e)),
-            };
-            if line.bytes.iter().all(u8::is_ascii_whitespace) {
-                continue;
-            }
-            return Some(parse_command(&line.bytes).map_err(|e| e.shifted(line.offset)));
-        }
+        self.lines.next_parsed(parse_command)
     }
 }

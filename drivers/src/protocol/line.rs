@@ -46,6 +46,25 @@ impl LineSplitter {
         DecodeError::new(self.base, format!("a line of at most {} bytes", self.max_len), &self.buf)
     }
 
+    /// The next line that is not blank (only whitespace), parsed by `parse` with its errors
+    /// shifted to stream offsets; an over-long line is an error; `None` when more bytes are
+    /// needed.
+    pub(crate) fn next_parsed<T>(
+        &mut self,
+        parse: impl Fn(&[u8]) -> Result<T, DecodeError>,
+    ) -> Option<Result<T, DecodeError>> {
+        loop {
+            let line = match self.next_line()? {
+                Ok(l) => l,
+                Err(e) => return Some(Err(e)),
+            };
+            if line.bytes.iter().all(u8::is_ascii_whitespace) {
+                continue;
+            }
+            return Some(parse(&line.bytes).map_err(|e| e.shifted(line.offset)));
+        }
+    }
+
     /// The next complete line, an error for an over-long line, or `None` when more bytes are
     /// needed.
     pub(crate) fn next_line(&mut self) -> Option<Result<Line, DecodeError>> {
