@@ -37,11 +37,20 @@
 //! correlated at `n/50` means the record is too short for honest errors, and
 //! [`JointFit::block_len`] at the cap says so.
 //!
-//! Known limit: noise correlated over times comparable to the whole record — bias
-//! instability (flicker), whose synthesised form has correlation times up to 30 000 s — is
-//! invisible to any block shorter than the record, so the bootstrap errors are then too small
-//! (`tests/physics_truth.rs` pins a case). An error model that carries the Allan deviation's
-//! long-τ level into the coefficients is the next step.
+//! # Noise-model standard errors
+//!
+//! Noise correlated over times comparable to the whole record — bias instability (flicker),
+//! whose synthesised form has correlation times up to 30 000 s — is invisible to any block
+//! shorter than the record, so the bootstrap alone understates the errors then. With a
+//! [`NoiseSpec`] (from the Allan deviation of the constant-temperature windows), the variance
+//! of each coefficient `β_j = Σ_k P_jk·e_k` under that noise is computed exactly: white rate
+//! noise `N²/Δt·Σ_k P_jk²`; flicker as the sum of the Gauss–Markov components of
+//! `bench_physics::noise` (the simulator's own synthesis), each `σ²·Σ_a Σ_b P_ja P_jb
+//! e^{−|t_a − t_b|/T}` by a forward and a backward exponential filter over the real sample
+//! times, gaps between windows included; rate random walk `K²·Σ_k Δt_k·(Σ_{a≥k} P_ja)²`.
+//! All O(n). The reported standard error is the larger of the bootstrap's and the noise
+//! model's: the first sees misfit the noise model does not know, the second the long
+//! correlations the blocks cannot.
 
 use std::collections::BTreeMap;
 
@@ -72,6 +81,20 @@ pub struct JointFitOptions {
     pub block_len: Option<usize>,
     /// Seed of the bootstrap's random generator. Default 0.
     pub seed: u64,
+    /// Noise model (e.g. from the Allan deviation of the plateaus) whose covariance is carried
+    /// into the coefficients; `None` leaves the block bootstrap alone. Default `None`.
+    pub noise: Option<NoiseSpec>,
+}
+
+/// A gyro noise model in the terms of IEEE Std 952, for the coefficient covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseSpec {
+    /// Angle random walk N, rad/√s.
+    pub arw: f64,
+    /// Flicker floor of the Allan deviation (the contract's `bias_instability`), rad/s.
+    pub flicker_floor: f64,
+    /// Rate random walk K, rad/s/√s.
+    pub rrw: f64,
 }
 
 impl Default for JointFitOptions {
@@ -84,6 +107,7 @@ impl Default for JointFitOptions {
             replicates: 400,
             block_len: None,
             seed: 0,
+            noise: None,
         }
     }
 }
@@ -97,6 +121,10 @@ pub struct Estimate {
     pub std_err: f64,
     /// Naive OLS standard error `σ̂·√((XᵀX)⁻¹)_jj`, for comparison; too small for coloured noise.
     pub naive_std_err: f64,
+    /// Moving-block-bootstrap standard error.
+    pub bootstrap_std_err: f64,
+    /// Standard error under the noise model ([`JointFitOptions::noise`]); NaN without one.
+    pub noise_model_std_err: f64,
 }
 
 /// Result of [`joint_fit`]; coefficients in `bench.gyro_model` units.
@@ -255,13 +283,31 @@ pub fn joint_fit(
         }
     }
     let b = opts.replicates as f64;
+    let model_var = match &opts.noise {
+        Some(spec) => {
+            let times: Vec<f64> = windows.iter().flat_map(|w| w.time_s().iter().copied()).collect();
+            let dts: Vec<f64> = windows
+                .iter()
+                .flat_map(|w| {
+                    let dt = median_interval(w.time_s());
+                    std::iter::repeat_n(dt, w.len())
+                })
+                .collect();
+            noise_model_variance(&pinv, &times, &dts, spec)
+        }
+        None => [f64::NAN; 4],
+    };
     let est = |j: usize| {
         let var = (sum2[j] - sum[j] * sum[j] / b) / (b - 1.0);
         let naive = (sigma2 * pinv.row(j).norm_squared()).sqrt();
+        let boot = var.max(0.0).sqrt() / scale[j];
+        let model = model_var[j].max(0.0).sqrt() / scale[j];
         Estimate {
             value: beta_s[j] / scale[j],
-            std_err: var.max(0.0).sqrt() / scale[j],
+            std_err: if model.is_nan() { boot } else { boot.max(model) },
             naive_std_err: naive / scale[j],
+            bootstrap_std_err: boot,
+            noise_model_std_err: model,
         }
     };
     Ok(JointFit {
@@ -276,6 +322,85 @@ pub fn joint_fit(
         block_len,
         replicates: opts.replicates,
     })
+}
+
+/// Median of successive differences of `t` (at least 2 samples).
+fn median_interval(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
+/// Variances of the coefficients `β = P·e` (rows of `pinv`, scaled units) for noise `e` from
+/// `spec`, exactly, in O(n) per term (module docs): white `N²/Δt·Σ P²`, each Gauss–Markov
+/// component of the flicker synthesis by a forward–backward exponential filter over the
+/// (irregular) sample times, rate random walk from the tail sums of `P`.
+fn noise_model_variance(
+    pinv: &DMatrix<f64>,
+    times: &[f64],
+    dts: &[f64],
+    spec: &NoiseSpec,
+) -> [f64; 4] {
+    let n = times.len();
+    // Sample order in time (windows are normally given in time order already).
+    let mut order: Vec<usize> = (0..n).collect();
+    if times.windows(2).any(|w| w[1] < w[0]) {
+        order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    }
+    let mut out = [0.0; 4];
+    let mut w = vec![0.0; n];
+    let mut fwd = vec![0.0; n];
+    for (j, o) in out.iter_mut().enumerate() {
+        for (k, &i) in order.iter().enumerate() {
+            w[k] = pinv[(j, i)];
+        }
+        let mut var = 0.0;
+        // White rate noise.
+        for (k, &i) in order.iter().enumerate() {
+            var += spec.arw * spec.arw / dts[i] * w[k] * w[k];
+        }
+        // Flicker: Σ_a Σ_b w_a w_b σ² e^{−|t_a − t_b|/T} = σ²·Σ_a w_a (F_a + B_a − w_a).
+        if spec.flicker_floor > 0.0 {
+            for (t_corr, std) in
+                bench_physics::noise::bias_instability_components(spec.flicker_floor)
+            {
+                let mut f = 0.0;
+                for k in 0..n {
+                    let decay = if k == 0 {
+                        0.0
+                    } else {
+                        (-(times[order[k]] - times[order[k - 1]]) / t_corr).exp()
+                    };
+                    f = w[k] + decay * f;
+                    fwd[k] = f;
+                }
+                let mut bsum = 0.0;
+                let mut acc = 0.0;
+                for k in (0..n).rev() {
+                    let decay = if k + 1 == n {
+                        0.0
+                    } else {
+                        (-(times[order[k + 1]] - times[order[k]]) / t_corr).exp()
+                    };
+                    bsum = w[k] + decay * bsum;
+                    acc += w[k] * (fwd[k] + bsum - w[k]);
+                }
+                var += std * std * acc;
+            }
+        }
+        // Rate random walk from the first sample: cov = K²·min(t_a, t_b) − t_first.
+        if spec.rrw > 0.0 {
+            let mut tail = 0.0;
+            let mut acc = 0.0;
+            for k in (1..n).rev() {
+                tail += w[k];
+                acc += (times[order[k]] - times[order[k - 1]]) * tail * tail;
+            }
+            var += spec.rrw * spec.rrw * acc;
+        }
+        *o = var;
+    }
+    out
 }
 
 /// First lag `k ≥ 1` at which the sample autocorrelation of `r` drops below `1/e`, searched up
@@ -313,6 +438,53 @@ mod tests {
     use super::*;
     use bench_physics::units::{quantise, DEG_PER_MIN};
     use rand_distr::{Distribution, StandardNormal};
+
+    /// Brute-force `Σ_a Σ_b w_a w_b C(a, b)` for the covariance `C` of `spec`'s noise.
+    fn brute_variance(w: &[f64], t: &[f64], dt: f64, spec: &NoiseSpec) -> f64 {
+        let comps = bench_physics::noise::bias_instability_components(spec.flicker_floor);
+        let mut v = 0.0;
+        for a in 0..w.len() {
+            for b in 0..w.len() {
+                let mut c = 0.0;
+                if a == b {
+                    c += spec.arw * spec.arw / dt;
+                }
+                for (tc, sd) in comps {
+                    c += sd * sd * (-(t[a] - t[b]).abs() / tc).exp();
+                }
+                c += spec.rrw * spec.rrw * (t[a].min(t[b]) - t[0]);
+                v += w[a] * w[b] * c;
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn noise_model_variance_matches_the_covariance_summed_by_brute_force() {
+        // Two windows with a gap; weights: a mean, a trend, an odd pattern, a step.
+        let dt = 0.5;
+        let t: Vec<f64> =
+            (0..120).map(|i| if i < 60 { i as f64 * dt } else { 400.0 + i as f64 * dt }).collect();
+        let n = t.len();
+        let mut p = DMatrix::<f64>::zeros(4, n);
+        for k in 0..n {
+            p[(0, k)] = 1.0 / n as f64;
+            p[(1, k)] = (t[k] - 200.0) * 1e-3;
+            p[(2, k)] = ((k * 7919) % 13) as f64 - 6.0;
+            p[(3, k)] = if k < 60 { -1.0 } else { 1.0 };
+        }
+        let spec = NoiseSpec { arw: 3e-7, flicker_floor: 2e-8, rrw: 1e-9 };
+        let got = noise_model_variance(&p, &t, &vec![dt; n], &spec);
+        for (j, g) in got.iter().enumerate() {
+            let row: Vec<f64> = (0..n).map(|k| p[(j, k)]).collect();
+            let want = brute_variance(&row, &t, dt, &spec);
+            assert!((g / want - 1.0).abs() < 1e-9, "row {j}: {g} vs {want}");
+        }
+        // White alone: the variance of a mean is N²/(Δt·n).
+        let white = NoiseSpec { arw: 3e-7, flicker_floor: 0.0, rrw: 0.0 };
+        let v = noise_model_variance(&p, &t, &vec![dt; n], &white)[0];
+        assert!((v / (9e-14 / (dt * n as f64)) - 1.0).abs() < 1e-12);
+    }
 
     const DT: f64 = 0.05;
     const OMEGA: f64 = 10.0 * DEG_PER_MIN;

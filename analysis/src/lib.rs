@@ -9,6 +9,8 @@
 //! - [`joint_fit`]: one least-squares fit of bias, scale-factor error, temperature and
 //!   temperature-rate coefficients over all windows, Earth's rotation removed, with
 //!   moving-block-bootstrap standard errors that respect coloured noise.
+//! - [`calibrate`]: the whole calibration of a recording's windows: pooled Allan deviation,
+//!   thermal-lag profile, seed method and joint fit, and what the data lack.
 //! - [`allan_fit`]: IEEE Std 952 noise terms (N, B, K) with confidence intervals from an
 //!   overlapping Allan deviation.
 //!
@@ -16,6 +18,7 @@
 //! (`shared/spec/recording.md`).
 
 pub mod allan_fit;
+pub mod calibrate;
 pub mod error;
 pub mod joint_fit;
 pub mod seed_method;

@@ -82,6 +82,21 @@ impl RecordWindow {
         Ok(Self { label, time_s, gyro_rate_rad_s, table_rate_rad_s, gyro_temp_c, chamber_temp_c })
     }
 
+    /// The same window with `temp_c` as the model temperature (in place of the gyro sensor's
+    /// readings, e.g. a lagged temperature), checked like [`Self::new`].
+    pub fn with_model_temperature(&self, temp_c: Vec<f64>) -> Result<Self, AnalysisError> {
+        if temp_c.len() != self.len() {
+            return Err(AnalysisError::LengthMismatch {
+                label: self.label.clone(),
+                array: "gyro_temp_c",
+                got: temp_c.len(),
+                expected: self.len(),
+            });
+        }
+        check_finite(&self.label, "gyro_temp_c", &temp_c)?;
+        Ok(Self { gyro_temp_c: Some(temp_c), ..self.clone() })
+    }
+
     /// The step label (e.g. `record cw 20C`).
     pub fn label(&self) -> &str {
         &self.label

@@ -34,7 +34,7 @@ const GM_T_MIN_S: f64 = 0.5;
 /// Correlation time of the longest Gauss–Markov process, s.
 const GM_T_MAX_S: f64 = 30_000.0;
 /// Number of Gauss–Markov processes (1.5 per decade over 0.5..30 000 s).
-const GM_COUNT: usize = 8;
+pub const GM_COUNT: usize = 8;
 /// Weight of the two end processes relative to the inner ones.
 const GM_END_WEIGHT: f64 = 1.3;
 /// τ band over which the floor is normalised, s.
@@ -92,6 +92,14 @@ pub fn bias_instability_adev(tau_s: f64, bias_instability: f64) -> f64 {
 pub fn bias_instability_stationary_std(bias_instability: f64) -> f64 {
     let w: f64 = gm_design().iter().map(|&(_, w)| w).sum();
     bias_instability * (w * design_scale()).sqrt()
+}
+
+/// The Gauss–Markov processes (correlation time s, stationary standard deviation rad/s) whose
+/// sum is the bias-instability part of [`GyroNoise`] for floor `bias_instability` (rad/s). The
+/// analysis uses them to turn a fitted flicker floor into a covariance.
+pub fn bias_instability_components(bias_instability: f64) -> [(f64, f64); GM_COUNT] {
+    let scale = design_scale();
+    gm_design().map(|(t, w)| (t, bias_instability * (w * scale).sqrt()))
 }
 
 #[derive(Debug, Clone, Copy)]

@@ -1,0 +1,715 @@
+//! The whole calibration of one recording's windows: noise terms, the seed's method, the joint
+//! fit with the thermal lag where the data can tell it, and what is missing.
+//!
+//! Order of work ([`calibrate`]):
+//!
+//! 1. **Classify** windows: a *plateau* has a model-temperature spread ≤ `plateau_span_c`; a
+//!    *ramp* is any other window with the table turning; a window at rest is *static*.
+//! 2. **Noise** ([`pooled_adev`]): the overlapping Allan deviation of `gyro − table rate`,
+//!    pooled over all plateau and static windows, and its IEEE 952 terms
+//!    ([`crate::allan_fit`]). They become the [`NoiseSpec`] whose covariance the joint fit
+//!    carries into its standard errors — flicker correlated over hours, which no block of a
+//!    bootstrap sees.
+//! 3. **Thermal lag** ([`fit_lag`]): the model temperature is `lag(T_meas, τ)`, where `T_meas`
+//!    is the whole-run temperature series (the gyro's sensor, else chamber air). τ is profiled
+//!    over 0..3000 s by the residual sum of squares of the joint model. Significance uses the
+//!    residual's effective sample count `n_eff = n/(2·k_e)` (`k_e`: its correlation lag): τ̂ is
+//!    kept only when `n_eff·ΔRSS/RSS` exceeds the χ²₁ quantile of the confidence level;
+//!    otherwise τ = 0 (the measured temperature) and the report says the data cannot tell it.
+//! 4. **Seed method** and **joint fit** on the windows with the chosen model temperature.
+
+use bench_physics::allan::{octave_factors, AdevPoint};
+use bench_physics::lag::FirstOrderLag;
+use bench_physics::GyroModel;
+
+use crate::allan_fit::{allan_fit, AllanFit};
+use crate::error::AnalysisError;
+use crate::joint_fit::{correlation_lag, joint_fit, JointFit, JointFitOptions, NoiseSpec};
+use crate::seed_method::{seed_calibration, SeedCalibration, SeedOptions};
+use crate::temperature_rate::local_linear_rate;
+use crate::windows::{Direction, RecordWindow};
+
+/// A temperature time series, s and °C, time strictly increasing.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TemperatureSeries {
+    /// Time, s.
+    pub time_s: Vec<f64>,
+    /// Temperature, °C.
+    pub temp_c: Vec<f64>,
+}
+
+impl TemperatureSeries {
+    /// The series through a first-order lag of `tau_s`, started at its first value.
+    pub fn lagged(&self, tau_s: f64) -> TemperatureSeries {
+        let Some(&first) = self.temp_c.first() else {
+            return self.clone();
+        };
+        let mut lag = FirstOrderLag::new(tau_s, first);
+        let mut out = Vec::with_capacity(self.temp_c.len());
+        out.push(first);
+        for i in 1..self.temp_c.len() {
+            let dt = self.time_s[i] - self.time_s[i - 1];
+            out.push(lag.step_linear(self.temp_c[i - 1], self.temp_c[i], dt));
+        }
+        TemperatureSeries { time_s: self.time_s.clone(), temp_c: out }
+    }
+
+    /// Linear interpolation at increasing times `at` (held at the ends).
+    pub fn sample(&self, at: &[f64]) -> Vec<f64> {
+        let (xs, ys) = (&self.time_s, &self.temp_c);
+        let n = xs.len();
+        let mut i = 0;
+        at.iter()
+            .map(|&x| {
+                if n == 0 {
+                    return f64::NAN;
+                }
+                if x <= xs[0] {
+                    return ys[0];
+                }
+                if x >= xs[n - 1] {
+                    return ys[n - 1];
+                }
+                if xs[i] > x {
+                    i = 0;
+                }
+                while i + 2 < n && xs[i + 1] < x {
+                    i += 1;
+                }
+                let (x0, x1) = (xs[i], xs[i + 1]);
+                ys[i] + (ys[i + 1] - ys[i]) * (x - x0) / (x1 - x0)
+            })
+            .collect()
+    }
+}
+
+/// Settings of [`calibrate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateOptions {
+    /// T0 of the coefficients, °C.
+    pub reference_temperature_c: f64,
+    /// Site latitude, degrees north; `None` leaves Earth's rotation in the bias.
+    pub latitude_deg: Option<f64>,
+    /// Sensing axis up.
+    pub axis_up: bool,
+    /// Window of the dT/dt filter, s.
+    pub rate_window_s: f64,
+    /// A window is a plateau when its temperature spread is at most this, °C.
+    pub plateau_span_c: f64,
+    /// Largest temperature difference of a CW/CCW plateau pair, °C.
+    pub pair_tolerance_c: f64,
+    /// Block-bootstrap replicates.
+    pub replicates: usize,
+    /// Bootstrap seed.
+    pub seed: u64,
+    /// Confidence level of intervals (Allan terms, lag significance).
+    pub confidence: f64,
+    /// Whether to profile the thermal lag.
+    pub fit_lag: bool,
+}
+
+impl Default for CalibrateOptions {
+    fn default() -> Self {
+        Self {
+            reference_temperature_c: 20.0,
+            latitude_deg: None,
+            axis_up: true,
+            rate_window_s: 60.0,
+            plateau_span_c: 1.0,
+            pair_tolerance_c: 1.0,
+            replicates: 400,
+            seed: 0,
+            confidence: 0.95,
+            fit_lag: true,
+        }
+    }
+}
+
+/// What a window is for the calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WindowKind {
+    /// Constant temperature, table turning.
+    Plateau,
+    /// Temperature changing, table turning.
+    Ramp,
+    /// Table at rest.
+    Static,
+}
+
+/// One window as the calibration saw it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowSummary {
+    /// Step label.
+    pub label: String,
+    /// Kind.
+    pub kind: WindowKind,
+    /// Direction of rotation.
+    pub direction: Direction,
+    /// Samples.
+    pub samples: usize,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Mean model temperature, °C.
+    pub mean_temp_c: f64,
+    /// Model-temperature spread, °C.
+    pub temp_span_c: f64,
+    /// Mean table rate, rad/s.
+    pub mean_table_rate_rad_s: f64,
+}
+
+/// Pooled Allan deviation and its noise terms.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AllanResult {
+    /// Windows pooled.
+    pub windows: Vec<String>,
+    /// The pooled curve.
+    pub points: Vec<AdevPoint>,
+    /// IEEE 952 terms.
+    pub fit: AllanFit,
+}
+
+impl AllanResult {
+    /// The noise model for the joint fit's covariance: N and the flicker floor as fitted, K
+    /// only where the curve shows it (an upper bound on K is not a random walk that is there).
+    pub fn noise_spec(&self) -> NoiseSpec {
+        NoiseSpec {
+            arw: self.fit.arw.value,
+            flicker_floor: self.fit.flicker_floor().value,
+            rrw: if self.fit.rate_random_walk.upper_bound {
+                0.0
+            } else {
+                self.fit.rate_random_walk.value
+            },
+        }
+    }
+}
+
+/// The thermal-lag profile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LagFit {
+    /// τ of least residual, s.
+    pub best_s: f64,
+    /// The τ used: `best_s` when significant, else 0.
+    pub used_s: f64,
+    /// Confidence interval of τ from the profile (s): where `n_eff·ΔRSS/RSS` ≤ χ²₁.
+    pub interval_s: (f64, f64),
+    /// `n_eff·(RSS(0) − RSS(τ̂))/RSS(τ̂)`: the test statistic against τ = 0.
+    pub statistic: f64,
+    /// χ²₁ quantile at the confidence level.
+    pub threshold: f64,
+    /// Effective sample count of the residual.
+    pub n_eff: f64,
+    /// `(τ, RSS)` pairs evaluated, in τ order.
+    pub profile: Vec<(f64, f64)>,
+}
+
+impl LagFit {
+    /// Whether the data tell τ from 0.
+    pub fn significant(&self) -> bool {
+        self.statistic > self.threshold
+    }
+}
+
+/// Result of [`calibrate`].
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// The options used.
+    pub options: CalibrateOptions,
+    /// The windows, classified.
+    pub windows: Vec<WindowSummary>,
+    /// Windows with the model temperature used (lag applied).
+    pub model_windows: Vec<RecordWindow>,
+    /// Allan deviation and noise terms (plateau and static windows).
+    pub allan: Result<AllanResult, AnalysisError>,
+    /// Thermal lag profile.
+    pub lag: Option<Result<LagFit, AnalysisError>>,
+    /// The seed's method.
+    pub seed: Result<SeedCalibration, AnalysisError>,
+    /// The joint fit.
+    pub joint: Result<JointFit, AnalysisError>,
+    /// What the data lack, and what could still be estimated, one sentence each.
+    pub missing: Vec<String>,
+}
+
+impl Calibration {
+    /// The calibrated gyro model: the joint fit over `base`, with the noise terms from the
+    /// Allan deviation and the thermal lag used, where they were estimated.
+    pub fn model(&self, base: &GyroModel) -> Option<GyroModel> {
+        let joint = self.joint.as_ref().ok()?;
+        let mut m = joint.to_model(base);
+        if let Ok(a) = &self.allan {
+            m.arw = a.fit.arw.value;
+            m.bias_instability = a.fit.flicker_floor().value;
+        }
+        if let Some(Ok(l)) = &self.lag {
+            m.thermal_time_constant = l.used_s;
+        }
+        m.earth_rate = self.options.latitude_deg.is_some() || base.earth_rate;
+        Some(m)
+    }
+}
+
+fn kind(w: &RecordWindow, opts: &CalibrateOptions) -> WindowKind {
+    if w.direction() == Direction::Rest {
+        WindowKind::Static
+    } else if w.temperature_span_c() <= opts.plateau_span_c {
+        WindowKind::Plateau
+    } else {
+        WindowKind::Ramp
+    }
+}
+
+/// Overlapping Allan deviation of `gyro − table rate` pooled over `windows` at octave τ: for
+/// each τ, the sums of squared second differences and their term counts are added across the
+/// windows that reach it (each with ≥ 8 terms). A point's `n_samples` is the pooled sample
+/// count of those windows, so its degrees of freedom are those of one record as long as all of
+/// them — right for short τ, slightly generous at the longest τ.
+pub fn pooled_adev(windows: &[&RecordWindow]) -> Vec<AdevPoint> {
+    let mut acc: Vec<(f64, usize, usize, f64)> = Vec::new(); // (sum, terms, samples, tau)
+    for w in windows {
+        let dt = {
+            let t = w.time_s();
+            (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+        };
+        let r: Vec<f64> =
+            w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).map(|(v, o)| v - o).collect();
+        let pts = bench_physics::allan::overlapping_adev(&r, dt, &octave_factors(r.len(), 8));
+        for (k, p) in pts.iter().enumerate() {
+            if acc.len() <= k {
+                acc.push((0.0, 0, 0, 0.0));
+            }
+            let s = p.adev * p.adev * 2.0 * (p.m * p.m) as f64 * p.n_terms as f64;
+            acc[k].0 += s / (p.m * p.m) as f64;
+            acc[k].1 += p.n_terms;
+            acc[k].2 += p.n_samples;
+            acc[k].3 += p.tau_s * p.n_terms as f64;
+        }
+    }
+    acc.iter()
+        .enumerate()
+        .map(|(k, &(s, terms, samples, tau_w))| {
+            let m = 1usize << k;
+            AdevPoint {
+                tau_s: tau_w / terms as f64,
+                m,
+                adev: (s / (2.0 * terms as f64)).sqrt(),
+                n_terms: terms,
+                n_samples: samples,
+            }
+        })
+        .collect()
+}
+
+/// Residual sum of squares of the joint model (normal equations, columns scaled) and the
+/// residual's correlation lag.
+fn joint_rss(
+    windows: &[RecordWindow],
+    earth: f64,
+    t0: f64,
+    rate_window_s: f64,
+) -> Result<(f64, usize, usize), AnalysisError> {
+    let mut rows: Vec<[f64; 5]> = Vec::new();
+    for w in windows {
+        let temp = w.temperature_c();
+        let rate = local_linear_rate(w.time_s(), temp, rate_window_s)?;
+        for (((v, o), t), d) in
+            w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate)
+        {
+            let om = o + earth;
+            rows.push([1.0, om, t - t0, *d, v - om]);
+        }
+    }
+    let n = rows.len();
+    let mut scale = [0.0; 4];
+    for r in &rows {
+        for j in 0..4 {
+            scale[j] += r[j] * r[j];
+        }
+    }
+    for s in &mut scale {
+        *s = (*s / n as f64).sqrt().max(f64::MIN_POSITIVE);
+    }
+    let mut xtx = nalgebra::Matrix4::<f64>::zeros();
+    let mut xty = nalgebra::Vector4::<f64>::zeros();
+    for r in &rows {
+        let x = nalgebra::Vector4::new(
+            r[0] / scale[0],
+            r[1] / scale[1],
+            r[2] / scale[2],
+            r[3] / scale[3],
+        );
+        xtx += x * x.transpose();
+        xty += x * r[4];
+    }
+    let beta = xtx
+        .cholesky()
+        .ok_or_else(|| AnalysisError::Insufficient("thermal lag: singular design".into()))?
+        .solve(&xty);
+    let resid: Vec<f64> = rows
+        .iter()
+        .map(|r| r[4] - (0..4).map(|j| beta[j] * r[j] / scale[j]).sum::<f64>())
+        .collect();
+    let rss = resid.iter().map(|e| e * e).sum();
+    Ok((rss, n, correlation_lag(&resid, (n / 50).max(1))))
+}
+
+/// `windows` with the model temperature replaced by `series` lagged by `tau_s`.
+fn with_lag(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+    tau_s: f64,
+) -> Result<Vec<RecordWindow>, AnalysisError> {
+    let lagged = series.lagged(tau_s);
+    windows.iter().map(|w| w.with_model_temperature(lagged.sample(w.time_s()))).collect()
+}
+
+/// Profile the thermal lag (module docs) over `series`.
+pub fn fit_lag(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+    opts: &CalibrateOptions,
+) -> Result<LagFit, AnalysisError> {
+    if series.time_s.len() < 2 {
+        return Err(AnalysisError::TooFewSamples {
+            what: "thermal lag: temperature series".into(),
+            got: series.time_s.len(),
+            min: 2,
+        });
+    }
+    let earth = opts
+        .latitude_deg
+        .map_or(0.0, |lat| bench_physics::earth::vertical_rate_rad_s(lat, opts.axis_up));
+    let t0 = opts.reference_temperature_c;
+    let eval = |tau: f64| -> Result<(f64, usize, usize), AnalysisError> {
+        joint_rss(&with_lag(windows, series, tau)?, earth, t0, opts.rate_window_s)
+    };
+    // Coarse grid 0, 10·1.33^k .. 3000 s, then golden-section refinement around the best.
+    let mut grid = vec![0.0];
+    let mut t = 10.0;
+    while t <= 3000.0 {
+        grid.push(t);
+        t *= 1.33;
+    }
+    let mut profile = Vec::with_capacity(grid.len() + 20);
+    for &tau in &grid {
+        profile.push((tau, eval(tau)?.0));
+    }
+    let ibest =
+        profile.iter().enumerate().min_by(|a, b| a.1 .1.total_cmp(&b.1 .1)).map_or(0, |(i, _)| i);
+    let (mut a, mut b) =
+        (profile[ibest.saturating_sub(1)].0, profile[(ibest + 1).min(profile.len() - 1)].0);
+    let g = 0.618_033_988_749_895;
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let (mut fc, mut fd) = (eval(c)?.0, eval(d)?.0);
+    profile.push((c, fc));
+    profile.push((d, fd));
+    for _ in 0..14 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = eval(c)?.0;
+            profile.push((c, fc));
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = eval(d)?.0;
+            profile.push((d, fd));
+        }
+    }
+    profile.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let (best_s, _) =
+        profile.iter().copied().min_by(|x, y| x.1.total_cmp(&y.1)).unwrap_or((0.0, f64::NAN));
+    let (rss_best, n, k_e) = eval(best_s)?;
+    let rss0 = profile[0].1;
+    let n_eff = n as f64 / (2.0 * k_e as f64).max(1.0);
+    let threshold = {
+        let z = bench_physics::allan::normal_quantile(0.5 + opts.confidence / 2.0);
+        z * z
+    };
+    let stat = |rss: f64| n_eff * (rss - rss_best) / rss_best;
+    let inside: Vec<f64> =
+        profile.iter().filter(|(_, r)| stat(*r) <= threshold).map(|(t, _)| *t).collect();
+    let interval_s = (
+        inside.iter().copied().fold(f64::INFINITY, f64::min),
+        inside.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
+    let statistic = stat(rss0);
+    Ok(LagFit {
+        best_s,
+        used_s: if statistic > threshold { best_s } else { 0.0 },
+        interval_s,
+        statistic,
+        threshold,
+        n_eff,
+        profile,
+    })
+}
+
+/// Calibrate from `windows` (time on the same origin as `series`, the whole-run measured
+/// temperature).
+pub fn calibrate(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+    opts: &CalibrateOptions,
+) -> Calibration {
+    let mut missing = Vec::new();
+    let summaries: Vec<WindowSummary> = windows
+        .iter()
+        .map(|w| WindowSummary {
+            label: w.label().to_owned(),
+            kind: kind(w, opts),
+            direction: w.direction(),
+            samples: w.len(),
+            duration_s: w.time_s()[w.len() - 1] - w.time_s()[0],
+            mean_temp_c: w.mean_temperature_c(),
+            temp_span_c: w.temperature_span_c(),
+            mean_table_rate_rad_s: w.mean_table_rate_rad_s(),
+        })
+        .collect();
+    let count = |k: WindowKind| summaries.iter().filter(|s| s.kind == k).count();
+    if opts.latitude_deg.is_none() {
+        missing.push(
+            "no latitude (bench.site latitude_deg): Earth's rotation cannot be removed, so the \
+             bias includes it; temperature coefficients are unaffected"
+                .into(),
+        );
+    }
+    if count(WindowKind::Ramp) == 0 {
+        missing.push(
+            "no ramp windows (temperature changing while recording): the temperature-rate \
+             coefficient cannot be told from the others; the seed's k_dt is not estimated"
+                .into(),
+        );
+    }
+
+    let quiet: Vec<&RecordWindow> = windows
+        .iter()
+        .zip(&summaries)
+        .filter(|(_, s)| s.kind != WindowKind::Ramp)
+        .map(|(w, _)| w)
+        .collect();
+    let allan = if quiet.is_empty() {
+        missing.push(
+            "no constant-temperature windows: no Allan deviation, and the joint fit's standard \
+             errors rest on the block bootstrap alone"
+                .into(),
+        );
+        Err(AnalysisError::Insufficient("no constant-temperature windows".into()))
+    } else {
+        allan_fit(&pooled_adev(&quiet), opts.confidence).map(|fit| AllanResult {
+            windows: quiet.iter().map(|w| w.label().to_owned()).collect(),
+            points: pooled_adev(&quiet),
+            fit,
+        })
+    };
+
+    let lag = (opts.fit_lag && count(WindowKind::Ramp) > 0).then(|| fit_lag(windows, series, opts));
+    let model_windows = match &lag {
+        Some(Ok(l)) if l.used_s > 0.0 => {
+            with_lag(windows, series, l.used_s).unwrap_or_else(|_| windows.to_vec())
+        }
+        _ => windows.to_vec(),
+    };
+
+    let seed_opts = SeedOptions {
+        plateau_span_c: opts.plateau_span_c,
+        pair_tolerance_c: opts.pair_tolerance_c,
+        reference_temperature_c: opts.reference_temperature_c,
+        latitude_deg: opts.latitude_deg,
+        axis_up: opts.axis_up,
+        rate_window_s: opts.rate_window_s,
+    };
+    let seed = seed_calibration(&model_windows, &seed_opts);
+    if let Err(e) = &seed {
+        missing.push(format!("seed method: {e}"));
+    }
+    let joint_opts = JointFitOptions {
+        reference_temperature_c: opts.reference_temperature_c,
+        latitude_deg: opts.latitude_deg,
+        axis_up: opts.axis_up,
+        rate_window_s: opts.rate_window_s,
+        replicates: opts.replicates,
+        block_len: None,
+        seed: opts.seed,
+        noise: allan.as_ref().ok().map(AllanResult::noise_spec),
+    };
+    let joint = joint_fit(&model_windows, &joint_opts);
+    if let Err(e) = &joint {
+        missing.push(format!("joint fit: {e}"));
+    }
+    Calibration {
+        options: opts.clone(),
+        windows: summaries,
+        model_windows,
+        allan,
+        lag,
+        seed,
+        joint,
+        missing,
+    }
+}
+
+/// How much of the thermal error a calibration removes, over a temperature series.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalErrorRemoval {
+    /// RMS of the true thermal error `k_t·(T − T0) + k_dt·dT/dt`, rad/s.
+    pub rms_uncalibrated_rad_s: f64,
+    /// RMS of what remains after subtracting the fitted bias and thermal terms from the true
+    /// ones, rad/s.
+    pub rms_calibrated_rad_s: f64,
+}
+
+impl ThermalErrorRemoval {
+    /// Fraction removed: `1 − rms_calibrated/rms_uncalibrated`.
+    pub fn removed(&self) -> f64 {
+        1.0 - self.rms_calibrated_rad_s / self.rms_uncalibrated_rad_s
+    }
+}
+
+/// Thermal bias of `m` at temperature `t` and rate `d`, including the constant bias.
+pub fn thermal_bias(m: &GyroModel, t_c: f64, rate_c_s: f64) -> f64 {
+    m.bias + m.temp_coeff * (t_c - m.reference_temperature) + m.temp_rate_coeff * rate_c_s
+}
+
+/// Compare `fitted` with `truth` along `series` (the gyro temperature over the run): the true
+/// thermal error and what remains of it after calibration (bias errors count as remaining).
+pub fn thermal_error_removal(
+    truth: &GyroModel,
+    fitted: &GyroModel,
+    series: &TemperatureSeries,
+    rate_window_s: f64,
+) -> Result<ThermalErrorRemoval, AnalysisError> {
+    let rate = local_linear_rate(&series.time_s, &series.temp_c, rate_window_s)?;
+    let (mut su, mut sc) = (0.0, 0.0);
+    for (t, d) in series.temp_c.iter().zip(&rate) {
+        let e = thermal_bias(truth, *t, *d) - truth.bias;
+        let r = thermal_bias(truth, *t, *d) - thermal_bias(fitted, *t, *d);
+        su += e * e;
+        sc += r * r;
+    }
+    let n = series.temp_c.len() as f64;
+    Ok(ThermalErrorRemoval {
+        rms_uncalibrated_rad_s: (su / n).sqrt(),
+        rms_calibrated_rad_s: (sc / n).sqrt(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bench_physics::lag::ramp_response;
+    use bench_physics::units::DEG_PER_MIN;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    #[test]
+    fn a_lagged_ramp_follows_the_closed_form() {
+        let time_s: Vec<f64> = (0..2000).map(|i| i as f64 * 0.5).collect();
+        let s = TemperatureSeries {
+            temp_c: time_s.iter().map(|t| 0.02 * t).collect(),
+            time_s: time_s.clone(),
+        };
+        let l = s.lagged(120.0);
+        for (t, y) in time_s.iter().zip(&l.temp_c) {
+            assert!((y - ramp_response(120.0, 0.02, *t)).abs() < 1e-9, "{t}");
+        }
+        assert_eq!(s.sample(&[-1.0, 0.25, 5000.0]), vec![0.0, 0.005, 0.02 * 999.5]);
+    }
+
+    /// A gyro without a temperature sensor whose coil lags the air by `tau` s: air ramps ±1
+    /// °C/min with holds, table CW then CCW, white noise only.
+    fn lagged_run(tau: f64, seed: u64) -> (Vec<RecordWindow>, TemperatureSeries) {
+        let dt = 0.5;
+        let n = (4.0 * 3600.0 / dt) as usize;
+        let time_s: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        // Air: hold 20 min, down 60 min, hold 40, up 60, hold ... (period 3 h 20 min).
+        let air = |t: f64| -> f64 {
+            let p = t % 12_000.0;
+            let r = 1.0 / 60.0;
+            if p < 1200.0 {
+                20.0
+            } else if p < 4800.0 {
+                20.0 - r * (p - 1200.0)
+            } else if p < 7200.0 {
+                -40.0
+            } else if p < 10_800.0 {
+                -40.0 + r * (p - 7200.0)
+            } else {
+                20.0
+            }
+        };
+        let series = TemperatureSeries { temp_c: time_s.iter().map(|&t| air(t)).collect(), time_s };
+        let coil = series.lagged(tau);
+        let rate = local_linear_rate(&coil.time_s, &coil.temp_c, 1.0).expect("rate");
+        let m = GyroModel { temp_coeff: 5e-9, temp_rate_coeff: 1.5e-5, ..GyroModel::zero() };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut windows = Vec::new();
+        for (k, (a, b)) in [(0usize, n / 2), (n / 2, n)].into_iter().enumerate() {
+            let omega = if k == 0 { -10.0 * DEG_PER_MIN } else { 10.0 * DEG_PER_MIN };
+            let t = series.time_s[a..b].to_vec();
+            let v: Vec<f64> = (a..b)
+                .map(|i| {
+                    let e: f64 = StandardNormal.sample(&mut rng);
+                    omega + thermal_bias(&m, coil.temp_c[i], rate[i]) + 2e-9 * e
+                })
+                .collect();
+            windows.push(
+                RecordWindow::new(
+                    format!("record {k}"),
+                    t,
+                    v,
+                    vec![omega; b - a],
+                    None,
+                    series.temp_c[a..b].to_vec(),
+                )
+                .expect("window"),
+            );
+        }
+        (windows, series)
+    }
+
+    #[test]
+    fn the_lag_profile_finds_a_real_lag_and_calls_none_when_there_is_none() {
+        let opts = CalibrateOptions { rate_window_s: 30.0, ..CalibrateOptions::default() };
+        let (w, s) = lagged_run(300.0, 1);
+        let l = fit_lag(&w, &s, &opts).expect("profile");
+        assert!(l.significant(), "{l:?}");
+        assert!((l.used_s - 300.0).abs() < 3.0, "{l:?}");
+        assert!(l.interval_s.0 <= l.best_s && l.best_s <= l.interval_s.1, "{l:?}");
+        let (w, s) = lagged_run(0.0, 2);
+        let l = fit_lag(&w, &s, &opts).expect("profile");
+        assert!(l.used_s < 15.0, "{l:?}");
+    }
+
+    #[test]
+    fn pooled_adev_of_white_noise_reads_its_arw() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let dt = 0.05;
+        let n_arw = 3e-7;
+        let ws: Vec<RecordWindow> = (0..4)
+            .map(|k| {
+                let t: Vec<f64> = (0..6000).map(|i| 1e4 * k as f64 + i as f64 * dt).collect();
+                let v: Vec<f64> = (0..6000)
+                    .map(|_| {
+                        let e: f64 = StandardNormal.sample(&mut rng);
+                        1e-3 + n_arw / dt.sqrt() * e
+                    })
+                    .collect();
+                RecordWindow::new("r", t, v, vec![1e-3; 6000], None, vec![20.0; 6000])
+                    .expect("window")
+            })
+            .collect();
+        let refs: Vec<&RecordWindow> = ws.iter().collect();
+        let pts = pooled_adev(&refs);
+        assert_eq!(pts[0].n_samples, 24_000);
+        let fit = allan_fit(&pts, 0.95).expect("fit");
+        assert!(fit.arw.low <= n_arw && n_arw <= fit.arw.high, "{:?}", fit.arw);
+        assert!((fit.arw.value / n_arw - 1.0).abs() < 0.05, "{:?}", fit.arw);
+    }
+}
