@@ -3,10 +3,11 @@
 //!
 //! Order of work ([`calibrate`]):
 //!
-//! 1. **Classify** windows: a *plateau* has a model-temperature spread ≤ `plateau_span_c`; a
+//! 1. **Classify** windows: a *plateau* has a chamber-air spread ≤ `plateau_span_c`; a
 //!    *ramp* is any other window with the table turning; a window at rest is *static*.
 //! 2. **Noise** ([`pooled_adev`]): the overlapping Allan deviation of `gyro − table rate`,
-//!    pooled over all plateau and static windows, and its IEEE 952 terms
+//!    pooled over the plateau and static windows whose model temperature also stays within
+//!    `plateau_span_c` (no thermal drift in the noise), and its IEEE 952 terms
 //!    ([`crate::allan_fit`]). They become the [`NoiseSpec`] whose covariance the joint fit
 //!    carries into its standard errors — flicker correlated over hours, which no block of a
 //!    bootstrap sees.
@@ -169,19 +170,67 @@ pub struct AllanResult {
 }
 
 impl AllanResult {
-    /// The noise model for the joint fit's covariance: N and the flicker floor as fitted, K
-    /// only where the curve shows it (an upper bound on K is not a random walk that is there).
+    /// The noise model for the joint fit's covariance ([`fit_noise_spec`] over the curve).
+    /// Rate random walk is included only where the curve shows its +1/2 slope (the tangent
+    /// reading is not an upper bound): a K fitted to the few long-τ points of short windows,
+    /// extrapolated over hours, would swamp every coefficient's error.
     pub fn noise_spec(&self) -> NoiseSpec {
-        NoiseSpec {
+        let with_k = !self.fit.rate_random_walk.upper_bound;
+        fit_noise_spec(&self.points, with_k).unwrap_or(NoiseSpec {
             arw: self.fit.arw.value,
             flicker_floor: self.fit.flicker_floor().value,
-            rrw: if self.fit.rate_random_walk.upper_bound {
-                0.0
-            } else {
-                self.fit.rate_random_walk.value
-            },
-        }
+            rrw: 0.0,
+        })
     }
+}
+
+/// The noise model whose Allan variance best matches the whole curve: `σ²(τ) = N²/τ +
+/// B_f²·g(τ) + K²·τ/3`, with `g` the shape of the flicker synthesis
+/// (`bench_physics::noise::bias_instability_adev` at floor 1) — linear in `(N², B_f², K²)`,
+/// solved by least squares weighted by each point's degrees of freedom (relative variance of
+/// an AVAR point ≈ 2/edf), negative terms dropped and the rest refitted. The IEEE 952 tangent
+/// readings ([`crate::allan_fit`]) are bounds, high by up to ≈ 12 % each and more where terms
+/// overlap; a covariance built on them overstates every coefficient's error.
+/// `with_rrw = false` leaves K out (K = 0).
+pub fn fit_noise_spec(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
+    use bench_physics::allan::NoiseType;
+    use bench_physics::noise::bias_instability_adev;
+    let pts: Vec<&AdevPoint> =
+        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
+    if pts.len() < 3 {
+        return None;
+    }
+    let basis = |tau: f64| [1.0 / tau, bias_instability_adev(tau, 1.0).powi(2), tau / 3.0];
+    let mut active = [true, true, with_rrw];
+    for _ in 0..3 {
+        let cols: Vec<usize> = (0..3).filter(|&j| active[j]).collect();
+        if cols.is_empty() {
+            return None;
+        }
+        let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols.len());
+        let mut b = nalgebra::DVector::<f64>::zeros(pts.len());
+        for (i, p) in pts.iter().enumerate() {
+            let avar = p.adev * p.adev;
+            // Weight: 1/sd of the AVAR point, sd ≈ avar·√(2/edf).
+            let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
+            let f = basis(p.tau_s);
+            for (c, &j) in cols.iter().enumerate() {
+                a[(i, c)] = f[j] * w;
+            }
+            b[i] = avar * w;
+        }
+        let x = a.svd(true, true).solve(&b, 1e-12).ok()?;
+        if let Some(c) = (0..cols.len()).find(|&c| x[c] < 0.0) {
+            active[cols[c]] = false;
+            continue;
+        }
+        let mut v = [0.0; 3];
+        for (c, &j) in cols.iter().enumerate() {
+            v[j] = x[c];
+        }
+        return Some(NoiseSpec { arw: v[0].sqrt(), flicker_floor: v[1].sqrt(), rrw: v[2].sqrt() });
+    }
+    None
 }
 
 /// The thermal-lag profile.
@@ -252,7 +301,7 @@ impl Calibration {
 fn kind(w: &RecordWindow, opts: &CalibrateOptions) -> WindowKind {
     if w.direction() == Direction::Rest {
         WindowKind::Static
-    } else if w.temperature_span_c() <= opts.plateau_span_c {
+    } else if w.chamber_span_c() <= opts.plateau_span_c {
         WindowKind::Plateau
     } else {
         WindowKind::Ramp
@@ -490,7 +539,9 @@ pub fn calibrate(
     let quiet: Vec<&RecordWindow> = windows
         .iter()
         .zip(&summaries)
-        .filter(|(_, s)| s.kind != WindowKind::Ramp)
+        .filter(|(w, s)| {
+            s.kind != WindowKind::Ramp && w.temperature_span_c() <= opts.plateau_span_c
+        })
         .map(|(w, _)| w)
         .collect();
     let allan = if quiet.is_empty() {

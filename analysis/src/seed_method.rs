@@ -2,8 +2,11 @@
 //!
 //! # Plateaus: K = (k1 + k2)/2
 //!
-//! A *plateau* is a window whose model temperature ([`RecordWindow::temperature_c`]) stays
-//! within `plateau_span_c`. Each CW plateau is paired with the CCW plateau of closest mean
+//! A *plateau* is a window whose chamber air stays within `plateau_span_c` — a constant chamber
+//! temperature, as in the seed, whose gyro was assumed at air temperature. A gyro still
+//! catching up with the air (its own sensor drifting) keeps its plateau; its K then carries
+//! the temperature-rate term, the seed's own flaw, reproduced. K is placed at the window's
+//! mean model temperature ([`RecordWindow::temperature_c`]). Each CW plateau is paired with the CCW plateau of closest mean
 //! temperature, if that is within `pair_tolerance_c` (1 °C by default). For the pair
 //!
 //! ```text
@@ -152,7 +155,7 @@ fn window_bias(w: &RecordWindow, earth_rad_s: f64) -> f64 {
 }
 
 fn is_plateau(w: &RecordWindow, opts: &SeedOptions) -> bool {
-    w.temperature_span_c() <= opts.plateau_span_c
+    w.chamber_span_c() <= opts.plateau_span_c
 }
 
 /// Pair CW and CCW plateaus (module docs); each CCW window is used at most once.

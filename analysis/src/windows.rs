@@ -145,6 +145,13 @@ impl RecordWindow {
         let min = t.iter().copied().fold(f64::INFINITY, f64::min);
         max - min
     }
+    /// Spread (max − min) of the chamber air temperature, °C.
+    pub fn chamber_span_c(&self) -> f64 {
+        let t = &self.chamber_temp_c;
+        let max = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let min = t.iter().copied().fold(f64::INFINITY, f64::min);
+        max - min
+    }
     /// Mean table rate, rad/s.
     pub fn mean_table_rate_rad_s(&self) -> f64 {
         mean(&self.table_rate_rad_s)

@@ -17,6 +17,7 @@
 //! ```
 
 pub mod bench_config;
+pub mod calibrate;
 pub mod plan;
 pub mod progress;
 pub mod realtime;

@@ -26,6 +26,10 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Summarise a recording: duration, channels, gaps, steps, metadata, outcome.
     Info(cli::info::InfoArgs),
+    /// The gyro's thermal calibration from a recording: calibration file, JSON and report.
+    Calibrate(cli::calibrate::CalibrateArgs),
+    /// Calibration accuracy over many simulated seeds (seed method vs joint fit).
+    MonteCarlo(cli::monte_carlo::MonteCarloArgs),
     /// List the serial ports of this machine.
     Ports,
     /// The simulated bench behind virtual ports.
@@ -39,6 +43,8 @@ fn main() -> ExitCode {
         Command::Run(a) => cli::run::run(a, args.verbose),
         Command::Validate(a) => cli::validate::run(a),
         Command::Info(a) => cli::info::run(a),
+        Command::Calibrate(a) => cli::calibrate::run(a),
+        Command::MonteCarlo(a) => cli::monte_carlo::run(a),
         Command::Ports => cli::ports::run(),
         Command::Sim(c) => cli::sim::run(c),
     };

@@ -140,8 +140,10 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     let (table, chamber, gyro) = sim.into_parts();
     let devices =
         Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
-    let recorder = Recorder::new(writer, run_info(plan, opts.epoch_ns))
-        .context("cannot start the recording")?;
+    // The contract's `bench.gyro_model` is "the model the simulator used": the truth.
+    let mut info = run_info(plan, opts.epoch_ns);
+    info.gyro_model = plan.sim.truth.to_metadata();
+    let recorder = Recorder::new(writer, info).context("cannot start the recording")?;
     // Serialising and compressing run on the second core; batches amortise the hand-over.
     let recorder = ThreadedSink::new(recorder, 4096).context("cannot start the recorder thread")?;
     let live = Arc::new(Live::default());

@@ -1,6 +1,8 @@
 //! One file per subcommand.
 
+pub mod calibrate;
 pub mod info;
+pub mod monte_carlo;
 pub mod ports;
 pub mod run;
 pub mod sim;

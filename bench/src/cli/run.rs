@@ -35,6 +35,21 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Gyro model from a calibration file (`bench calibrate`'s `calibration.toml`): the
+    /// nominal model recorded in `bench.gyro_model` and, on the simulated bench, the model
+    /// the simulated gyro follows (replacing `[gyro.model]` and `[simulation.truth]`).
+    #[arg(long)]
+    pub gyro_model: Option<PathBuf>,
+}
+
+/// Apply `--gyro-model` to a loaded plan.
+fn apply_gyro_model(plan: &mut RunPlan, path: Option<&Path>) -> anyhow::Result<()> {
+    if let Some(path) = path {
+        let model = bench::calibrate::model_file::CalibrationFile::load(path)?.model();
+        plan.gyro.model = model.clone();
+        plan.sim.truth = model;
+    }
+    Ok(())
 }
 
 /// Load and validate; print every problem. `None` when invalid (already reported).
@@ -61,9 +76,11 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     let progress = !args.quiet && std::io::stderr().is_terminal();
     let report = match &args.bench {
         None => {
-            let Some(plan) = load_plan(&args.scenario, &bench::simulate::capabilities())? else {
+            let Some(mut plan) = load_plan(&args.scenario, &bench::simulate::capabilities())?
+            else {
                 return Ok(ExitCode::from(2));
             };
+            apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
             let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress };
             let file = std::fs::File::create(&out)
                 .with_context(|| format!("cannot create recording {}", out.display()))?;
@@ -132,6 +149,7 @@ fn run_on_bench(
         let Some(mut plan) = load_plan(&args.scenario, &caps)? else {
             return Ok(None);
         };
+        apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
         if let Some(site) = config.site() {
             if site.latitude_deg != plan.site.latitude_deg {
                 tracing::warn!(

@@ -1,0 +1,214 @@
+//! The machine-readable result of `bench calibrate --json FILE` (documented in
+//! `docs/calibrate.md`). Numbers in SI units (rad/s, °C, s); absent estimates are `null`.
+
+use std::collections::BTreeMap;
+
+use bench_analysis::calibrate::WindowKind;
+use serde::Serialize;
+
+use super::CalibrationOutcome;
+
+/// Version of this JSON layout.
+pub const JSON_VERSION: u32 = 1;
+
+/// A value with its 1σ standard error.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Coefficient {
+    /// Estimate.
+    pub value: f64,
+    /// 1σ standard error (the larger of block bootstrap and noise model).
+    pub sigma: f64,
+    /// Moving-block bootstrap σ.
+    pub sigma_bootstrap: f64,
+    /// Noise-model (Allan) σ; null without a noise model.
+    pub sigma_noise_model: Option<f64>,
+    /// Naive OLS σ, for comparison only.
+    pub sigma_naive: f64,
+}
+
+/// A noise term with its confidence interval.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NoiseTermJson {
+    /// Value, SI.
+    pub value: f64,
+    /// Interval low end.
+    pub low: f64,
+    /// Interval high end.
+    pub high: f64,
+    /// τ at which it was read, s.
+    pub tau_s: f64,
+    /// True when the curve never shows the term's slope: the value is an upper bound.
+    pub upper_bound: bool,
+}
+
+/// The JSON document.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationJson {
+    /// Layout version.
+    pub version: u32,
+    /// Recording file.
+    pub recording: String,
+    /// T0 of the coefficients, °C.
+    pub reference_temperature: f64,
+    /// Joint fit, keyed by `bench.gyro_model` key.
+    pub coefficients: BTreeMap<String, Coefficient>,
+    /// The seed method's values (no σ: the method gives none), keyed likewise.
+    pub seed_method: BTreeMap<String, f64>,
+    /// IEEE 952 noise terms: `arw` (rad/√s), `bias_instability` (the flicker floor, rad/s, as
+    /// in `bench.gyro_model`), `bias_instability_b` (IEEE B = floor/0.664), `rate_random_walk`
+    /// (rad/s/√s).
+    pub noise: BTreeMap<String, NoiseTermJson>,
+    /// Confidence level of the noise intervals.
+    pub noise_confidence: Option<f64>,
+    /// The noise model carried into the coefficients' σ (least-squares fit of the whole Allan
+    /// curve): `arw` rad/√s, `flicker_floor` rad/s, `rrw` rad/s/√s.
+    pub noise_model: Option<BTreeMap<String, f64>>,
+    /// Thermal lag used, s (0 = the measured temperature).
+    pub thermal_time_constant: f64,
+    /// The calibrated model as `bench.gyro_model` keys.
+    pub gyro_model: BTreeMap<String, f64>,
+    /// Against the recording's `bench.gyro_model`, when present.
+    pub truth: Option<TruthJson>,
+    /// Windows used.
+    pub windows: Vec<WindowJson>,
+    /// What the data lack, and what could still be estimated.
+    pub missing: Vec<String>,
+}
+
+/// Comparison with the recording's model.
+#[derive(Debug, Clone, Serialize)]
+pub struct TruthJson {
+    /// The recording's coefficients.
+    pub coefficients: BTreeMap<String, f64>,
+    /// Joint fit: max |Δk_t| over the temperature range, rad/s.
+    pub joint_delta_k_t: Option<f64>,
+    /// Joint fit: max |Δk_dt·Ṫ| over the dT/dt range, rad/s.
+    pub joint_delta_k_dt: Option<f64>,
+    /// Seed method, likewise.
+    pub seed_delta_k_t: Option<f64>,
+    /// Seed method, likewise.
+    pub seed_delta_k_dt: Option<f64>,
+    /// Thermal error removed by the joint calibration, fraction.
+    pub joint_thermal_error_removed: Option<f64>,
+    /// Thermal error removed by the seed calibration, fraction.
+    pub seed_thermal_error_removed: Option<f64>,
+}
+
+/// One window.
+#[derive(Debug, Clone, Serialize)]
+pub struct WindowJson {
+    /// Label.
+    pub label: String,
+    /// `plateau`, `ramp` or `static`.
+    pub kind: &'static str,
+    /// Samples.
+    pub samples: usize,
+    /// Mean model temperature, °C.
+    pub mean_temperature: f64,
+    /// Mean table rate, rad/s.
+    pub mean_table_rate: f64,
+}
+
+fn model_map(m: &bench_physics::GyroModel) -> BTreeMap<String, f64> {
+    m.to_metadata().into_iter().filter_map(|(k, v)| v.parse::<f64>().ok().map(|x| (k, x))).collect()
+}
+
+/// Build the JSON document of `outcome` (recording named `recording`).
+pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson {
+    let cal = &outcome.calibration;
+    let mut coefficients = BTreeMap::new();
+    if let Ok(j) = &cal.joint {
+        for (k, e) in [
+            ("bias", j.bias),
+            ("scale_factor_error", j.scale_factor_error),
+            ("temp_coeff", j.temp_coeff),
+            ("temp_rate_coeff", j.temp_rate_coeff),
+        ] {
+            coefficients.insert(
+                k.to_owned(),
+                Coefficient {
+                    value: e.value,
+                    sigma: e.std_err,
+                    sigma_bootstrap: e.bootstrap_std_err,
+                    sigma_noise_model: e
+                        .noise_model_std_err
+                        .is_finite()
+                        .then_some(e.noise_model_std_err),
+                    sigma_naive: e.naive_std_err,
+                },
+            );
+        }
+    }
+    let mut seed_method = BTreeMap::new();
+    if let Ok(s) = &cal.seed {
+        seed_method.insert("bias".to_owned(), s.bias_rad_s);
+        seed_method.insert("temp_coeff".to_owned(), s.temp_coeff);
+        if let Some(k) = s.temp_rate_coeff {
+            seed_method.insert("temp_rate_coeff".to_owned(), k);
+        }
+    }
+    let mut noise = BTreeMap::new();
+    let mut noise_confidence = None;
+    if let Ok(a) = &cal.allan {
+        let t = |n: bench_analysis::allan_fit::NoiseTerm| NoiseTermJson {
+            value: n.value,
+            low: n.low,
+            high: n.high,
+            tau_s: n.tau_s,
+            upper_bound: n.upper_bound,
+        };
+        noise.insert("arw".to_owned(), t(a.fit.arw));
+        noise.insert("bias_instability".to_owned(), t(a.fit.flicker_floor()));
+        noise.insert("bias_instability_b".to_owned(), t(a.fit.bias_instability));
+        noise.insert("rate_random_walk".to_owned(), t(a.fit.rate_random_walk));
+        noise_confidence = Some(a.fit.confidence);
+    }
+    let truth = outcome.truth.as_ref().map(|t| TruthJson {
+        coefficients: model_map(&t.model),
+        joint_delta_k_t: t.joint.map(|f| f.delta_k_t_rad_s),
+        joint_delta_k_dt: t.joint.map(|f| f.delta_k_dt_rad_s),
+        seed_delta_k_t: t.seed.map(|f| f.delta_k_t_rad_s),
+        seed_delta_k_dt: t.seed.map(|f| f.delta_k_dt_rad_s),
+        joint_thermal_error_removed: t.joint_removal.map(|r| r.removed()),
+        seed_thermal_error_removed: t.seed_removal.map(|r| r.removed()),
+    });
+    CalibrationJson {
+        version: JSON_VERSION,
+        recording: recording.to_owned(),
+        reference_temperature: cal.options.reference_temperature_c,
+        coefficients,
+        seed_method,
+        noise,
+        noise_confidence,
+        noise_model: cal.allan.as_ref().ok().map(|a| {
+            let n = a.noise_spec();
+            BTreeMap::from([
+                ("arw".to_owned(), n.arw),
+                ("flicker_floor".to_owned(), n.flicker_floor),
+                ("rrw".to_owned(), n.rrw),
+            ])
+        }),
+        thermal_time_constant: match &cal.lag {
+            Some(Ok(l)) => l.used_s,
+            _ => 0.0,
+        },
+        gyro_model: outcome.model.as_ref().map(model_map).unwrap_or_default(),
+        truth,
+        windows: cal
+            .windows
+            .iter()
+            .map(|w| WindowJson {
+                label: w.label.clone(),
+                kind: match w.kind {
+                    WindowKind::Plateau => "plateau",
+                    WindowKind::Ramp => "ramp",
+                    WindowKind::Static => "static",
+                },
+                samples: w.samples,
+                mean_temperature: w.mean_temp_c,
+                mean_table_rate: w.mean_table_rate_rad_s,
+            })
+            .collect(),
+        missing: cal.missing.clone(),
+    }
+}

@@ -1,0 +1,155 @@
+//! `bench calibrate RECORDING`: the gyro's thermal calibration from a recording.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench::calibrate::{calibrate_file, json, report, CalibrateSettings};
+use bench_physics::units::DEG_PER_H;
+
+/// Arguments of `bench calibrate`.
+#[derive(clap::Args, Debug)]
+pub struct CalibrateArgs {
+    /// Recording (MCAP, per the recording contract).
+    pub recording: PathBuf,
+    /// Directory for `calibration.toml`, `report.html` and the PNG figures.
+    #[arg(long, default_value = "calibration")]
+    pub out: PathBuf,
+    /// Also write the machine-readable result here (docs/calibrate.md).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Reference temperature T0 of the coefficients, °C (default: the recording model's, else 20).
+    #[arg(long)]
+    pub reference_temperature_c: Option<f64>,
+    /// Block-bootstrap replicates (default 400).
+    #[arg(long)]
+    pub replicates: Option<usize>,
+    /// Do not estimate the thermal lag (only done for a gyro without its own sensor).
+    #[arg(long)]
+    pub no_lag: bool,
+    /// Skip the HTML/PNG report.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+/// Calibrate and write the outputs.
+pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
+    let settings = CalibrateSettings {
+        reference_temperature_c: args.reference_temperature_c,
+        replicates: args.replicates,
+        no_lag: args.no_lag,
+    };
+    let started = std::time::Instant::now();
+    let out = calibrate_file(&args.recording, &settings)
+        .with_context(|| format!("cannot calibrate {}", args.recording.display()))?;
+    let name = args
+        .recording
+        .file_name()
+        .map_or_else(|| args.recording.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let cal = &out.calibration;
+    for m in &cal.missing {
+        eprintln!("note: {m}");
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+
+    println!(
+        "{name}: {} record windows, T0 = {} °C",
+        cal.windows.len(),
+        cal.options.reference_temperature_c
+    );
+    if let Ok(a) = &cal.allan {
+        println!(
+            "noise: N = {:.3e} °/√h, B = {:.3e} °/h (floor {:.3e} °/h), K = {}{:.3e} °/h/√h",
+            a.fit.arw_deg_per_sqrt_h().value,
+            a.fit.bias_instability_deg_per_h().value,
+            a.fit.flicker_floor().value / DEG_PER_H,
+            if a.fit.rate_random_walk.upper_bound { "≤ " } else { "" },
+            a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value,
+        );
+    }
+    let truth = out.truth.as_ref().map(|t| &t.model);
+    println!("| coefficient | joint fit ± 1σ | seed method | recording's model |");
+    println!("| --- | --- | --- | --- |");
+    let seed = cal.seed.as_ref().ok();
+    if let Ok(j) = &cal.joint {
+        let rows = [
+            ("bias °/h", j.bias, DEG_PER_H, seed.map(|s| s.bias_rad_s), truth.map(|t| t.bias)),
+            (
+                "scale factor ppm",
+                j.scale_factor_error,
+                1e-6,
+                None,
+                truth.map(|t| t.scale_factor_error),
+            ),
+            (
+                "temp_coeff °/h/°C",
+                j.temp_coeff,
+                DEG_PER_H,
+                seed.map(|s| s.temp_coeff),
+                truth.map(|t| t.temp_coeff),
+            ),
+            (
+                "temp_rate_coeff °/h/(°C/min)",
+                j.temp_rate_coeff,
+                DEG_PER_H * 60.0,
+                seed.and_then(|s| s.temp_rate_coeff),
+                truth.map(|t| t.temp_rate_coeff),
+            ),
+        ];
+        for (label, e, unit, s, t) in rows {
+            let f = |v: Option<f64>| v.map_or("—".to_owned(), |v| format!("{:.4e}", v / unit));
+            println!(
+                "| {label} | {:.4e} ± {:.1e} | {} | {} |",
+                e.value / unit,
+                e.std_err / unit,
+                f(s),
+                f(t)
+            );
+        }
+    }
+    if let Some(t) = &out.truth {
+        if let (Some(j), Some(s)) = (t.joint_removal, t.seed_removal) {
+            println!(
+                "thermal error removed over the run: joint {:.1} %, seed method {:.1} %",
+                100.0 * j.removed(),
+                100.0 * s.removed()
+            );
+        }
+    }
+
+    if let Some(model) = &out.model {
+        let j = cal.joint.as_ref().ok();
+        let file = CalibrationFile {
+            source: Source {
+                recording: name.clone(),
+                software: format!("bench {}", env!("CARGO_PKG_VERSION")),
+                method: "joint least squares (docs/calibrate.md)".into(),
+            },
+            gyro_model: ModelKeys::from(model),
+            uncertainty: Uncertainty {
+                bias_rad_s: j.map(|j| j.bias.std_err),
+                scale_factor_error: j.map(|j| j.scale_factor_error.std_err),
+                temp_coeff_rad_s_per_c: j.map(|j| j.temp_coeff.std_err),
+                temp_rate_coeff_rad_s_per_c_s: j.map(|j| j.temp_rate_coeff.std_err),
+            },
+        };
+        let path = args.out.join("calibration.toml");
+        file.save(&path)?;
+        println!("wrote {}", path.display());
+    } else {
+        eprintln!("no calibration file: the joint fit failed (see the notes above)");
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if !args.no_report {
+        let files = report::write_report(&out, &name, &args.out)?;
+        println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
+    }
+    eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    Ok(if out.model.is_some() { ExitCode::SUCCESS } else { ExitCode::from(2) })
+}

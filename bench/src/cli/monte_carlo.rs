@@ -1,0 +1,94 @@
+//! `bench monte-carlo SCENARIO`: the calibration's accuracy over many simulated seeds.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use bench::calibrate::{monte_carlo, CalibrateSettings};
+use bench_physics::units::DEG_PER_H;
+
+/// Arguments of `bench monte-carlo`.
+#[derive(clap::Args, Debug)]
+pub struct MonteCarloArgs {
+    /// Scenario to simulate (its `[simulation.truth]` is the truth).
+    #[arg(default_value = "scenarios/thermal-full.toml")]
+    pub scenario: PathBuf,
+    /// Number of seeds.
+    #[arg(long, default_value_t = 50)]
+    pub seeds: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    pub first_seed: u64,
+    /// Worker threads (default: available cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Write every seed's result and the summary as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+fn unit(key: &str) -> (&'static str, f64) {
+    match key {
+        "bias" => ("°/h", DEG_PER_H),
+        "scale_factor_error" => ("ppm", 1e-6),
+        "temp_coeff" => ("°/h/°C", DEG_PER_H),
+        _ => ("°/h/(°C/s)", DEG_PER_H),
+    }
+}
+
+/// Run the study and print the accuracy table.
+pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
+    let jobs =
+        args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let started = std::time::Instant::now();
+    let mc = monte_carlo::run(
+        &args.scenario,
+        args.first_seed,
+        args.seeds,
+        jobs,
+        &CalibrateSettings::default(),
+        |r| {
+            eprintln!(
+                "seed {:>4}: thermal error removed {:.1} % (seed method {:.1} %), lag {:.0} s",
+                r.seed,
+                100.0 * r.joint_removed,
+                100.0 * r.seed_removed,
+                r.lag_s
+            )
+        },
+    )?;
+    println!(
+        "{} seeds of {} in {:.0} s\n",
+        mc.seeds.len(),
+        args.scenario.display(),
+        started.elapsed().as_secs_f64()
+    );
+    println!(
+        "| coefficient | unit | joint RMS error | seed-method RMS error | improvement | joint RMS σ | 95 % coverage |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    for c in &mc.coefficients {
+        let (u, s) = unit(&c.key);
+        println!(
+            "| {} | {} | {:.3e} | {:.3e} | {:.1}× | {:.3e} | {:.0} % |",
+            c.key,
+            u,
+            c.joint_rms_error / s,
+            c.seed_rms_error / s,
+            c.improvement,
+            c.rms_sigma / s,
+            100.0 * c.coverage_95
+        );
+    }
+    let (a, b, c) = mc.joint_removed;
+    let (d, e, f) = mc.seed_removed;
+    println!(
+        "\nthermal error removed (min / median / max): joint {:.1} / {:.1} / {:.1} %, seed method {:.1} / {:.1} / {:.1} %",
+        100.0 * a, 100.0 * b, 100.0 * c, 100.0 * d, 100.0 * e, 100.0 * f
+    );
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&mc)?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,126 @@
+//! `bench calibrate` on short simulated runs with known truth: the joint fit recovers the
+//! simulator's model within its stated errors and removes the thermal error; its files load
+//! back; a recording lacking what calibration needs says what is missing.
+
+use std::io::Cursor;
+use std::path::PathBuf;
+
+use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench::calibrate::{calibrate_recording, json, CalibrateError, CalibrateSettings};
+use bench::recording::Recording;
+use bench::simulate::{capabilities, run_plan, SimOptions};
+
+fn workspace() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn simulate(scenario: &str, seed: u64) -> Recording {
+    let plan = bench::scenario::load(&workspace().join(scenario), &capabilities()).expect("valid");
+    let (report, cursor) = run_plan(
+        &plan,
+        Cursor::new(Vec::new()),
+        &SimOptions { seed, ..SimOptions::default() },
+        None,
+    )
+    .expect("runs");
+    assert_eq!(report.outcome, "completed");
+    Recording::from_bytes(cursor.get_ref()).expect("reads back")
+}
+
+fn settings() -> CalibrateSettings {
+    CalibrateSettings { replicates: Some(50), ..CalibrateSettings::default() }
+}
+
+#[test]
+fn thermal_short_is_recovered_within_the_stated_errors_and_the_files_load_back() {
+    let rec = simulate("scenarios/thermal-short.toml", 11);
+    let out = calibrate_recording(&rec, &settings()).expect("calibrates");
+    let cal = &out.calibration;
+    assert_eq!(cal.windows.len(), 10, "6 plateaus + 4 ramps");
+    assert!(cal.missing.is_empty(), "{:?}", cal.missing);
+    let truth = out.truth.as_ref().expect("the recording holds the simulator's model");
+    let joint = cal.joint.as_ref().expect("joint fit");
+    for (name, e, t) in [
+        ("bias", joint.bias, truth.model.bias),
+        ("scale_factor_error", joint.scale_factor_error, truth.model.scale_factor_error),
+        ("temp_coeff", joint.temp_coeff, truth.model.temp_coeff),
+        ("temp_rate_coeff", joint.temp_rate_coeff, truth.model.temp_rate_coeff),
+    ] {
+        // 4σ: one seed, four coefficients; a miss here is a real miss, not bad luck.
+        assert!((e.value - t).abs() <= 4.0 * e.std_err, "{name}: {e:?} vs truth {t}");
+        assert!(e.std_err >= e.naive_std_err, "{name}: {e:?}");
+    }
+    // The temperature terms to a few per cent, and most of the thermal error removed.
+    assert!((joint.temp_coeff.value / truth.model.temp_coeff - 1.0).abs() < 0.15);
+    assert!((joint.temp_rate_coeff.value / truth.model.temp_rate_coeff - 1.0).abs() < 0.1);
+    let removed = truth.joint_removal.expect("removal").removed();
+    assert!(removed >= 0.9, "removed {removed}");
+    // The noise terms: ARW within its interval of the truth's (white noise is exact in the sim).
+    let allan = cal.allan.as_ref().expect("allan");
+    assert!(
+        allan.fit.arw.low <= truth.model.arw * 1.05 && truth.model.arw <= allan.fit.arw.high * 1.05,
+        "{:?} vs {}",
+        allan.fit.arw,
+        truth.model.arw
+    );
+    // The seed method ran on the same windows.
+    let seed = cal.seed.as_ref().expect("seed method");
+    assert_eq!(seed.plateaus.len(), 3);
+    assert!(seed.temp_rate_coeff.is_some());
+
+    // The calibration file round-trips into the model `bench run --gyro-model` loads.
+    let model = out.model.clone().expect("model");
+    let file = CalibrationFile {
+        source: Source::default(),
+        gyro_model: ModelKeys::from(&model),
+        uncertainty: Uncertainty::default(),
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("calibration.toml");
+    file.save(&path).expect("writes");
+    assert_eq!(CalibrationFile::load(&path).expect("loads").model(), model);
+
+    // The JSON holds the contract's keys with value and sigma, and the seed method beside.
+    let j = serde_json::to_value(json::to_json(&out, "x.mcap")).expect("json");
+    for key in ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"] {
+        let c = &j["coefficients"][key];
+        assert!(c["value"].is_f64() && c["sigma"].as_f64().is_some_and(|s| s > 0.0), "{key}: {c}");
+    }
+    assert_eq!(j["reference_temperature"], 20.0);
+    assert_eq!(j["seed_method"]["temp_coeff"].as_f64(), Some(seed.temp_coeff));
+    assert!(j["noise"]["arw"]["value"].as_f64().is_some());
+}
+
+#[test]
+fn what_is_missing_is_said_and_what_remains_is_estimated() {
+    let mut rec = simulate("scenarios/seed.toml", 3);
+    // No latitude: Earth's rate stays in the bias, the rest is estimated.
+    rec.metadata.retain(|m| m.name != "bench.site");
+    let out = calibrate_recording(&rec, &settings()).expect("calibrates without a site");
+    assert!(
+        out.calibration.missing.iter().any(|m| m.contains("no latitude")),
+        "{:?}",
+        out.calibration.missing
+    );
+    assert!(out.calibration.joint.is_ok());
+
+    // Only the plateau windows: no ramps, so no temperature-rate term.
+    let mut plateaus = rec.clone();
+    plateaus.steps.retain(|s| !s.msg.label.contains("ramp"));
+    let out = calibrate_recording(&plateaus, &settings()).expect("plateaus alone");
+    let missing = &out.calibration.missing;
+    assert!(missing.iter().any(|m| m.contains("no ramp windows")), "{missing:?}");
+    let seed = out.calibration.seed.as_ref().expect("two plateaus are enough for the seed's k_t");
+    assert_eq!(seed.plateaus.len(), 2);
+    assert_eq!(seed.temp_rate_coeff, None);
+
+    // No record steps at all.
+    let mut none = rec.clone();
+    none.steps.retain(|s| !s.msg.label.starts_with("record"));
+    match calibrate_recording(&none, &settings()) {
+        Err(e @ CalibrateError::NoRecordWindows { .. }) => {
+            assert!(e.to_string().contains("record"), "{e}")
+        }
+        other => panic!("expected NoRecordWindows, got {:?}", other.map(|o| o.calibration.missing)),
+    }
+}
