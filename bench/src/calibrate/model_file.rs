@@ -225,20 +225,20 @@ impl CalibrationFile {
             (
                 "arw_rad_per_sqrt_s",
                 g.arw_rad_per_sqrt_s,
-                g.arw_rad_per_sqrt_s >= 0.0,
-                "must not be negative",
+                g.arw_rad_per_sqrt_s.is_finite() && g.arw_rad_per_sqrt_s >= 0.0,
+                "must be finite and not negative",
             ),
             (
                 "bias_instability_rad_s",
                 g.bias_instability_rad_s,
-                g.bias_instability_rad_s >= 0.0,
-                "must not be negative",
+                g.bias_instability_rad_s.is_finite() && g.bias_instability_rad_s >= 0.0,
+                "must be finite and not negative",
             ),
             (
                 "thermal_time_constant_s",
                 g.thermal_time_constant_s,
-                g.thermal_time_constant_s >= 0.0,
-                "must not be negative",
+                g.thermal_time_constant_s.is_finite() && g.thermal_time_constant_s >= 0.0,
+                "must be finite and not negative",
             ),
             ("earth_rate", 0.0, true, ""),
         ];
@@ -319,7 +319,7 @@ mod tests {
         let e = CalibrationFile::parse(&f.to_toml(), "c.toml").expect_err("negative");
         assert_eq!(
             e.to_string(),
-            "c.toml: [gyro_model] arw_rad_per_sqrt_s = -1: must not be negative"
+            "c.toml: [gyro_model] arw_rad_per_sqrt_s = -1: must be finite and not negative"
         );
     }
 }
