@@ -41,6 +41,12 @@ stop = "table"
 "#;
 
 /// Run MINI through the wire; `inject` switches faults at bench time `at` (of the simulator).
+///
+/// `at = 0` means "from the start": the faults are switched on here, before the run sends its
+/// first command, not by the timed task. A server consults its switch when a request arrives,
+/// so a fault that must be on for the first command (e.g. [`Fault::StuckTable`] for step 0's
+/// rate command) cannot be left to a spawned task: on a loaded host that task may be polled
+/// only after the command was served, and the run then completes.
 async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'static) -> Recording {
     let plan = bench::scenario::parse(MINI, "faults.toml", &capabilities()).expect("valid");
     let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
@@ -54,10 +60,15 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
     let clock = SystemClock::new(SCALE);
     let (devices, _) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");
     let faults = served.faults.clone();
-    let injector = tokio::spawn(async move {
-        sim_clock.sleep_until(at).await;
+    let injector = if at.is_zero() {
         inject(&faults);
-    });
+        None
+    } else {
+        Some(tokio::spawn(async move {
+            sim_clock.sleep_until(at).await;
+            inject(&faults);
+        }))
+    };
     let (report, cur) = run_plan_realtime(
         &plan,
         devices,
@@ -68,7 +79,9 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
     )
     .await
     .expect("run ends (completed or aborted)");
-    injector.abort();
+    if let Some(injector) = injector {
+        injector.abort();
+    }
     drop(served);
     let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
     assert_eq!(rec.outcome().map(str::to_string), Some(report.outcome));
@@ -137,7 +150,8 @@ async fn a_chamber_device_failure_aborts_at_once() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stuck_table_fails_to_settle_and_the_run_aborts() {
-    // The controller acknowledges the rate command but the axis does not follow.
+    // The controller acknowledges the rate command but the axis does not follow. The fault is
+    // on before the run starts (`at = 0`), so step 0's command is the one ignored.
     let rec = run_with(Duration::ZERO, |f| f.table.inject(Fault::StuckTable)).await;
     let outcome = rec.outcome().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 0 (table spin cw)"), "{outcome}");
