@@ -155,7 +155,7 @@ impl Projector {
         // A column the design already spans (to 1e-9 of its norm) carries no new information.
         for a in 0..k {
             let norm: f64 = self.rows.iter().map(|&i| g[a][i] * g[a][i]).sum();
-            if !(gtg[(a, a)] > 1e-12 * norm) {
+            if gtg[(a, a)].is_nan() || gtg[(a, a)] <= 1e-12 * norm {
                 return None;
             }
         }

@@ -266,6 +266,16 @@ const HOLDOUT_Z: f64 = 3.0;
 /// Most positions tried for a bias step.
 const STEP_POSITIONS: usize = 400;
 
+/// A candidate fitted at its best grid value.
+struct Fitted {
+    /// Grid value (NaN for none).
+    p: f64,
+    /// Its columns.
+    cols: Vec<Vec<f64>>,
+    /// The test.
+    test: fit::TermTest,
+}
+
 /// Everything computed once per run.
 struct Prepared {
     native: Native,
@@ -677,12 +687,12 @@ pub fn diagnose(
     let mut rejected: Vec<Finding> = Vec::new();
     for _round in 0..opts.max_effects {
         let n_eff = noise.n_eff();
-        let mut best: Option<(f64, Finding, f64, Vec<Vec<f64>>, fit::TermTest)> = None;
+        let mut best: Option<(f64, Finding, Fitted)> = None;
         let mut tried: Vec<Finding> = Vec::new();
         for &id in &candidates {
             let g = grid(&prep, id);
             let m_grid = g.len() as f64;
-            let mut top: Option<(f64, Vec<Vec<f64>>, fit::TermTest, Vec<(f64, f64)>)> = None;
+            let mut top: Option<Fitted> = None;
             let mut profile: Vec<(f64, f64)> = Vec::new();
             for &p in &g {
                 let cols = candidate_columns(&prep, id, p, model);
@@ -696,11 +706,11 @@ pub fn diagnose(
                 let Some(t) = t else { continue };
                 profile.push((p, t.wald));
                 // The grid value is chosen by fit (least squares), the term judged by W there.
-                if top.as_ref().is_none_or(|(_, _, b, _)| t.delta_rss > b.delta_rss) {
-                    top = Some((p, cols, t, Vec::new()));
+                if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
+                    top = Some(Fitted { p, cols, test: t });
                 }
             }
-            let Some((p, cols, t, _)) = top else { continue };
+            let Some(Fitted { p, cols, test: t }) = top else { continue };
             let k = cols.len() as f64;
             let q = if m_grid > 1.0 { 1.0 } else { 0.0 };
             let thr = chi2_quantile(1.0 - opts.alpha / (m_candidates * m_grid), k);
@@ -746,15 +756,15 @@ pub fn diagnose(
             }
             let score = t.wald - thr;
             if best.as_ref().is_none_or(|(s, ..)| score > *s) {
-                if let Some((_, prev, ..)) = best.take() {
+                if let Some((_, prev, _)) = best.take() {
                     tried.push(prev);
                 }
-                best = Some((score, f, p, cols, t));
+                best = Some((score, f, Fitted { p, cols, test: t }));
             } else {
                 tried.push(f);
             }
         }
-        let Some((_, mut f, p, cols, t)) = best else {
+        let Some((_, mut f, Fitted { p, cols, test: t })) = best else {
             rejected.extend(tried);
             break;
         };
@@ -1171,12 +1181,11 @@ fn unexplained(
     opts: &DiagnoseOptions,
 ) -> Vec<Unexplained> {
     let bins = &prep.bins;
-    let n = bins.len();
     let block = opts.holdout_block_s;
     let mut blocks: Vec<Vec<usize>> = Vec::new();
     let mut cur_key = i64::MIN;
-    for i in 0..n {
-        let key = (bins[i].centre_s() / block).floor() as i64;
+    for (i, bin) in bins.iter().enumerate() {
+        let key = (bin.centre_s() / block).floor() as i64;
         if key != cur_key {
             blocks.push(Vec::new());
             cur_key = key;

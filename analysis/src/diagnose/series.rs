@@ -345,7 +345,7 @@ impl Native {
         let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
         d.sort_by(f64::total_cmp);
         let nominal_dt = d[d.len() / 2];
-        if !(nominal_dt > 0.0) {
+        if nominal_dt.is_nan() || nominal_dt <= 0.0 {
             return Err(AnalysisError::TimeNotIncreasing { label: "gyro".into(), index: 1 });
         }
         let mut dt = Vec::with_capacity(n);
@@ -477,9 +477,9 @@ pub fn bin_mean(bins: &[Bin], dt: &[f64], mut x: impl FnMut(usize) -> f64) -> Ve
     bins.iter()
         .map(|b| {
             let (mut s, mut w) = (0.0, 0.0);
-            for k in b.first..b.end {
-                s += x(k) * dt[k];
-                w += dt[k];
+            for (k, d) in dt.iter().enumerate().take(b.end).skip(b.first) {
+                s += x(k) * d;
+                w += d;
             }
             s / w
         })
