@@ -23,6 +23,7 @@ pub mod progress;
 pub mod realtime;
 pub mod record;
 pub mod recording;
+pub(crate) mod report;
 pub mod run;
 pub mod scenario;
 pub mod simulate;

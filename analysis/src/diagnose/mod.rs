@@ -644,7 +644,7 @@ pub fn diagnose(
     let prep = prepare(run, model, effects, opts)?;
     let n = prep.bins.len();
     let all: Vec<usize> = (0..n).collect();
-    let y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
+    let mut y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
 
     // 2. Parameter refit.
     let base_keys = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"];
@@ -685,6 +685,7 @@ pub fn diagnose(
     let mut proj = base_proj.clone();
     let mut r = r_base.clone();
     let mut rejected: Vec<Finding> = Vec::new();
+    let mut earth_found = false;
     for _round in 0..opts.max_effects {
         let n_eff = noise.n_eff();
         let mut best: Option<(f64, Finding, Fitted)> = None;
@@ -782,11 +783,27 @@ pub fn diagnose(
             continue;
         }
         f.accepted = true;
+        let f_id = f.effect;
         findings.push(f);
         rejected
             .extend(tried.into_iter().filter(|t| !findings.iter().any(|a| a.effect == t.effect)));
-        design.extend(cols.iter().cloned());
-        accepted_cols.push((findings[findings.len() - 1].effect, p, cols, t));
+        if f_id == EffectId::EarthRate {
+            // A constant the bias column spans: move it into the prediction (through the
+            // scale factor) rather than the design, so the bias correction is re-estimated.
+            let scale = 1.0 + model.scale_factor_error;
+            for v in &mut y {
+                *v -= scale * prep.earth;
+            }
+            if let Some(input) = design.get_mut(1) {
+                for v in input.iter_mut() {
+                    *v += prep.earth;
+                }
+            }
+            earth_found = true;
+        } else {
+            design.extend(cols.iter().cloned());
+            accepted_cols.push((f_id, p, cols, t));
+        }
         proj = Projector::new(&design, &all)?;
         r = proj.residual(&y, n);
     }
@@ -830,6 +847,7 @@ pub fn diagnose(
     }
     // Effects' final coefficients (refitted jointly) into the findings and the model.
     let mut new_effects = *effects;
+    new_effects.earth_rate |= earth_found;
     let mut col = prep.base.len();
     let mut contributions = Vec::new();
     for (id, p, cols, _) in &accepted_cols {
