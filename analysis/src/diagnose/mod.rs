@@ -497,6 +497,10 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
             let c = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].cos());
             vec![s, c]
         }
+        // Grid positions are bin starts: the step is exactly 0 before and 1 from there on.
+        EffectId::BiasStep => {
+            vec![bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()]
+        }
         EffectId::ThermalHysteresis => {
             let h = HysteresisStateSeries::new(HYST_C_S, &prep.temp_rate);
             vec![bin_mean(bins, dt, |k| h.0[k])]
@@ -686,6 +690,9 @@ pub fn diagnose(
     let mut r = r_base.clone();
     let mut rejected: Vec<Finding> = Vec::new();
     let mut earth_found = false;
+    // Candidate columns depend on the run only: computed once, reused every round.
+    let mut column_cache: std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>> =
+        std::collections::BTreeMap::new();
     for _round in 0..opts.max_effects {
         let n_eff = noise.n_eff();
         let mut best: Option<(f64, Finding, Fitted)> = None;
@@ -695,8 +702,11 @@ pub fn diagnose(
             let m_grid = g.len() as f64;
             let mut top: Option<Fitted> = None;
             let mut profile: Vec<(f64, f64)> = Vec::new();
-            for &p in &g {
-                let cols = candidate_columns(&prep, id, p, model);
+            let cached = column_cache.entry(id).or_insert_with(|| {
+                g.iter().map(|&p| candidate_columns(&prep, id, p, model)).collect()
+            });
+            for (&p, cols) in g.iter().zip(cached.iter()) {
+                let cols = cols.clone();
                 let t = if id == EffectId::EarthRate {
                     // Earth's rate is a constant: it can only show as the bias correction
                     // being Earth's rate. Test that shift (bias column, current design).

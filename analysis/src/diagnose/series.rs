@@ -246,19 +246,26 @@ fn fit_ripple(segments: &[TableSegment], t: &[f64], y: &[f64]) -> Vec<(u32, f64,
     // Floor: 1e-9 rad of ripple is far below any encoder's resolution.
     let threshold =
         (2.0 * var / n as f64 * 2.0 * (f64::from(RIPPLE_MAX_CYCLES) / 1e-4).ln()).max(1e-18);
+    // Σ r·sin kθ and Σ r·cos kθ for every k at once: e^{ikθ} by repeated rotation.
+    let kmax = RIPPLE_MAX_CYCLES as usize;
+    let mut ss = vec![0.0; kmax + 1];
+    let mut sc = vec![0.0; kmax + 1];
+    for (th, r) in theta.iter().zip(&resid) {
+        let (s1, c1) = th.sin_cos();
+        let (mut s, mut c) = (s1, c1);
+        for k in 1..=kmax {
+            ss[k] += r * s;
+            sc[k] += r * c;
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+        }
+    }
     let mut out = Vec::new();
     for k in 1..=RIPPLE_MAX_CYCLES {
         let kf = f64::from(k);
         if kf * span_rad < 2.0 * std::f64::consts::TAU {
             continue;
         }
-        let (mut ss, mut sc) = (0.0, 0.0);
-        for (th, r) in theta.iter().zip(&resid) {
-            let (s, c) = (kf * th).sin_cos();
-            ss += r * s;
-            sc += r * c;
-        }
-        let (a, b) = (2.0 * ss / n as f64, 2.0 * sc / n as f64);
+        let (a, b) = (2.0 * ss[k as usize] / n as f64, 2.0 * sc[k as usize] / n as f64);
         if a * a + b * b > threshold {
             out.push((k, a, b));
         }

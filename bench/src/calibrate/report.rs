@@ -235,10 +235,10 @@ for.dir = ["cw", "ccw"]
                 "fig8-allan"
             ]
         );
-        let points = |item: &plot::Item| match item {
-            plot::Item::Line { points, .. } => points.len(),
-            plot::Item::Band { points, .. } => points.len(),
-            plot::Item::Markers { points, .. } => points.len(),
+        let points = |item: &crate::report::plot::Item| match item {
+            crate::report::plot::Item::Line { points, .. } => points.len(),
+            crate::report::plot::Item::Band { points, .. } => points.len(),
+            crate::report::plot::Item::Markers { points, .. } => points.len(),
         };
         // Raw rate decimated to ≤ 4000 points, windows shaded.
         let raw = &figs[0].panels[0];
@@ -249,7 +249,7 @@ for.dir = ["cw", "ccw"]
         let marks: Vec<usize> = cw_ccw
             .items
             .iter()
-            .filter(|i| matches!(i, plot::Item::Markers { .. }))
+            .filter(|i| matches!(i, crate::report::plot::Item::Markers { .. }))
             .map(points)
             .collect();
         assert_eq!(marks, [2, 2, 2]);
@@ -273,7 +273,7 @@ for.dir = ["cw", "ccw"]
         assert!(figs[6].panels[0].note.as_deref().is_some_and(|n| n.contains("RMS")));
         let allan = &figs[7].panels[0];
         match &allan.items[0] {
-            plot::Item::Markers { points, .. } => {
+            crate::report::plot::Item::Markers { points, .. } => {
                 assert!(points.len() >= 3);
                 assert!(points
                     .iter()
