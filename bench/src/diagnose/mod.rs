@@ -224,6 +224,8 @@ pub struct DiagnoseOutcome {
     pub data: DiagnoseData,
     /// The nominal model used, and where it came from (`--model` path or `bench.gyro_model`).
     pub nominal: (GyroModel, Effects, String),
+    /// The settings it ran with.
+    pub options: DiagnoseOptions,
     /// The diagnosis.
     pub diagnosis: Diagnosis,
     /// The same run diagnosed against the updated model (the re-simulation): its residual
@@ -250,7 +252,7 @@ pub fn diagnose_recording(
     // The re-simulation needs the residual and the verdict on parameters, not a new search.
     let resim_opts = DiagnoseOptions { max_effects: 0, ..opts.clone() };
     let resimulated = diagnose(&data.run, &diagnosis.model, &diagnosis.effects, &resim_opts).ok();
-    Ok(DiagnoseOutcome { data, nominal, diagnosis, resimulated })
+    Ok(DiagnoseOutcome { data, nominal, options: opts.clone(), diagnosis, resimulated })
 }
 
 /// [`diagnose_recording`] on a file.

@@ -217,7 +217,7 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
          independent bins n_eff = {}.</li><li>Residual RMS (bin means): nominal {} °/h, after \
          the parameter refit {} °/h, after the effects {} °/h{}.</li></ul>",
         d.n_bins,
-        10,
+        sig(o.options.bin_s, 3),
         sig(d.noise_after.arw / bench_physics::units::DEG_PER_SQRT_H, 3),
         sig(deg_h(d.noise_after.flicker_floor), 3),
         sig(d.n_eff, 3),
