@@ -23,6 +23,8 @@
 //! temperature that drives the bias (°C), `t` seconds since power-on (the start of the run; in
 //! a recording, the first message).
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use crate::lag::FirstOrderLag;
@@ -463,6 +465,344 @@ pub fn lag_temperature(time_s: &[f64], temp_c: &[f64], tau_s: f64) -> Vec<f64> {
         out.push(lag.step_linear(temp_c[k - 1], temp_c[k], time_s[k] - time_s[k - 1]));
     }
     out
+}
+
+/// Prefix of the effects' keys in `bench.gyro_model` metadata (`effect.<id>.<parameter>`).
+pub const METADATA_PREFIX: &str = "effect.";
+
+impl EffectId {
+    /// The effect's parameter names, SI with the unit in the name, in the order of its struct's
+    /// fields (empty for `earth_rate`, which is on or off). The same names serve scenario
+    /// tables, model files and `bench.gyro_model` metadata keys.
+    pub fn params(self) -> &'static [&'static str] {
+        match self {
+            EffectId::EarthRate => &[],
+            EffectId::ThermalLag => &["time_constant_s"],
+            EffectId::TemperatureQuadratic => &["coeff_rad_s_per_c2"],
+            EffectId::ScaleFactorTemperature => &["coeff_per_c"],
+            EffectId::ThermalHysteresis => &["half_width_rad_s", "threshold_c_s"],
+            EffectId::OncePerRevolution => &["amplitude_rad_s", "phase_rad"],
+            EffectId::TimeOffset => &["offset_s"],
+            EffectId::WarmUp => &["amplitude_rad_s", "time_constant_s"],
+            EffectId::BiasStep => &["time_s", "step_rad_s"],
+            EffectId::RateSquared => &["coeff_s_per_rad"],
+        }
+    }
+
+    /// Which of [`Self::params`] must be greater than zero (the rest must only be finite).
+    pub fn param_must_be_positive(self, param: &str) -> bool {
+        matches!(
+            (self, param),
+            (EffectId::ThermalLag, "time_constant_s")
+                | (EffectId::WarmUp, "time_constant_s")
+                | (EffectId::ThermalHysteresis, "threshold_c_s")
+        )
+    }
+}
+
+impl Effects {
+    /// The parameters of effect `id` in [`EffectId::params`] order, `None` when it is off
+    /// (`earth_rate` on gives an empty list).
+    pub fn param_values(&self, id: EffectId) -> Option<Vec<f64>> {
+        match id {
+            EffectId::EarthRate => self.earth_rate.then(Vec::new),
+            EffectId::ThermalLag => self.thermal_lag.map(|e| vec![e.time_constant_s]),
+            EffectId::TemperatureQuadratic => {
+                self.temperature_quadratic.map(|e| vec![e.coeff_rad_s_per_c2])
+            }
+            EffectId::ScaleFactorTemperature => {
+                self.scale_factor_temperature.map(|e| vec![e.coeff_per_c])
+            }
+            EffectId::ThermalHysteresis => {
+                self.thermal_hysteresis.map(|e| vec![e.half_width_rad_s, e.threshold_c_s])
+            }
+            EffectId::OncePerRevolution => {
+                self.once_per_revolution.map(|e| vec![e.amplitude_rad_s, e.phase_rad])
+            }
+            EffectId::TimeOffset => self.time_offset.map(|e| vec![e.offset_s]),
+            EffectId::WarmUp => self.warm_up.map(|e| vec![e.amplitude_rad_s, e.time_constant_s]),
+            EffectId::BiasStep => self.bias_step.map(|e| vec![e.time_s, e.step_rad_s]),
+            EffectId::RateSquared => self.rate_squared.map(|e| vec![e.coeff_s_per_rad]),
+        }
+    }
+
+    /// Switch effect `id` on with `values` in [`EffectId::params`] order (replacing it if it
+    /// was on). Values are not checked here ([`Self::validate`] does); a wrong count is an
+    /// error naming the effect.
+    pub fn set(&mut self, id: EffectId, values: &[f64]) -> Result<(), String> {
+        let want = id.params().len();
+        if values.len() != want {
+            return Err(format!(
+                "effect `{}` takes {want} parameter(s) ({}), got {}",
+                id.key(),
+                id.params().join(", "),
+                values.len()
+            ));
+        }
+        let v = |k: usize| values[k];
+        match id {
+            EffectId::EarthRate => self.earth_rate = true,
+            EffectId::ThermalLag => {
+                self.thermal_lag = Some(ThermalLag { time_constant_s: v(0) });
+            }
+            EffectId::TemperatureQuadratic => {
+                self.temperature_quadratic =
+                    Some(TemperatureQuadratic { coeff_rad_s_per_c2: v(0) });
+            }
+            EffectId::ScaleFactorTemperature => {
+                self.scale_factor_temperature = Some(ScaleFactorTemperature { coeff_per_c: v(0) });
+            }
+            EffectId::ThermalHysteresis => {
+                self.thermal_hysteresis =
+                    Some(ThermalHysteresis { half_width_rad_s: v(0), threshold_c_s: v(1) });
+            }
+            EffectId::OncePerRevolution => {
+                self.once_per_revolution =
+                    Some(OncePerRevolution { amplitude_rad_s: v(0), phase_rad: v(1) });
+            }
+            EffectId::TimeOffset => self.time_offset = Some(TimeOffset { offset_s: v(0) }),
+            EffectId::WarmUp => {
+                self.warm_up = Some(WarmUp { amplitude_rad_s: v(0), time_constant_s: v(1) });
+            }
+            EffectId::BiasStep => {
+                self.bias_step = Some(BiasStep { time_s: v(0), step_rad_s: v(1) });
+            }
+            EffectId::RateSquared => {
+                self.rate_squared = Some(RateSquared { coeff_s_per_rad: v(0) });
+            }
+        }
+        Ok(())
+    }
+
+    /// Switch effect `id` off.
+    pub fn clear(&mut self, id: EffectId) {
+        match id {
+            EffectId::EarthRate => self.earth_rate = false,
+            EffectId::ThermalLag => self.thermal_lag = None,
+            EffectId::TemperatureQuadratic => self.temperature_quadratic = None,
+            EffectId::ScaleFactorTemperature => self.scale_factor_temperature = None,
+            EffectId::ThermalHysteresis => self.thermal_hysteresis = None,
+            EffectId::OncePerRevolution => self.once_per_revolution = None,
+            EffectId::TimeOffset => self.time_offset = None,
+            EffectId::WarmUp => self.warm_up = None,
+            EffectId::BiasStep => self.bias_step = None,
+            EffectId::RateSquared => self.rate_squared = None,
+        }
+    }
+
+    /// As extra `bench.gyro_model` metadata keys: `effect.<id>.<parameter>` for every parameter
+    /// of every effect that is on, numbers as decimal text in the shortest form that reads back
+    /// exactly (`{:e}`), and `effect.earth_rate` = `1` when that effect is on. Effects that are
+    /// off have no keys.
+    pub fn to_metadata(&self) -> BTreeMap<String, String> {
+        let mut m = BTreeMap::new();
+        for id in EffectId::ALL {
+            let Some(values) = self.param_values(id) else { continue };
+            if id == EffectId::EarthRate {
+                m.insert(format!("{METADATA_PREFIX}{}", id.key()), "1".to_string());
+            }
+            for (p, v) in id.params().iter().zip(values) {
+                m.insert(format!("{METADATA_PREFIX}{}.{p}", id.key()), format!("{v:e}"));
+            }
+        }
+        m
+    }
+
+    /// From `bench.gyro_model` metadata: reads exactly the keys [`Self::to_metadata`] writes and
+    /// ignores every other key. An effect is on when any of its keys is present; then all of
+    /// them must be. `effect.earth_rate` takes `1`/`0` (or `true`/`false`). Errors name the key
+    /// (unparsable value, missing sibling parameter). Values are not range-checked here; call
+    /// [`Self::validate`] before simulating them.
+    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Effects, String> {
+        let mut out = Effects::default();
+        for id in EffectId::ALL {
+            let base = format!("{METADATA_PREFIX}{}", id.key());
+            if id == EffectId::EarthRate {
+                if let Some(v) = meta.get(&base) {
+                    out.earth_rate = match v.trim() {
+                        "1" | "true" => true,
+                        "0" | "false" => false,
+                        other => {
+                            return Err(format!(
+                                "`{base}` must be 1 or 0 (true or false), got \"{other}\""
+                            ))
+                        }
+                    };
+                }
+                continue;
+            }
+            let keys: Vec<String> = id.params().iter().map(|p| format!("{base}.{p}")).collect();
+            if !keys.iter().any(|k| meta.contains_key(k)) {
+                continue;
+            }
+            let mut values = Vec::with_capacity(keys.len());
+            for k in &keys {
+                let Some(text) = meta.get(k) else {
+                    let given = keys.iter().find(|g| meta.contains_key(*g)).map_or("", |g| g);
+                    return Err(format!("`{k}` is missing (`{given}` is given)"));
+                };
+                let v = text
+                    .trim()
+                    .parse::<f64>()
+                    .map_err(|_| format!("`{k}` must be a number, got \"{text}\""))?;
+                values.push(v);
+            }
+            out.set(id, &values)?;
+        }
+        Ok(out)
+    }
+
+    /// These effects with each effect that is on in `over` replacing or adding to them (the
+    /// rule for a simulator's truth: the nominal effects, overridden per effect).
+    pub fn overridden_by(&self, over: &Effects) -> Effects {
+        let mut out = *self;
+        for id in over.ids() {
+            if let Some(values) = over.param_values(id) {
+                // `values` comes from `over` itself, so the count always fits.
+                let _ = out.set(id, &values);
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod metadata_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn every_effect() -> Effects {
+        Effects {
+            earth_rate: true,
+            thermal_lag: Some(ThermalLag { time_constant_s: 312.5 }),
+            temperature_quadratic: Some(TemperatureQuadratic { coeff_rad_s_per_c2: 2.1e-11 }),
+            scale_factor_temperature: Some(ScaleFactorTemperature { coeff_per_c: -3e-7 }),
+            thermal_hysteresis: Some(ThermalHysteresis {
+                half_width_rad_s: 4e-9,
+                threshold_c_s: HYSTERESIS_THRESHOLD_C_S,
+            }),
+            once_per_revolution: Some(OncePerRevolution {
+                amplitude_rad_s: 2e-8,
+                phase_rad: 0.1 + 0.2,
+            }),
+            time_offset: Some(TimeOffset { offset_s: -0.0125 }),
+            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
+            bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
+            rate_squared: Some(RateSquared { coeff_s_per_rad: 1.0 / 3.0 }),
+        }
+    }
+
+    #[test]
+    fn params_match_the_struct_field_names() {
+        // The metadata and scenario names are the structs' field names (serde uses them too).
+        let e = every_effect();
+        let toml_like = format!("{e:?}");
+        for id in EffectId::ALL {
+            for p in id.params() {
+                assert!(toml_like.contains(&format!("{p}:")), "{p} of {}", id.key());
+            }
+            assert_eq!(e.param_values(id).map(|v| v.len()), Some(id.params().len()));
+        }
+    }
+
+    #[test]
+    fn metadata_keys_and_values_are_the_documented_ones() {
+        let m = every_effect().to_metadata();
+        assert_eq!(m.get("effect.earth_rate").map(String::as_str), Some("1"));
+        assert_eq!(
+            m.get("effect.once_per_revolution.amplitude_rad_s").map(String::as_str),
+            Some("2e-8")
+        );
+        assert_eq!(m.get("effect.bias_step.time_s").map(String::as_str), Some("1e2"));
+        assert_eq!(m.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
+        // 1 + every parameter of the nine parametrised effects.
+        assert_eq!(m.len(), 1 + 13);
+        assert!(m.keys().all(|k| k.starts_with(METADATA_PREFIX)));
+        assert!(Effects::default().to_metadata().is_empty());
+    }
+
+    #[test]
+    fn metadata_round_trips_exactly_and_ignores_other_keys() {
+        let e = every_effect();
+        let mut m = e.to_metadata();
+        m.insert("bias".into(), "1e-8".into());
+        m.insert("effect.unknown_thing.x".into(), "zzz".into());
+        m.insert("effect.warm_up.colour".into(), "blue".into());
+        assert_eq!(Effects::from_metadata(&m), Ok(e));
+        for id in EffectId::ALL {
+            let mut one = Effects::default();
+            one.set(id, &e.param_values(id).expect("on")).expect("count fits");
+            assert_eq!(Effects::from_metadata(&one.to_metadata()), Ok(one), "{}", id.key());
+        }
+        assert_eq!(Effects::from_metadata(&BTreeMap::new()), Ok(Effects::default()));
+    }
+
+    #[test]
+    fn bad_metadata_names_the_key() {
+        let mut m = every_effect().to_metadata();
+        m.insert("effect.warm_up.time_constant_s".into(), "soon".into());
+        let e = Effects::from_metadata(&m).expect_err("unparsable");
+        assert!(e.contains("`effect.warm_up.time_constant_s`") && e.contains("soon"), "{e}");
+        let mut m = every_effect().to_metadata();
+        m.remove("effect.bias_step.step_rad_s");
+        let e = Effects::from_metadata(&m).expect_err("incomplete");
+        assert!(e.starts_with("`effect.bias_step.step_rad_s` is missing"), "{e}");
+        let mut m = BTreeMap::new();
+        m.insert("effect.earth_rate".to_string(), "yes".to_string());
+        let e = Effects::from_metadata(&m).expect_err("not a flag");
+        assert!(e.contains("`effect.earth_rate`"), "{e}");
+    }
+
+    #[test]
+    fn set_checks_the_count_and_overrides_replace_per_effect() {
+        let mut e = Effects::default();
+        assert!(e.set(EffectId::WarmUp, &[1.0]).is_err());
+        e.set(EffectId::WarmUp, &[1e-7, 60.0]).expect("fits");
+        e.set(EffectId::RateSquared, &[2e-3]).expect("fits");
+        let mut over = Effects::default();
+        over.set(EffectId::WarmUp, &[2e-7, 30.0]).expect("fits");
+        over.earth_rate = true;
+        let t = e.overridden_by(&over);
+        assert_eq!(t.warm_up, Some(WarmUp { amplitude_rad_s: 2e-7, time_constant_s: 30.0 }));
+        assert_eq!(t.rate_squared, e.rate_squared);
+        assert!(t.earth_rate);
+        let mut cleared = t;
+        cleared.clear(EffectId::WarmUp);
+        assert!(!cleared.has(EffectId::WarmUp) && cleared.has(EffectId::RateSquared));
+    }
+
+    fn finite() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            any::<f64>().prop_filter("finite", |x| x.is_finite()),
+            -1e3..1e3f64,
+            Just(0.0),
+            Just(-0.0),
+            Just(f64::MIN_POSITIVE),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn any_finite_effects_round_trip_exactly(
+            on in proptest::collection::vec(any::<bool>(), 10),
+            values in proptest::collection::vec(finite(), 2 * 10),
+        ) {
+            let mut e = Effects::default();
+            for (k, id) in EffectId::ALL.into_iter().enumerate() {
+                if on[k] {
+                    let n = id.params().len();
+                    e.set(id, &values[2 * k..2 * k + n]).expect("count fits");
+                }
+            }
+            let back = Effects::from_metadata(&e.to_metadata()).expect("parses");
+            // Bitwise: -0.0 must stay -0.0.
+            for id in EffectId::ALL {
+                let a = e.param_values(id).map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+                let b = back.param_values(id).map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+                prop_assert_eq!(a, b);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
