@@ -18,6 +18,7 @@
 
 pub mod bench_config;
 pub mod calibrate;
+mod effects_toml;
 pub mod plan;
 pub mod progress;
 pub mod realtime;
