@@ -591,11 +591,8 @@ impl<'a> Builder<'a> {
         let mut allowed = GYRO_MODEL_KEYS.to_vec();
         allowed.push("effects");
         self.check_keys(t, &allowed, what);
-        match self.table(t, "effects") {
-            Ok(Some(et)) => {
-                self.effects(et, effects, &format!("{}.effects]", what.trim_end_matches(']')))
-            }
-            Ok(None) | Err(Reported) => {}
+        if let Ok(Some(et)) = self.table(t, "effects") {
+            self.effects(et, effects, &format!("{}.effects]", what.trim_end_matches(']')));
         }
         for e in t.entries {
             let key = e.key.as_str();
