@@ -19,6 +19,7 @@
 pub mod bench_config;
 pub mod calibrate;
 pub mod diagnose;
+mod effects_toml;
 pub mod plan;
 pub mod progress;
 pub mod realtime;

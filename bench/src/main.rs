@@ -30,6 +30,8 @@ enum Command {
     Calibrate(cli::calibrate::CalibrateArgs),
     /// Calibration accuracy over many simulated seeds (seed method vs joint fit).
     MonteCarlo(cli::monte_carlo::MonteCarloArgs),
+    /// Where a recording departs from the simulation of its run: missing physics named and fitted.
+    Diagnose(cli::diagnose::DiagnoseArgs),
     /// List the serial ports of this machine.
     Ports,
     /// The simulated bench behind virtual ports.
@@ -45,6 +47,7 @@ fn main() -> ExitCode {
         Command::Info(a) => cli::info::run(a),
         Command::Calibrate(a) => cli::calibrate::run(a),
         Command::MonteCarlo(a) => cli::monte_carlo::run(a),
+        Command::Diagnose(a) => cli::diagnose::run(a),
         Command::Ports => cli::ports::run(),
         Command::Sim(c) => cli::sim::run(c),
     };
