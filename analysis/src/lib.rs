@@ -20,6 +20,7 @@
 pub mod allan_fit;
 pub mod calibrate;
 pub mod error;
+pub mod gls;
 pub mod joint_fit;
 pub mod seed_method;
 pub mod temperature_rate;
