@@ -7,8 +7,10 @@
 //!   K = (k1 + k2)/2 per plateau, a two-point line for the temperature coefficient and a slope
 //!   through the origin for the temperature-rate coefficient.
 //! - [`joint_fit`]: one least-squares fit of bias, scale-factor error, temperature and
-//!   temperature-rate coefficients over all windows, Earth's rotation removed, with
-//!   moving-block-bootstrap standard errors that respect coloured noise.
+//!   temperature-rate coefficients over all windows, Earth's rotation removed: generalised
+//!   least squares under the Allan noise model, standard errors that respect coloured noise.
+//! - [`gls`]: generalised least squares under the gyro noise model (white, flicker as
+//!   Gauss–Markov states, rate random walk) by Kalman-filter whitening, O(n).
 //! - [`calibrate`]: the whole calibration of a recording's windows: pooled Allan deviation,
 //!   thermal-lag profile, seed method and joint fit, and what the data lack.
 //! - [`diagnose`]: where a recording departs from the simulation of the same run, which
@@ -24,6 +26,7 @@ pub mod allan_fit;
 pub mod calibrate;
 pub mod diagnose;
 pub mod error;
+pub mod gls;
 pub mod joint_fit;
 pub mod seed_method;
 pub mod temperature_rate;

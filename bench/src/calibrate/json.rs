@@ -16,14 +16,19 @@ pub const JSON_VERSION: u32 = 1;
 pub struct Coefficient {
     /// Estimate.
     pub value: f64,
-    /// 1σ standard error (the larger of block bootstrap and noise model).
+    /// 1σ standard error (GLS: the Cramér–Rao bound, scaled up by a whitened residual RMS
+    /// above 1; OLS: the larger of block bootstrap and noise model).
     pub sigma: f64,
-    /// Moving-block bootstrap σ.
+    /// Moving-block bootstrap σ (of the whitened residuals for GLS).
     pub sigma_bootstrap: f64,
-    /// Noise-model (Allan) σ; null without a noise model.
+    /// Noise-model (Allan) σ — for GLS the Cramér–Rao bound; null without a noise model.
     pub sigma_noise_model: Option<f64>,
     /// Naive OLS σ, for comparison only.
     pub sigma_naive: f64,
+    /// The OLS value, for comparison only.
+    pub value_ols: f64,
+    /// The OLS value's σ under the noise model, for comparison only; null without one.
+    pub sigma_ols: Option<f64>,
 }
 
 /// A noise term with its confidence interval.
@@ -50,6 +55,10 @@ pub struct CalibrationJson {
     pub recording: String,
     /// T0 of the coefficients, °C.
     pub reference_temperature: f64,
+    /// The joint fit's estimator: `gls` (under the noise model) or `ols`; null without a fit.
+    pub estimator: Option<&'static str>,
+    /// RMS of the GLS whitened residual (≈ 1 when the noise model fits); null for OLS.
+    pub whitened_residual_rms: Option<f64>,
     /// Joint fit, keyed by `bench.gyro_model` key.
     pub coefficients: BTreeMap<String, Coefficient>,
     /// The seed method's values (no σ: the method gives none), keyed likewise.
@@ -135,6 +144,11 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
                         .is_finite()
                         .then_some(e.noise_model_std_err),
                     sigma_naive: e.naive_std_err,
+                    value_ols: e.ols_value,
+                    sigma_ols: e
+                        .ols_noise_model_std_err
+                        .is_finite()
+                        .then_some(e.ols_noise_model_std_err),
                 },
             );
         }
@@ -176,6 +190,13 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
         version: JSON_VERSION,
         recording: recording.to_owned(),
         reference_temperature: cal.options.reference_temperature_c,
+        estimator: cal.joint.as_ref().ok().map(|j| j.estimator.as_str()),
+        whitened_residual_rms: cal
+            .joint
+            .as_ref()
+            .ok()
+            .map(|j| j.whitened_residual_rms)
+            .filter(|v| v.is_finite()),
         coefficients,
         seed_method,
         noise,

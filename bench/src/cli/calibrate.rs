@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench::calibrate::{calibrate_file, json, report, CalibrateSettings};
+use bench_analysis::joint_fit::Estimator;
 use bench_physics::units::DEG_PER_H;
 
 /// Arguments of `bench calibrate`.
@@ -70,6 +71,17 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     }
     let truth = out.truth.as_ref().map(|t| &t.model);
+    if let Ok(j) = &cal.joint {
+        println!(
+            "joint fit: {}{}",
+            j.estimator.as_str().to_uppercase(),
+            if j.whitened_residual_rms.is_finite() {
+                format!(" (whitened residual RMS {:.3})", j.whitened_residual_rms)
+            } else {
+                String::new()
+            }
+        );
+    }
     println!("| coefficient | joint fit ± 1σ | seed method | recording's model |");
     println!("| --- | --- | --- | --- |");
     let seed = cal.seed.as_ref().ok();
@@ -125,7 +137,14 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             source: Source {
                 recording: name.clone(),
                 software: format!("bench {}", env!("CARGO_PKG_VERSION")),
-                method: "joint least squares (docs/calibrate.md)".into(),
+                method: match j.map(|j| j.estimator) {
+                    Some(Estimator::Gls) => {
+                        "joint generalised least squares under the Allan noise model \
+                         (docs/calibrate.md)"
+                    }
+                    _ => "joint least squares (docs/calibrate.md)",
+                }
+                .into(),
             },
             gyro_model: ModelKeys::from(model),
             uncertainty: Uncertainty {

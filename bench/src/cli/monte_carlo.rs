@@ -127,6 +127,22 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
             100.0 * c.coverage_95
         );
     }
+    println!(
+        "\n| coefficient | unit | OLS RMS error | joint RMS error | RMS noise-model σ (CRB for GLS) | seed RMS / CRB |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- |");
+    for c in &mc.coefficients {
+        let (u, s) = unit(&c.key);
+        println!(
+            "| {} | {} | {:.3e} | {:.3e} | {:.3e} | {:.1}× |",
+            c.key,
+            u,
+            c.ols_rms_error / s,
+            c.joint_rms_error / s,
+            c.rms_noise_model_sigma / s,
+            c.seed_rms_error / c.rms_noise_model_sigma,
+        );
+    }
     let (a, b, c) = mc.joint_removed;
     let (d, e, f) = mc.seed_removed;
     println!(
