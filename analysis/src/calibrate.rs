@@ -233,6 +233,18 @@ pub fn fit_noise_spec(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec>
     }
 }
 
+/// [`fit_noise_spec`] without leaving any point out: every excess counts as noise. The
+/// diagnosis uses it — an excess over broadband noise is what it looks for, so its noise model
+/// must not explain it away (conservative: more noise, fewer claims).
+pub fn fit_noise_spec_all_points(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
+    let pts: Vec<&AdevPoint> =
+        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
+    if pts.len() < 3 {
+        return None;
+    }
+    fit_noise_spec_once(&pts, with_rrw)
+}
+
 /// Standardised excess of an Allan-variance point over the fitted curve beyond which
 /// [`fit_noise_spec`] leaves it out.
 pub const NOISE_FIT_OUTLIER_Z: f64 = 3.0;

@@ -10,7 +10,7 @@
 //!    under the noise model exceeds χ²_p(1 − α).
 //! 3. **Noise model**: the overlapping Allan deviation of the residual (short τ from the
 //!    native samples on settled table segments, long τ from the bins) fitted with white +
-//!    flicker (+ rate random walk) ([`crate::calibrate::fit_noise_spec`]); every test below
+//!    flicker ([`crate::calibrate::fit_noise_spec_all_points`]: no point left out); every test below
 //!    uses its covariance ([`noise`]), so slow bias wander is not mistaken for structure.
 //! 4. **Explain**: each effect of the library ([`bench_physics::effects`]) is tried as extra
 //!    regressors (nonlinear parameters by grid search, linear ones by projection), scored by a
@@ -37,7 +37,7 @@ use bench_physics::effects::{
 };
 use bench_physics::GyroModel;
 
-use crate::calibrate::{fit_noise_spec, pooled_adev};
+use crate::calibrate::{fit_noise_spec_all_points, pooled_adev};
 use crate::error::AnalysisError;
 use crate::joint_fit::NoiseSpec;
 use crate::windows::RecordWindow;
@@ -462,7 +462,7 @@ fn bin_adev(bins: &[Bin], r: &[f64]) -> Vec<AdevPoint> {
 /// Noise model from the settled segments' Allan deviation ([`native_adev`]).
 fn noise_model(prep: &Prepared) -> Result<(NoiseSpec, Vec<AdevPoint>), AnalysisError> {
     let pts = prep.short_adev.clone();
-    let spec = fit_noise_spec(&pts, false).ok_or_else(|| {
+    let spec = fit_noise_spec_all_points(&pts, false).ok_or_else(|| {
         AnalysisError::Insufficient(
             "diagnosis: too little steady data for an Allan-deviation noise model".into(),
         )
