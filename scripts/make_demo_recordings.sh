@@ -2,14 +2,19 @@
 # The demo recordings of recordings/ (see recordings/README.md): scenarios/diagnose-demo.toml on
 # the simulated bench with one or two effects switched on in [simulation.truth.effects], so
 # concealed from the recording's bench.gyro_model. Small by default (gyro and table at 2 Hz,
-# chamber at 0.5 Hz, ≈ 1 MB each); RATE_HZ=20 CHAMBER_HZ=20 OUT=dir writes full-rate ones.
+# chamber at 0.5 Hz, ≈ 1 MB each); RATE_HZ=20 CHAMBER_HZ=20 OUT=dir writes full-rate ones;
+# BENCH=path uses that bench binary instead of building one.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 rate="${RATE_HZ:-2}"
 chamber="${CHAMBER_HZ:-0.5}"
 out="${OUT:-recordings}"
 mkdir -p "$out"
-cargo build --release -p bench --quiet
+bench="${BENCH:-}"
+if [ -z "$bench" ]; then
+  cargo build --release -p bench --quiet
+  bench=./target/release/bench
+fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 variant() { # name, effects TOML (may be empty), seed
@@ -18,10 +23,8 @@ variant() { # name, effects TOML (may be empty), seed
       -e "s/^\[table\]$/[table]\npoll_rate = \"$rate Hz\"/" scenarios/diagnose-demo.toml > "$f"
   printf '\n[chamber]\npoll_rate = "%s Hz"\n' "$chamber" >> "$f"
   if [ -n "$2" ]; then printf '\n[simulation.truth.effects]\n%s\n' "$2" >> "$f"; fi
-  ./target/release/bench run "$f" --seed "$3" --quiet --out "$out/$1.mcap"
+  "$bench" run "$f" --seed "$3" --quiet --out "$out/$1.mcap"
 }
 variant demo-null "" 1
-variant demo-once-per-revolution 'once_per_revolution = { amplitude_rad_s = 4e-8, phase_rad = 0.5 }' 2
-variant demo-step-and-warm-up 'bias_step = { time_s = 4000, step_rad_s = 1e-7 }
-warm_up = { amplitude_rad_s = 2e-7, time_constant_s = 600 }' 3
+variant demo-once-per-revolution 'once_per_revolution = { amplitude_rad_s = 8e-8, phase_rad = 0.5 }' 2
 ls -l "$out"/demo-*.mcap
