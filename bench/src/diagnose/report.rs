@@ -20,7 +20,9 @@ use bench_physics::units::DEG_PER_H;
 
 use super::DiagnoseOutcome;
 use crate::report::plot::{colour, Axis, Item, Marker, Plot, Span};
-use crate::report::{escape, io_err, render, sig, Figure, ReportError, ReportFiles, STYLE};
+use crate::report::{
+    escape, figures_html, io_err, render, sig, Figure, ReportError, ReportFiles, STYLE,
+};
 
 fn deg_h(v: f64) -> f64 {
     v / DEG_PER_H
@@ -296,17 +298,7 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
         }
         h.push_str("</ul>\n");
     }
-    for (i, (f, svg)) in figures.iter().enumerate() {
-        let _ = writeln!(
-            h,
-            "<figure id=\"{name}\">\n<h3>Figure {n}. {title}</h3>\n{svg}<figcaption>{caption} \
-             (<a href=\"{name}.png\">PNG</a>)</figcaption>\n</figure>",
-            name = f.name,
-            n = i + 1,
-            title = escape(f.title),
-            caption = escape(&f.caption),
-        );
-    }
+    h.push_str(&figures_html(figures));
     h.push_str("</body>\n</html>\n");
     h
 }

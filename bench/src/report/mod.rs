@@ -65,6 +65,24 @@ figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #dd
 figcaption{font-size:.9em;color:#333;max-width:70em}\
 ul.missing li{margin:.2em 0}";
 
+/// The figures as HTML: a numbered `<figure>` each, its SVG inline and a link to its PNG.
+pub(crate) fn figures_html(figures: &[(Figure, String)]) -> String {
+    use std::fmt::Write as _;
+    let mut h = String::new();
+    for (i, (f, svg)) in figures.iter().enumerate() {
+        let _ = writeln!(
+            h,
+            "<figure id=\"{name}\">\n<h3>Figure {n}. {title}</h3>\n{svg}<figcaption>{caption} \
+             (<a href=\"{name}.png\">PNG</a>)</figcaption>\n</figure>",
+            name = f.name,
+            n = i + 1,
+            title = escape(f.title),
+            caption = escape(&f.caption),
+        );
+    }
+    h
+}
+
 /// One figure of a report.
 #[derive(Debug, Clone)]
 pub(crate) struct Figure {

@@ -12,7 +12,7 @@ use bench_physics::GyroModel;
 
 use super::figures::Figure;
 use crate::calibrate::{CalibrationOutcome, FunctionErrors};
-use crate::report::{escape, sig, STYLE};
+use crate::report::{escape, figures_html, sig, STYLE};
 
 /// `value ± σ`.
 fn pm(value: f64, sigma: f64) -> String {
@@ -408,17 +408,7 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
 
     // Figures.
     let _ = writeln!(h, "<h2>Figures</h2>");
-    for (i, (f, svg)) in figures.iter().enumerate() {
-        let _ = writeln!(
-            h,
-            "<figure id=\"{name}\">\n<h3>Figure {n}. {title}</h3>\n{svg}<figcaption>{caption} \
-             (<a href=\"{name}.png\">PNG</a>)</figcaption>\n</figure>",
-            name = f.name,
-            n = i + 1,
-            title = escape(f.title),
-            caption = escape(&f.caption),
-        );
-    }
+    h.push_str(&figures_html(figures));
     h.push_str("</body>\n</html>\n");
     h
 }
