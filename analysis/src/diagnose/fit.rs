@@ -126,7 +126,7 @@ impl Projector {
     }
 
     /// `G` (columns, full length) with the design projected out, at the rows.
-    fn orthogonalise(&self, g: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    pub(crate) fn orthogonalise(&self, g: &[Vec<f64>]) -> Vec<Vec<f64>> {
         g.iter()
             .map(|col| {
                 let gv = DVector::from_iterator(self.rows.len(), self.rows.iter().map(|&i| col[i]));

@@ -26,6 +26,7 @@
 
 pub mod fit;
 pub mod noise;
+pub mod scan;
 pub mod series;
 
 use bench_physics::allan::{chi2_quantile, normal_quantile, AdevPoint};
@@ -263,8 +264,12 @@ const LAG_GRID_S: [f64; 10] = [30., 60., 120., 240., 400., 600., 900., 1400., 20
 const WARM_GRID_S: [f64; 9] = [60., 120., 240., 400., 600., 900., 1400., 2000., 3000.];
 /// z the held-out blocks must reach to confirm an effect.
 const HOLDOUT_Z: f64 = 3.0;
-/// Most positions tried for a bias step.
-const STEP_POSITIONS: usize = 400;
+/// Least share of a term's energy a set of blocks must hold to be fitted on in the hold-out.
+const HOLDOUT_MIN_SHARE: f64 = 0.2;
+/// Most positions tried for a bias step (then refined to the bin around the best).
+const STEP_POSITIONS: usize = 100;
+/// Seed of the scan-threshold draws ([`scan`]): fixed, so a diagnosis is reproducible.
+const SCAN_SEED: u64 = 0x5eed_d1a6;
 
 /// A candidate fitted at its best grid value.
 struct Fitted {
@@ -523,6 +528,68 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
     }
 }
 
+/// A bias step's instant refined from its grid position to the bin: every bin start between
+/// the neighbouring grid positions is tried, the best fit kept, the Wald profile extended.
+fn refine_step(
+    prep: &Prepared,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    fitted: &mut Fitted,
+    profile: &mut Vec<(f64, f64)>,
+) {
+    let g = grid(prep, EffectId::BiasStep);
+    let Some(k) = g.iter().position(|&v| v == fitted.p) else { return };
+    let lo = if k == 0 { fitted.p } else { g[k - 1] };
+    let hi = if k + 1 == g.len() { fitted.p } else { g[k + 1] };
+    for b in &prep.bins {
+        let p = b.start_s;
+        if p <= lo || p >= hi || p == fitted.p {
+            continue;
+        }
+        let cols = vec![prep.bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()];
+        if let Some(t) = proj.test(&cols, y, noise) {
+            profile.push((p, t.wald));
+            if t.delta_rss > fitted.test.delta_rss {
+                *fitted = Fitted { p, cols, test: t };
+            }
+        }
+    }
+    profile.sort_by(|a, b| a.0.total_cmp(&b.0));
+}
+
+/// A gridded effect's best grid value (least squares) against `proj`, the bias step's refined
+/// to the bin; `None` for an effect without a grid or not yet tried.
+fn refit_grid(
+    prep: &Prepared,
+    id: EffectId,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    cache: &std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>>,
+) -> Option<Fitted> {
+    let g = grid(prep, id);
+    if g.len() < 2 {
+        return None;
+    }
+    let cached = cache.get(&id)?;
+    let mut top: Option<Fitted> = None;
+    let mut profile = Vec::new();
+    for (&p, cols) in g.iter().zip(cached) {
+        if let Some(t) = proj.test(cols, y, noise) {
+            profile.push((p, t.wald));
+            if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
+                top = Some(Fitted { p, cols: cols.clone(), test: t });
+            }
+        }
+    }
+    let mut fitted = top?;
+    if id == EffectId::BiasStep {
+        refine_step(prep, proj, y, noise, &mut fitted, &mut profile);
+    }
+    Some(fitted)
+}
+
 /// The grid of a candidate's nonlinear parameter (a single NaN for none).
 fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
     match id {
@@ -572,16 +639,51 @@ fn holdout_z(
     noise: &BinNoise,
     block_s: f64,
 ) -> f64 {
+    // Blocks short enough that both sets see the term: a quarter of the time it is above a
+    // tenth of its peak (a warm-up lives in the first few τ), at most `block_s`, at least six
+    // bins.
+    let mag: Vec<f64> = (0..bins.len()).map(|i| g.iter().map(|c| c[i].abs()).sum()).collect();
+    let peak = mag.iter().fold(0.0f64, |m, v| m.max(*v));
+    let support: f64 =
+        bins.iter().zip(&mag).filter(|(_, m)| **m > 0.1 * peak).map(|(b, _)| b.span_s()).sum();
+    let bin_s = bins.first().map_or(1.0, Bin::span_s);
+    let block_s = (0.25 * support).min(block_s).max(6.0 * bin_s);
     let parity = |b: &Bin| ((b.centre_s() / block_s).floor() as i64).rem_euclid(2);
     let set =
         |p: i64| -> Vec<usize> { (0..bins.len()).filter(|&i| parity(&bins[i]) == p).collect() };
     let (a, b) = (set(0), set(1));
+    // What each set knows of the term: the variance of its coefficients fitted on all bins
+    // over that fitted on the set alone (noise model). A set holding less than
+    // HOLDOUT_MIN_SHARE of the information is never the fitting set: its fit would be noise of
+    // either sign, then "tested" against the other set's full signal.
+    let mut cols_all = design.to_vec();
+    cols_all.extend(g.iter().cloned());
+    let all: Vec<usize> = (0..bins.len()).collect();
+    let term_var = |rows: &[usize]| -> Option<f64> {
+        let p = Projector::new(&cols_all, rows).ok()?;
+        let cov = p.covariance(noise);
+        let mut v = 0.0;
+        for j in design.len()..cols_all.len() {
+            let c = p.kept.iter().position(|&k| k == j)?;
+            v += cov[(c, c)];
+        }
+        Some(v)
+    };
+    let full_var = term_var(&all);
+    let share = |rows: &[usize]| -> f64 {
+        match (full_var, term_var(rows)) {
+            (Some(f), Some(v)) if v > 0.0 => f / v,
+            _ => 0.0,
+        }
+    };
     let mut num = 0.0;
     let mut den = 0.0;
+    let mut folds = 0;
     for (fit_rows, test_rows) in [(&a, &b), (&b, &a)] {
-        if fit_rows.len() < 10 || test_rows.len() < 10 {
+        if fit_rows.len() < 10 || test_rows.len() < 10 || share(fit_rows) < HOLDOUT_MIN_SHARE {
             continue;
         }
+        folds += 1;
         let mut cols = design.to_vec();
         cols.extend(g.iter().cloned());
         let Ok(pf) = Projector::new(&cols, fit_rows) else { continue };
@@ -603,7 +705,10 @@ fn holdout_z(
             }
         }
     }
-    if den > 0.0 {
+    if folds == 0 {
+        // The term lives within one set of blocks: held-out blocks cannot judge it.
+        f64::NAN
+    } else if den > 0.0 {
         num / den.sqrt()
     } else {
         0.0
@@ -693,89 +798,31 @@ pub fn diagnose(
     // Candidate columns depend on the run only: computed once, reused every round.
     let mut column_cache: std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>> =
         std::collections::BTreeMap::new();
-    for _round in 0..opts.max_effects {
-        let n_eff = noise.n_eff();
-        let mut best: Option<(f64, Finding, Fitted)> = None;
-        let mut tried: Vec<Finding> = Vec::new();
-        for &id in &candidates {
-            let g = grid(&prep, id);
-            let m_grid = g.len() as f64;
-            let mut top: Option<Fitted> = None;
-            let mut profile: Vec<(f64, f64)> = Vec::new();
-            let cached = column_cache.entry(id).or_insert_with(|| {
-                g.iter().map(|&p| candidate_columns(&prep, id, p, model)).collect()
-            });
-            for (&p, cols) in g.iter().zip(cached.iter()) {
-                let cols = cols.clone();
-                let t = if id == EffectId::EarthRate {
-                    // Earth's rate is a constant: it can only show as the bias correction
-                    // being Earth's rate. Test that shift (bias column, current design).
-                    earth_test(&proj, &design, &y, &noise, prep.earth)
-                } else {
-                    proj.test(&cols, &y, &noise)
-                };
-                let Some(t) = t else { continue };
-                profile.push((p, t.wald));
-                // The grid value is chosen by fit (least squares), the term judged by W there.
-                if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
-                    top = Some(Fitted { p, cols, test: t });
-                }
-            }
-            let Some(Fitted { p, cols, test: t }) = top else { continue };
-            let k = cols.len() as f64;
-            let q = if m_grid > 1.0 { 1.0 } else { 0.0 };
-            let thr = chi2_quantile(1.0 - opts.alpha / (m_candidates * m_grid), k);
-            let dbic = t.wald - (k + q) * n_eff.ln();
-            let rms_before = rms(&r);
-            let rms_after =
-                ((rms_before * rms_before * n as f64 - t.delta_rss).max(0.0) / n as f64).sqrt();
-            let contribution: Vec<f64> =
-                (0..n).map(|i| cols.iter().zip(&t.theta).map(|(c, th)| c[i] * th).sum()).collect();
-            let parameters = effect_parameters(id, p, &t, &profile, &prep);
-            let mut f = Finding {
-                effect: id,
-                parameters,
-                wald: t.wald,
-                threshold: thr,
-                delta_bic: dbic,
-                rms_before,
-                rms_after,
-                holdout_z: f64::NAN,
-                windows_s: windows_of(&prep.bins, &contribution),
-                accepted: false,
-                rejected_because: None,
-            };
-            if id == EffectId::EarthRate {
-                // Consistency with Earth's rate is part of its test.
-                let z_diff = (t.theta[0] - 1.0) / t.sigma(0).max(1e-300);
-                if z_diff.abs() > 3.0 {
-                    f.rejected_because =
-                        Some(format!("bias shift is not Earth's rate (z = {z_diff:.1})"));
-                    tried.push(f);
-                    continue;
-                }
-            }
-            if t.wald <= thr {
-                f.rejected_because = Some(format!("Wald {:.1} ≤ threshold {:.1}", t.wald, thr));
-                tried.push(f);
-                continue;
-            }
-            if dbic <= 0.0 {
-                f.rejected_because = Some(format!("ΔBIC {dbic:.1} ≤ 0"));
-                tried.push(f);
-                continue;
-            }
-            let score = t.wald - thr;
-            if best.as_ref().is_none_or(|(s, ..)| score > *s) {
-                if let Some((_, prev, _)) = best.take() {
-                    tried.push(prev);
-                }
-                best = Some((score, f, Fitted { p, cols, test: t }));
-            } else {
-                tried.push(f);
-            }
+    // Each candidate's threshold, set when it is first tested (for a grid: from the scan of
+    // the noise model, [`scan`]).
+    let mut thresholds: std::collections::BTreeMap<EffectId, f64> =
+        std::collections::BTreeMap::new();
+    let mut base_design = prep.base.clone();
+    let ctx = SearchCtx { prep: &prep, model, opts, m_candidates };
+    // Candidates the held-out blocks did not confirm wait until the model changes.
+    let mut on_hold: Vec<EffectId> = Vec::new();
+    // Each round accepts an effect or puts one on hold: the bound is never reached first.
+    for _round in 0..(opts.max_effects + 1) * (EffectId::ALL.len() + 1) {
+        if findings.len() >= opts.max_effects {
+            break;
         }
-        let Some((_, mut f, Fitted { p, cols, test: t })) = best else {
+        let (best, tried) = search(
+            &ctx,
+            &candidates,
+            &proj,
+            &design,
+            &y,
+            &r,
+            &noise,
+            &mut column_cache,
+            &mut thresholds,
+        );
+        let Some((_, mut f, Fitted { mut p, mut cols, test: mut t })) = best else {
             rejected.extend(tried);
             break;
         };
@@ -786,12 +833,82 @@ pub fn diagnose(
         };
         f.holdout_z = hz;
         candidates.retain(|&c| c != f.effect);
+        let mut partner: Option<(Finding, Fitted)> = None;
         if hz <= HOLDOUT_Z {
-            f.rejected_because = Some(format!("held-out blocks do not confirm it (z = {hz:.1})"));
-            rejected.push(f);
-            rejected.extend(tried);
-            continue;
+            // Another missing effect may be what spoils the held-out blocks (a warm-up judged
+            // against blocks that also hold an unmodelled later step): fit the best partner
+            // with this one in the model and take both when the held-out blocks confirm each
+            // with the other in.
+            if f.effect != EffectId::EarthRate && findings.len() + 2 <= opts.max_effects {
+                let mut d2 = design.clone();
+                d2.extend(cols.iter().cloned());
+                let proj2 = Projector::new(&d2, &all)?;
+                let r2 = proj2.residual(&y, n);
+                let others: Vec<EffectId> = candidates
+                    .iter()
+                    .chain(&on_hold)
+                    .copied()
+                    .filter(|&c| c != EffectId::EarthRate)
+                    .collect();
+                let (best2, _) = search(
+                    &ctx,
+                    &others,
+                    &proj2,
+                    &d2,
+                    &y,
+                    &r2,
+                    &noise,
+                    &mut column_cache,
+                    &mut thresholds,
+                );
+                if let Some((_, mut f2, mut fitted2)) = best2 {
+                    // The two grid values fitted in turn, each with the other in the model.
+                    let mut top = Fitted { p, cols: cols.clone(), test: t.clone() };
+                    let mut d3 = design.clone();
+                    for _ in 0..2 {
+                        d3 = design.clone();
+                        d3.extend(fitted2.cols.iter().cloned());
+                        let p3 = Projector::new(&d3, &all)?;
+                        if let Some(g1) =
+                            refit_grid(&prep, f.effect, &p3, &y, &noise, &column_cache)
+                        {
+                            top = g1;
+                        }
+                        let mut d4 = design.clone();
+                        d4.extend(top.cols.iter().cloned());
+                        let p4 = Projector::new(&d4, &all)?;
+                        if let Some(g2) =
+                            refit_grid(&prep, f2.effect, &p4, &y, &noise, &column_cache)
+                        {
+                            fitted2 = g2;
+                        }
+                    }
+                    let mut d2 = design.clone();
+                    d2.extend(top.cols.iter().cloned());
+                    let block = opts.holdout_block_s;
+                    let hz1 = holdout_z(&d3, &top.cols, &y, &prep.bins, &noise, block);
+                    let hz2 = holdout_z(&d2, &fitted2.cols, &y, &prep.bins, &noise, block);
+                    if hz1 > HOLDOUT_Z && hz2 > HOLDOUT_Z {
+                        f.holdout_z = hz1;
+                        f2.holdout_z = hz2;
+                        f2.accepted = true;
+                        candidates.retain(|&c| c != f2.effect);
+                        on_hold.retain(|&c| c != f2.effect);
+                        (p, cols, t) = (top.p, top.cols, top.test);
+                        partner = Some((f2, fitted2));
+                    }
+                }
+            }
+            if partner.is_none() {
+                f.rejected_because =
+                    Some(format!("held-out blocks do not confirm it (z = {hz:.1})"));
+                on_hold.push(f.effect);
+                rejected.push(f);
+                rejected.extend(tried);
+                continue;
+            }
         }
+        candidates.append(&mut on_hold);
         f.accepted = true;
         let f_id = f.effect;
         findings.push(f);
@@ -804,15 +921,66 @@ pub fn diagnose(
             for v in &mut y {
                 *v -= scale * prep.earth;
             }
-            if let Some(input) = design.get_mut(1) {
+            if let Some(input) = base_design.get_mut(1) {
                 for v in input.iter_mut() {
                     *v += prep.earth;
                 }
             }
             earth_found = true;
         } else {
-            design.extend(cols.iter().cloned());
             accepted_cols.push((f_id, p, cols, t));
+        }
+        if let Some((f2, fitted2)) = partner {
+            accepted_cols.push((f2.effect, fitted2.p, fitted2.cols, fitted2.test));
+            findings.push(f2);
+        }
+        // Stepwise: with the newcomer in, each earlier effect's grid value is fitted again and
+        // an effect the others now explain is dropped.
+        if accepted_cols.len() >= 2 || (earth_found && !accepted_cols.is_empty()) {
+            let mut i = 0;
+            while i < accepted_cols.len() {
+                let others: Vec<Vec<f64>> = base_design
+                    .iter()
+                    .cloned()
+                    .chain(
+                        accepted_cols
+                            .iter()
+                            .enumerate()
+                            .filter(|(j, _)| *j != i)
+                            .flat_map(|(_, a)| a.2.iter().cloned()),
+                    )
+                    .collect();
+                let proj_o = Projector::new(&others, &all)?;
+                let id = accepted_cols[i].0;
+                if let Some(fitted) = refit_grid(&prep, id, &proj_o, &y, &noise, &column_cache) {
+                    accepted_cols[i].1 = fitted.p;
+                    accepted_cols[i].2 = fitted.cols;
+                }
+                let thr = thresholds.get(&id).copied().unwrap_or(0.0);
+                match proj_o.test(&accepted_cols[i].2, &y, &noise) {
+                    Some(t) if t.wald > thr => {
+                        accepted_cols[i].3 = t;
+                        i += 1;
+                    }
+                    t => {
+                        accepted_cols.remove(i);
+                        if let Some(pos) = findings.iter().position(|f| f.effect == id) {
+                            let mut dropped = findings.remove(pos);
+                            dropped.accepted = false;
+                            let w = t.map_or(0.0, |t| t.wald);
+                            dropped.rejected_because = Some(format!(
+                                "explained by {} once that is in the model (Wald {w:.1} ≤ {thr:.1})",
+                                f_id.key()
+                            ));
+                            rejected.push(dropped);
+                        }
+                    }
+                }
+            }
+        }
+        design = base_design.clone();
+        for a in &accepted_cols {
+            design.extend(a.2.iter().cloned());
         }
         proj = Projector::new(&design, &all)?;
         r = proj.residual(&y, n);
@@ -960,6 +1128,135 @@ pub fn diagnose(
         effects: new_effects,
         series,
     })
+}
+
+/// What a candidate search needs that does not change between rounds.
+struct SearchCtx<'a> {
+    prep: &'a Prepared,
+    model: &'a GyroModel,
+    opts: &'a DiagnoseOptions,
+    /// Number of candidates (the Bonferroni factor over effects).
+    m_candidates: f64,
+}
+
+/// One round of the search: every candidate fitted at its best grid value against `proj`, and
+/// judged. Returns the best that passes its threshold and ΔBIC (score, finding, fit), and the
+/// findings of the others.
+#[allow(clippy::too_many_arguments)]
+fn search(
+    ctx: &SearchCtx<'_>,
+    candidates: &[EffectId],
+    proj: &Projector,
+    design: &[Vec<f64>],
+    y: &[f64],
+    r: &[f64],
+    noise: &BinNoise,
+    cache: &mut std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>>,
+    thresholds: &mut std::collections::BTreeMap<EffectId, f64>,
+) -> (Option<(f64, Finding, Fitted)>, Vec<Finding>) {
+    let n = ctx.prep.bins.len();
+    let n_eff = noise.n_eff();
+    let mut best: Option<(f64, Finding, Fitted)> = None;
+    let mut tried: Vec<Finding> = Vec::new();
+    for &id in candidates {
+        let g = grid(ctx.prep, id);
+        let m_grid = g.len() as f64;
+        let mut top: Option<Fitted> = None;
+        let mut profile: Vec<(f64, f64)> = Vec::new();
+        let cached = cache.entry(id).or_insert_with(|| {
+            g.iter().map(|&p| candidate_columns(ctx.prep, id, p, ctx.model)).collect()
+        });
+        for (&p, cols) in g.iter().zip(cached.iter()) {
+            let cols = cols.clone();
+            let t = if id == EffectId::EarthRate {
+                // Earth's rate is a constant: it can only show as the bias correction
+                // being Earth's rate. Test that shift (bias column, current design).
+                earth_test(proj, design, y, noise, ctx.prep.earth)
+            } else {
+                proj.test(&cols, y, noise)
+            };
+            let Some(t) = t else { continue };
+            profile.push((p, t.wald));
+            // The grid value is chosen by fit (least squares), the term judged by W there.
+            if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
+                top = Some(Fitted { p, cols, test: t });
+            }
+        }
+        let Some(mut fitted) = top else { continue };
+        // Judged at the grid (what the scan threshold is for), reported at the refined fit.
+        let wald_grid = fitted.test.wald;
+        if id == EffectId::BiasStep {
+            refine_step(ctx.prep, proj, y, noise, &mut fitted, &mut profile);
+        }
+        let Fitted { p, cols, test: t } = fitted;
+        let k = cols.len() as f64;
+        let q = if m_grid > 1.0 { 1.0 } else { 0.0 };
+        let thr = *thresholds.entry(id).or_insert_with(|| {
+            let level = ctx.opts.alpha / ctx.m_candidates;
+            let single: Vec<Vec<f64>> =
+                cached.iter().filter(|c| c.len() == 1).map(|c| c[0].clone()).collect();
+            let scanned = if m_grid > 1.0 && single.len() == cached.len() {
+                scan::peak_wald_quantile(proj, &single, noise, level, SCAN_SEED + id as u64)
+            } else {
+                None
+            };
+            // Never below one test's threshold (the draws' own scatter could put it there).
+            scanned.map_or_else(
+                || chi2_quantile(1.0 - level / m_grid, k),
+                |q| q.max(chi2_quantile(1.0 - level, k)),
+            )
+        });
+        let dbic = t.wald - (k + q) * n_eff.ln();
+        let rms_before = rms(r);
+        let rms_after =
+            ((rms_before * rms_before * n as f64 - t.delta_rss).max(0.0) / n as f64).sqrt();
+        let contribution: Vec<f64> =
+            (0..n).map(|i| cols.iter().zip(&t.theta).map(|(c, th)| c[i] * th).sum()).collect();
+        let parameters = effect_parameters(id, p, &t, &profile, ctx.prep);
+        let mut f = Finding {
+            effect: id,
+            parameters,
+            wald: t.wald,
+            threshold: thr,
+            delta_bic: dbic,
+            rms_before,
+            rms_after,
+            holdout_z: f64::NAN,
+            windows_s: windows_of(&ctx.prep.bins, &contribution),
+            accepted: false,
+            rejected_because: None,
+        };
+        if id == EffectId::EarthRate {
+            // Consistency with Earth's rate is part of its test.
+            let z_diff = (t.theta[0] - 1.0) / t.sigma(0).max(1e-300);
+            if z_diff.abs() > 3.0 {
+                f.rejected_because =
+                    Some(format!("bias shift is not Earth's rate (z = {z_diff:.1})"));
+                tried.push(f);
+                continue;
+            }
+        }
+        if wald_grid <= thr {
+            f.rejected_because = Some(format!("Wald {wald_grid:.1} ≤ threshold {thr:.1}"));
+            tried.push(f);
+            continue;
+        }
+        if dbic <= 0.0 {
+            f.rejected_because = Some(format!("ΔBIC {dbic:.1} ≤ 0"));
+            tried.push(f);
+            continue;
+        }
+        let score = dbic;
+        if best.as_ref().is_none_or(|(s, ..)| score > *s) {
+            if let Some((_, prev, _)) = best.take() {
+                tried.push(prev);
+            }
+            best = Some((score, f, Fitted { p, cols, test: t }));
+        } else {
+            tried.push(f);
+        }
+    }
+    (best, tried)
 }
 
 /// Earth's rate as the bias correction: θ = bias correction / Earth's rate (1 if the missing

@@ -121,6 +121,46 @@ impl BinNoise {
         total
     }
 
+    /// `Σ·b` (so that `aᵀ·(Σ·b)` is [`BinNoise::quad`]), in O(n) per component.
+    pub fn apply(&self, b: &[f64]) -> Vec<f64> {
+        let n = self.centre.len();
+        let c = &self.centre;
+        let mut out: Vec<f64> = (0..n).map(|i| b[i] * self.diag[i]).collect();
+        let mut v = vec![0.0; n];
+        let mut fwd = vec![0.0; n];
+        for (t, var, g, corr) in &self.comps {
+            for i in 0..n {
+                v[i] = b[i] * g[i];
+                out[i] += b[i] * corr[i];
+            }
+            let mut f = 0.0;
+            for i in 0..n {
+                let decay = if i == 0 { 0.0 } else { (-(c[i] - c[i - 1]) / t).exp() };
+                f = v[i] + decay * f;
+                fwd[i] = f;
+            }
+            let mut bsum = 0.0;
+            for i in (0..n).rev() {
+                let decay = if i + 1 == n { 0.0 } else { (-(c[i + 1] - c[i]) / t).exp() };
+                bsum = v[i] + decay * bsum;
+                out[i] += var * g[i] * (fwd[i] + bsum - v[i]);
+            }
+        }
+        if self.rrw2 > 0.0 && n > 1 {
+            // (Σb)_i = Σ_{k=1..i} (c_k − c_{k−1})·Σ_{j≥k} b_j.
+            let mut tail = vec![0.0; n + 1];
+            for k in (0..n).rev() {
+                tail[k] = tail[k + 1] + b[k];
+            }
+            let mut acc = 0.0;
+            for i in 1..n {
+                acc += (c[i] - c[i - 1]) * tail[i];
+                out[i] += self.rrw2 * acc;
+            }
+        }
+        out
+    }
+
     /// Variance of one bin mean, averaged over the bins.
     pub fn mean_bin_variance(&self) -> f64 {
         let n = self.len();
@@ -213,5 +253,7 @@ mod tests {
             (0..n).map(|i| (0..n).map(|j| a[i] * dense[i][j] * c[j]).sum::<f64>()).sum();
         let got = m.quad(&a, &c);
         assert!((got - want).abs() < 1e-9 * want.abs(), "{got:e} vs {want:e}");
+        let applied: f64 = m.apply(&c).iter().zip(&a).map(|(x, y)| x * y).sum();
+        assert!((applied - want).abs() < 1e-9 * want.abs(), "apply: {applied:e} vs {want:e}");
     }
 }

@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::effects::{EffectId, Effects};
+use bench_physics::GyroModel;
 
 use crate::calibrate::monte_carlo::parallel_seeds;
 use crate::recording::Recording;
@@ -75,6 +76,13 @@ impl DiagnoseStudy {
         ok as f64 / self.seeds.len().max(1) as f64
     }
 
+    /// Fraction of seeds with each verdict: consistent, parameters only, missing physics.
+    pub fn verdict_rates(&self) -> [f64; 3] {
+        let n = self.seeds.len().max(1) as f64;
+        let rate = |v: Verdict| self.seeds.iter().filter(|s| s.verdict == v).count() as f64 / n;
+        [rate(Verdict::Consistent), rate(Verdict::ParametersOnly), rate(Verdict::MissingPhysics)]
+    }
+
     /// Fraction of fitted truth parameters within 3σ, over seeds that found their effect.
     pub fn within_3_sigma(&self) -> f64 {
         let z: Vec<f64> = self
@@ -95,13 +103,17 @@ impl DiagnoseStudy {
 }
 
 /// Simulate `scenario` with seeds `first..first + count` on `jobs` threads and diagnose each
-/// recording in memory against its own `bench.gyro_model`.
+/// recording in memory against `nominal`, or else its own `bench.gyro_model` (a nominal model
+/// that differs from the scenario's truth only in parameter values makes a parameters-only
+/// study).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     scenario: &Path,
     first: u64,
     count: u64,
     jobs: usize,
     opts: &DiagnoseOptions,
+    nominal: Option<(GyroModel, Effects, String)>,
     on_seed: impl FnMut(&SeedDiagnosis) + Send,
 ) -> anyhow::Result<DiagnoseStudy> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
@@ -116,7 +128,7 @@ pub fn run(
             anyhow::ensure!(report.outcome == "completed", "run {}", report.outcome);
             let rec = Recording::from_bytes(cursor.get_ref())?;
             let started = Instant::now();
-            let out = super::diagnose_recording(&rec, None, opts)?;
+            let out = super::diagnose_recording(&rec, nominal.clone(), opts)?;
             let seconds = started.elapsed().as_secs_f64();
             let d = &out.diagnosis;
             let mut z = Vec::new();
