@@ -27,4 +27,5 @@ variant() { # name, effects TOML (may be empty), seed
 }
 variant demo-null "" 1
 variant demo-once-per-revolution 'once_per_revolution = { amplitude_rad_s = 8e-8, phase_rad = 0.5 }' 2
+variant demo-warm-up-and-step $'warm_up = { amplitude_rad_s = 3e-7, time_constant_s = 600 }\nbias_step = { time_s = 3000, step_rad_s = 1e-7 }' 1
 ls -l "$out"/demo-*.mcap

@@ -48,3 +48,25 @@ fn a_run_whose_truth_is_the_nominal_model_has_no_finding() {
     assert!(j["parameter_updates"]["bias"]["sigma"].as_f64().is_some_and(|s| s > 0.0));
     assert_eq!(j["findings"].as_array().map(Vec::len), Some(0));
 }
+
+/// The shipped demo recordings say what recordings/README.md says they say.
+#[test]
+fn the_demo_recordings_diagnose_as_documented() {
+    let cases: [(&str, &[&str]); 3] = [
+        ("demo-null.mcap", &[]),
+        ("demo-once-per-revolution.mcap", &["once_per_revolution"]),
+        ("demo-warm-up-and-step.mcap", &["bias_step", "warm_up"]),
+    ];
+    for (file, want) in cases {
+        let bytes = std::fs::read(workspace().join("recordings").join(file)).expect("demo file");
+        let rec = Recording::from_bytes(&bytes).expect("reads");
+        let out = diagnose_recording(&rec, None, &DiagnoseOptions::default()).expect("diagnoses");
+        let d = &out.diagnosis;
+        let mut found: Vec<_> =
+            d.findings.iter().filter(|f| f.accepted).map(|f| f.effect.key()).collect();
+        found.sort_unstable();
+        assert_eq!(found, want, "{file}");
+        let verdict = if want.is_empty() { Verdict::Consistent } else { Verdict::MissingPhysics };
+        assert_eq!(d.verdict, verdict, "{file}");
+    }
+}
