@@ -18,11 +18,15 @@
 
 pub mod bench_config;
 pub mod calibrate;
+pub mod export;
+pub mod live_view;
 pub mod plan;
 pub mod progress;
 pub mod realtime;
 pub mod record;
 pub mod recording;
+pub mod recover;
+pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod simulate;
