@@ -25,7 +25,7 @@
 //! let clock: Arc<dyn bench_drivers::Clock> = Arc::new(bench_drivers::VirtualClock::new());
 //! let bench = data.devices(clock, ReplayOptions::default());
 //! println!("replaying {} gyro samples", data.gyro.len());
-//! # Ok::<(), bench::recording::RecordingError>(())
+//! # Ok::<(), bench::replay::ReplayError>(())
 //! ```
 
 mod run;
