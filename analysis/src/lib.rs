@@ -11,6 +11,9 @@
 //!   moving-block-bootstrap standard errors that respect coloured noise.
 //! - [`calibrate`]: the whole calibration of a recording's windows: pooled Allan deviation,
 //!   thermal-lag profile, seed method and joint fit, and what the data lack.
+//! - [`diagnose`]: where a recording departs from the simulation of the same run, which
+//!   effects of the library explain it (judged against the Allan noise model), and what is
+//!   left unexplained.
 //! - [`allan_fit`]: IEEE Std 952 noise terms (N, B, K) with confidence intervals from an
 //!   overlapping Allan deviation.
 //!
@@ -19,6 +22,7 @@
 
 pub mod allan_fit;
 pub mod calibrate;
+pub mod diagnose;
 pub mod error;
 pub mod joint_fit;
 pub mod seed_method;

@@ -18,6 +18,11 @@
 //! driver = "can"
 //! transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } }
 //! ```
+//!
+//! A config without `[table]`, `[chamber]` and `[gyro]` describes the embedded simulated
+//! bench: `bench run --bench` then runs the in-process simulators in virtual time, at the
+//! config's site and with its `[simulation]` settings (effects beyond the gyro's model, which
+//! the recording conceals). `bench sim serve --bench` takes the same settings.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -27,6 +32,7 @@ use bench_drivers::real::gyro_can::{CanGyro, CanGyroConfig};
 use bench_drivers::real::gyro_kvh::{Dsp3000Config, Dsp3000Gyro, Kvh1750Config, Kvh1750Gyro};
 use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
 use bench_drivers::{Clock, DeviceError, Gyro};
+use bench_physics::effects::Effects;
 use serde::{Deserialize, Serialize};
 
 use crate::plan::Site;
@@ -43,12 +49,29 @@ pub struct BenchConfig {
     /// Settings of bench itself.
     #[serde(default)]
     pub bench: BenchSettings,
-    /// The rate table's driver.
-    pub table: TableDriverConfig,
+    /// The rate table's driver; absent (with `chamber` and `gyro`) for the embedded simulated
+    /// bench.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<TableDriverConfig>,
     /// The chamber's driver (Modbus RTU or TCP).
-    pub chamber: ModbusChamberConfig,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chamber: Option<ModbusChamberConfig>,
     /// The gyro's driver.
-    pub gyro: GyroConfig,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<GyroConfig>,
+    /// Settings of the simulated bench (embedded, or served by `bench sim serve --bench`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<SimulationSettings>,
+}
+
+/// `[simulation]`: settings that only a simulated bench uses.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationSettings {
+    /// `[simulation.effects]`: effects beyond the gyro's model that the simulated gyro shows,
+    /// each replacing or adding to the scenario's truth effects (concealed: not recorded).
+    #[serde(default)]
+    pub effects: Effects,
 }
 
 /// `[bench]`: settings of the controller itself.
@@ -147,6 +170,12 @@ pub enum ConfigError {
         /// What is wrong.
         message: String,
     },
+    /// `connect` on a config without drivers (the embedded simulated bench).
+    #[error(
+        "the bench config names no drivers ([table], [chamber], [gyro]): it describes the \
+         embedded simulated bench"
+    )]
+    NoDrivers,
     /// A device could not be reached or did not answer as expected.
     #[error("{device}: {source}")]
     Connect {
@@ -201,6 +230,29 @@ impl BenchConfig {
         if b.max_consecutive_errors == 0 {
             return Err(bad("[bench] max_consecutive_errors must be at least 1".into()));
         }
+        let given = [cfg.table.is_some(), cfg.chamber.is_some(), cfg.gyro.is_some()];
+        if given.contains(&true) && given.contains(&false) {
+            let missing: Vec<&str> = ["[table]", "[chamber]", "[gyro]"]
+                .into_iter()
+                .zip(given)
+                .filter(|(_, g)| !g)
+                .map(|(n, _)| n)
+                .collect();
+            return Err(bad(format!(
+                "give all three device sections [table], [chamber], [gyro] (real drivers), or \
+                 none (the embedded simulated bench); missing: {}",
+                missing.join(", ")
+            )));
+        }
+        if let Some(sim) = &cfg.simulation {
+            crate::effects_toml::check_located(&sim.effects, text, &["simulation", "effects"])
+                .map_err(|(line, column, message)| ConfigError::Invalid {
+                    file: file.to_string(),
+                    line,
+                    column,
+                    message,
+                })?;
+        }
         if let Some(site) = &cfg.site {
             if !(-90.0..=90.0).contains(&site.latitude_deg) {
                 return Err(bad(format!(
@@ -216,6 +268,16 @@ impl BenchConfig {
             }
         }
         Ok(cfg)
+    }
+
+    /// Whether the config describes the embedded simulated bench (no device sections).
+    pub fn is_simulated(&self) -> bool {
+        self.table.is_none() && self.chamber.is_none() && self.gyro.is_none()
+    }
+
+    /// The `[simulation.effects]` (none without the section).
+    pub fn sim_effects(&self) -> Effects {
+        self.simulation.as_ref().map(|s| s.effects).unwrap_or_default()
     }
 
     /// The site as the plan holds it.
@@ -234,13 +296,17 @@ impl BenchConfig {
         &self,
         clock: Arc<dyn Clock>,
     ) -> Result<(Devices, Capabilities), ConfigError> {
-        let table = RateTableDriver::connect_with_clock(self.table.clone(), clock.clone())
+        let (Some(table), Some(chamber), Some(gyro)) = (&self.table, &self.chamber, &self.gyro)
+        else {
+            return Err(ConfigError::NoDrivers);
+        };
+        let table = RateTableDriver::connect_with_clock(table.clone(), clock.clone())
             .await
             .map_err(|source| ConfigError::Connect { device: "rate table", source })?;
-        let chamber = ModbusChamber::connect(self.chamber.clone(), clock.clone())
+        let chamber = ModbusChamber::connect(chamber.clone(), clock.clone())
             .await
             .map_err(|source| ConfigError::Connect { device: "chamber", source })?;
-        let gyro: Box<dyn Gyro> = match &self.gyro {
+        let gyro: Box<dyn Gyro> = match gyro {
             GyroConfig::Can(c) => Box::new(
                 CanGyro::open(c, clock.clone())
                     .await
@@ -293,7 +359,8 @@ pub struct ReplayBenchConfig {
 /// What `bench run --bench` names: devices to connect to, or a recording to replay.
 #[derive(Debug, Clone, PartialEq)]
 pub enum BenchSource {
-    /// `[table]`, `[chamber]`, `[gyro]`: real drivers or served simulators.
+    /// `[table]`, `[chamber]`, `[gyro]`: real drivers or served simulators; none of them: the
+    /// embedded simulated bench ([`BenchConfig::is_simulated`]).
     Devices(Box<BenchConfig>),
     /// `[replay]` or `replay:PATH`.
     Replay(ReplayBenchConfig),
@@ -412,12 +479,13 @@ pub fn for_served_bench(
             axis: if axis_up { "up" } else { "down" }.into(),
         }),
         bench: BenchSettings { time_scale, ..BenchSettings::default() },
-        table: TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn),
-        chamber: ModbusChamberConfig::new(
+        table: Some(TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn)),
+        chamber: Some(ModbusChamberConfig::new(
             endpoints.chamber_rtu.clone(),
             MapChoice::Preset(endpoints.chamber_preset),
-        ),
-        gyro: GyroConfig::Can(gyro),
+        )),
+        gyro: Some(GyroConfig::Can(gyro)),
+        simulation: None,
     }
 }
 
@@ -457,8 +525,10 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         assert_eq!(c.bench.policy().stale_after, std::time::Duration::from_secs(30));
         assert_eq!(c.bench.policy().max_consecutive_errors, 5);
         assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up)), Some((43.56, true)));
-        assert!(matches!(c.gyro, GyroConfig::Can(_)));
-        assert_eq!(c.chamber.unit_id, 1);
+        assert!(matches!(c.gyro, Some(GyroConfig::Can(_))));
+        assert_eq!(c.chamber.as_ref().map(|c| c.unit_id), Some(1));
+        assert!(!c.is_simulated());
+        assert_eq!(c.sim_effects(), Effects::default());
     }
 
     #[test]
@@ -517,6 +587,82 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
             .expect_err("rejected")
             .to_string();
         assert!(e.starts_with("r.toml:3:1: [replay] speed must be a positive number"), "{e}");
+    }
+
+    const SIM: &str = r#"[site]
+latitude_deg = 45.0
+
+[simulation.effects]
+earth_rate = true
+bias_step = { time_s = 100, step_rad_s = 1e-6 }
+
+[simulation.effects.warm_up]
+amplitude_rad_s = 1e-7
+time_constant_s = 900
+"#;
+
+    #[test]
+    fn a_config_without_drivers_is_the_simulated_bench_with_its_effects() {
+        use bench_physics::effects::{BiasStep, WarmUp};
+        let c = BenchConfig::parse(SIM, "sim.toml").expect("valid");
+        assert!(c.is_simulated());
+        let e = c.sim_effects();
+        assert!(e.earth_rate);
+        assert_eq!(e.bias_step, Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }));
+        assert_eq!(e.warm_up, Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }));
+        assert_eq!(e.ids().len(), 3);
+        // Written back, it reads the same.
+        let text = c.to_toml().expect("serialises");
+        assert_eq!(BenchConfig::parse(&text, "back.toml").expect("valid"), c);
+        // A lab config may carry [simulation] too.
+        let both = format!("{GOOD}\n{}", SIM.replace("[site]\nlatitude_deg = 45.0\n", ""));
+        let c = BenchConfig::parse(&both, "lab.toml").expect("valid");
+        assert!(!c.is_simulated() && c.sim_effects().earth_rate);
+    }
+
+    #[test]
+    fn bad_effects_in_the_bench_config_are_located() {
+        let e = |text: String| BenchConfig::parse(&text, "sim.toml").expect_err("rejected");
+        let msg = e(SIM.replace("time_constant_s = 900", "time_constant_s = 0")).to_string();
+        assert_eq!(
+            msg,
+            "sim.toml:10:19: [simulation.effects] warm_up.time_constant_s = 0: must be greater \
+             than zero"
+        );
+        let msg = e(SIM.replace("step_rad_s = 1e-6", "step_rad_s = nan")).to_string();
+        assert_eq!(
+            msg,
+            "sim.toml:6:42: [simulation.effects] bias_step.step_rad_s = NaN: must be a finite \
+             number"
+        );
+        let msg = e(SIM.replace("bias_step =", "bias_stop =")).to_string();
+        assert!(
+            msg.starts_with("sim.toml:6:1: unknown field `bias_stop`, expected one of"),
+            "{msg}"
+        );
+        assert!(msg.contains("`bias_step`") && msg.contains("`rate_squared`"), "{msg}");
+        let msg = e(SIM.replace("time_s = 100, ", "")).to_string();
+        assert!(msg.starts_with("sim.toml:6:13: missing field `time_s`"), "{msg}");
+        let msg = e(SIM.replace("amplitude_rad_s = 1e-7", "amplitude_rad_s = \"big\"")).to_string();
+        assert!(msg.starts_with("sim.toml:9:19: invalid type: string"), "{msg}");
+        let msg = e(SIM.replace("earth_rate = true", "earth_rate = true\ncolour = 1")).to_string();
+        assert!(msg.starts_with("sim.toml:6:1: unknown field `colour`"), "{msg}");
+    }
+
+    #[test]
+    fn drivers_are_all_or_none() {
+        let text = GOOD.replace("[gyro]\ndriver = \"can\"\n", "[nothing]\n");
+        let text = text.replace("[nothing]\ntransport = { kind = \"slcan\", serial = { path = \"/dev/ttyACM0\", baud = 115200 } }\n", "");
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
+        assert!(e.ends_with("missing: [gyro]"), "{e}");
+    }
+
+    #[tokio::test]
+    async fn a_config_without_drivers_cannot_connect() {
+        let c = BenchConfig::parse(SIM, "sim.toml").expect("valid");
+        let clock: Arc<dyn Clock> = Arc::new(bench_drivers::SystemClock::new(1.0));
+        let e = c.connect(clock).await.err().expect("no drivers");
+        assert!(matches!(e, ConfigError::NoDrivers), "{e}");
     }
 
     #[tokio::test]

@@ -18,6 +18,8 @@
 
 pub mod bench_config;
 pub mod calibrate;
+pub mod diagnose;
+mod effects_toml;
 pub mod export;
 pub mod live_view;
 pub mod plan;
@@ -27,6 +29,7 @@ pub mod record;
 pub mod recording;
 pub mod recover;
 pub mod replay;
+pub(crate) mod report;
 pub mod run;
 pub mod scenario;
 pub mod simulate;

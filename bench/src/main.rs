@@ -37,6 +37,8 @@ enum Command {
     Recover(cli::recover::RecoverArgs),
     /// Export a recording's channels as CSV or Parquet tables, one per channel.
     Export(cli::export::ExportArgs),
+    /// Where a recording departs from the simulation of its run: missing physics named and fitted.
+    Diagnose(cli::diagnose::DiagnoseArgs),
     /// List the serial ports of this machine.
     Ports,
     /// The simulated bench behind virtual ports.
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
         Command::Replay(a) => cli::replay::run(a),
         Command::Recover(a) => cli::recover::run(a),
         Command::Export(a) => cli::export::run(a),
+        Command::Diagnose(a) => cli::diagnose::run(a),
         Command::Ports => cli::ports::run(),
         Command::Sim(c) => cli::sim::run(c),
     };

@@ -6,6 +6,7 @@
 
 use std::time::Duration;
 
+use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 
 /// A validated, fully expanded scenario.
@@ -55,6 +56,10 @@ pub struct GyroSetup {
     pub sample_rate_hz: f64,
     /// The nominal error model written to `bench.gyro_model`.
     pub model: GyroModel,
+    /// Effects beyond the model that the lab believes in (`[gyro.model.effects]`, or a model
+    /// file's `[effects]`): written to `bench.gyro_model` as `effect.*` keys, and the starting
+    /// point of the simulator's [`SimSetup::truth_effects`].
+    pub effects: Effects,
 }
 
 /// Settings of the in-process simulated bench.
@@ -64,6 +69,10 @@ pub struct SimSetup {
     pub initial_temp_c: f64,
     /// The simulator's true gyro model (defaults to the nominal one).
     pub truth: GyroModel,
+    /// Effects the simulated gyro shows: [`GyroSetup::effects`], each effect named in
+    /// `[simulation.truth.effects]` replacing, adding or (with `false`) removing one. Never
+    /// written to the recording beyond what `GyroSetup::effects` already says: concealed.
+    pub truth_effects: Effects,
 }
 
 /// One step of the plan.

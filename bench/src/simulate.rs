@@ -1,6 +1,7 @@
 //! The embedded default bench: run a plan against the in-process simulators in virtual time
 //! and record it to MCAP.
 
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
@@ -10,6 +11,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use bench_drivers::clock::{run_virtual, VirtualClock};
 use bench_drivers::Clock;
+use bench_physics::effects::Effects;
+use bench_physics::GyroModel;
 use bench_sim::{SimBench, SimConfig};
 
 use crate::live_view::LiveTee;
@@ -73,6 +76,7 @@ pub fn sim_config(plan: &RunPlan, seed: u64) -> SimConfig {
     SimConfig {
         seed,
         gyro_model: plan.sim.truth.clone(),
+        gyro_effects: plan.sim.truth_effects,
         gyro_sample_rate_hz: plan.gyro.sample_rate_hz,
         latitude_deg: plan.site.latitude_deg,
         axis_up: plan.site.axis_up,
@@ -89,13 +93,26 @@ pub fn run_info(plan: &RunPlan, epoch_ns: u64) -> RunInfo {
         height_m: plan.site.height_m,
         axis: Some(if plan.site.axis_up { Axis::Up } else { Axis::Down }),
     };
-    let mut info =
-        RunInfo::new(epoch_ns, &plan.name, &plan.text, site, plan.gyro.model.to_metadata());
+    let mut info = RunInfo::new(
+        epoch_ns,
+        &plan.name,
+        &plan.text,
+        site,
+        gyro_model_metadata(&plan.gyro.model, &plan.gyro.effects),
+    );
     info.scenario_attachment = Path::new(&plan.source)
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .or(info.scenario_attachment);
     info
+}
+
+/// `bench.gyro_model` metadata: the contract's keys of `model` and the `effect.*` keys of
+/// `effects` (extra keys, which the contract allows).
+pub fn gyro_model_metadata(model: &GyroModel, effects: &Effects) -> BTreeMap<String, String> {
+    let mut meta = model.to_metadata();
+    meta.extend(effects.to_metadata());
+    meta
 }
 
 /// Load the scenario at `scenario`, validate it against the simulated bench, run it and write
@@ -143,9 +160,11 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     let (table, chamber, gyro) = sim.into_parts();
     let devices =
         Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
-    // The contract's `bench.gyro_model` is "the model the simulator used": the truth.
+    // The contract's `bench.gyro_model` is "the model the simulator used": the truth's base
+    // keys, plus the nominal effects (what the lab believes). The truth's own effects stay
+    // concealed.
     let mut info = run_info(plan, opts.epoch_ns);
-    info.gyro_model = plan.sim.truth.to_metadata();
+    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &plan.gyro.effects);
     run_devices_virtual(plan, devices, &clock, info, writer, opts, console)
 }
 

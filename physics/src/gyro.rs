@@ -15,11 +15,14 @@
 //!
 //! with `T` the gyro's own temperature (the payload of [`crate::chamber::ChamberModel`],
 //! lagging chamber air by `thermal_time_constant`). The output is the sum of the named terms of
-//! [`GyroTerms`]; further truth effects (thermal hysteresis, quadratic temperature, scale
-//! factor versus temperature, once-per-revolution, time offset, warm-up, bias steps, rate²)
-//! belong there as further fields computed from [`SampleInputs`].
+//! [`GyroTerms`]. Effects beyond the model ([`crate::effects`], switched on with
+//! [`GyroSampler::with_effects`]) add their term `effects`; `thermal_lag` makes the thermal
+//! terms follow `T` through a further lag, and `time_offset` is applied by the caller, which
+//! passes the table angle at `t − δ`.
 
 use crate::earth::vertical_rate_rad_s;
+use crate::effects::{EffectSample, Effects, HysteresisState};
+use crate::lag::FirstOrderLag;
 use crate::noise::GyroNoise;
 use crate::units::quantise;
 use crate::GyroModel;
@@ -62,6 +65,8 @@ pub struct GyroTerms {
     pub temperature: f64,
     /// Temperature-rate term `temp_rate_coeff·dT/dt`.
     pub temperature_rate: f64,
+    /// Effects beyond the model ([`crate::effects`]), 0 without any.
+    pub effects: f64,
     /// Noise.
     pub noise: f64,
 }
@@ -75,6 +80,7 @@ impl GyroTerms {
             + self.bias
             + self.temperature
             + self.temperature_rate
+            + self.effects
             + self.noise
     }
 
@@ -97,6 +103,7 @@ pub fn sample_terms(model: &GyroModel, inp: &SampleInputs) -> GyroTerms {
         bias: model.bias,
         temperature: model.temp_coeff * (t_mean - model.reference_temperature),
         temperature_rate: model.temp_rate_coeff * (inp.temp_end_c - inp.temp_start_c) / dt,
+        effects: 0.0,
         noise: inp.noise_rad_s,
     }
 }
@@ -121,6 +128,12 @@ pub struct GyroSampler {
     prev_t_s: f64,
     prev_angle_rad: f64,
     prev_temp_c: f64,
+    effects: Effects,
+    /// Start of the run (power-on), s.
+    t_on_s: f64,
+    /// The bias-driving temperature through the effect `thermal_lag` (its previous value).
+    coil: FirstOrderLag,
+    hysteresis: HysteresisState,
 }
 
 impl GyroSampler {
@@ -144,15 +157,35 @@ impl GyroSampler {
             prev_t_s: 0.0,
             prev_angle_rad: 0.0,
             prev_temp_c: temp0_c,
+            effects: Effects::default(),
+            t_on_s: 0.0,
+            coil: FirstOrderLag::new(0.0, temp0_c),
+            hysteresis: HysteresisState::new(Effects::default().hysteresis_threshold_c_s()),
         }
+    }
+
+    /// The same gyro with `effects` beyond its model switched on (the truth of a simulation
+    /// whose recording keeps them concealed); the coil starts at the gyro's temperature.
+    pub fn with_effects(mut self, effects: Effects) -> Self {
+        self.coil = FirstOrderLag::new(effects.lag_s(), self.prev_temp_c);
+        self.hysteresis = HysteresisState::new(effects.hysteresis_threshold_c_s());
+        self.effects = effects;
+        self
+    }
+
+    /// The effects beyond the model.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
     }
 
     /// The same gyro starting at time `t0_s` with the table at `angle0_rad` and the gyro at
     /// `temp0_c`.
     pub fn starting_at(mut self, t0_s: f64, angle0_rad: f64, temp0_c: f64) -> Self {
         self.prev_t_s = t0_s;
+        self.t_on_s = t0_s;
         self.prev_angle_rad = angle0_rad;
         self.prev_temp_c = temp0_c;
+        self.coil = FirstOrderLag::new(self.effects.lag_s(), temp0_c);
         self
     }
 
@@ -168,22 +201,48 @@ impl GyroSampler {
     }
 
     /// The sample over `(previous sample, t_end_s]`, given the table's true angle and the gyro's
-    /// true temperature at `t_end_s`.
+    /// true temperature at `t_end_s` (with a `time_offset` effect, the angle at `t_end_s − δ`).
     #[inline]
     pub fn sample(&mut self, t_end_s: f64, table_angle_rad: f64, temp_c: f64) -> GyroTerms {
+        let dt_s = t_end_s - self.prev_t_s;
+        let (temp_start_c, temp_end_c) = if self.effects.thermal_lag.is_some() {
+            let start = self.coil.value();
+            (start, self.coil.step_linear(self.prev_temp_c, temp_c, dt_s))
+        } else {
+            (self.prev_temp_c, temp_c)
+        };
         let inp = SampleInputs {
             t_end_s,
-            dt_s: t_end_s - self.prev_t_s,
+            dt_s,
             delta_angle_rad: self.axis_sign * (table_angle_rad - self.prev_angle_rad),
             earth_rate_rad_s: self.earth_rad_s,
-            temp_start_c: self.prev_temp_c,
-            temp_end_c: temp_c,
+            temp_start_c,
+            temp_end_c,
             noise_rad_s: self.noise.next_sample(),
         };
+        let mut terms = sample_terms(&self.model, &inp);
+        if self.effects.any() {
+            let earth = if self.model.earth_rate || self.effects.earth_rate {
+                self.earth_rad_s
+            } else {
+                0.0
+            };
+            let rate_c_s = if dt_s > 0.0 { (temp_end_c - temp_start_c) / dt_s } else { 0.0 };
+            let s = EffectSample {
+                t_s: t_end_s - self.t_on_s,
+                input_rad_s: terms.input + earth,
+                temp_minus_ref_c: 0.5 * (temp_start_c + temp_end_c)
+                    - self.model.reference_temperature,
+                angle_mid_rad: 0.5 * (table_angle_rad + self.prev_angle_rad),
+                hysteresis: self.hysteresis.update(rate_c_s),
+                earth_rad_s: self.earth_rad_s,
+            };
+            terms.effects = self.effects.value(&s, 1.0 + self.model.scale_factor_error);
+        }
         self.prev_t_s = t_end_s;
         self.prev_angle_rad = table_angle_rad;
         self.prev_temp_c = temp_c;
-        sample_terms(&self.model, &inp)
+        terms
     }
 
     /// The gyro's temperature readout: `temp_c` quantised to [`TEMPERATURE_RESOLUTION_C`].

@@ -14,6 +14,7 @@
 pub mod allan;
 pub mod chamber;
 pub mod earth;
+pub mod effects;
 pub mod gyro;
 pub mod gyro_model;
 pub mod lag;

@@ -2,6 +2,7 @@
 
 use bench_drivers::{ChamberCapabilities, DeviceInfo, GyroCapabilities, TableCapabilities};
 use bench_physics::chamber::ChamberParams;
+use bench_physics::effects::Effects;
 use bench_physics::table::TableParams;
 use bench_physics::units::DEG;
 use bench_physics::GyroModel;
@@ -44,6 +45,9 @@ pub struct SimConfig {
     pub seed: u64,
     /// The gyro's true error model (default: [`GyroModel::default`], the seed's gyro).
     pub gyro_model: GyroModel,
+    /// Effects beyond the model that the simulated gyro also shows (default: none); a
+    /// recording keeps them out of `bench.gyro_model`, so they are concealed.
+    pub gyro_effects: Effects,
     /// Gyro output rate, Hz (default 20); must be one of `gyro.sample_rates_hz`.
     pub gyro_sample_rate_hz: f64,
     /// Latitude of the bench, degrees north (default 59.94, St Petersburg).
@@ -65,6 +69,7 @@ impl Default for SimConfig {
         Self {
             seed: 0,
             gyro_model: GyroModel::default(),
+            gyro_effects: Effects::default(),
             gyro_sample_rate_hz: 20.0,
             latitude_deg: 59.94,
             axis_up: true,
@@ -155,6 +160,7 @@ impl SimConfig {
                 ),
             ));
         }
+        self.gyro_effects.validate().map_err(|e| err("gyro_effects", e))?;
         positive("chamber.max_heat_rate_c_s", c.max_heat_rate_c_s)?;
         positive("chamber.max_cool_rate_c_s", c.max_cool_rate_c_s)?;
         positive("chamber.air_heat_slew_c_s", c.air_heat_slew_c_s)?;

@@ -61,7 +61,8 @@ impl World {
                 STREAM_GYRO,
                 mounting,
                 cfg.initial_temp_c,
-            ),
+            )
+            .with_effects(cfg.gyro_effects),
             gyro_recent: std::collections::VecDeque::with_capacity(GYRO_RECENT),
             last_t_s: 0.0,
         }
@@ -100,7 +101,8 @@ impl World {
             _ => {}
         }
         self.seen(t_s);
-        let angle = self.table.true_angle(t_s);
+        // A gyro whose time tags are late by δ reports at t the motion up to t − δ.
+        let angle = self.table.true_angle(t_s - self.gyro.effects().offset_s());
         let temp = self.chamber.state(t_s).payload_c;
         let terms = self.gyro.sample(t_s, angle, temp);
         if self.gyro_recent.len() == GYRO_RECENT {

@@ -74,6 +74,7 @@ fn thermal_short_is_recovered_within_the_stated_errors_and_the_files_load_back()
         source: Source::default(),
         gyro_model: ModelKeys::from(&model),
         uncertainty: Uncertainty::default(),
+        effects: Default::default(),
     };
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("calibration.toml");

@@ -54,9 +54,13 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
     let mut config =
         for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up);
     // Short wall-clock reply timeouts keep the test quick; the policy is the same.
-    config.table.reply_timeout_s = 0.05;
-    config.table.retries = 1;
-    config.chamber.request_timeout_ms = 50;
+    if let Some(table) = config.table.as_mut() {
+        table.reply_timeout_s = 0.05;
+        table.retries = 1;
+    }
+    if let Some(chamber) = config.chamber.as_mut() {
+        chamber.request_timeout_ms = 50;
+    }
     let clock = SystemClock::new(SCALE);
     let (devices, _) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");
     let faults = served.faults.clone();

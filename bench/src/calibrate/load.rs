@@ -145,6 +145,32 @@ fn meta_num(
     }
 }
 
+/// `bench.site`: latitude (degrees north, if given) and whether the sensing axis points up
+/// (the default), each checked against the contract.
+pub fn site(rec: &Recording) -> Result<(Option<f64>, bool), CalibrateError> {
+    let Some(site) = rec.metadata(META_SITE) else { return Ok((None, true)) };
+    let lat = meta_num(site, META_SITE, "latitude_deg")?;
+    if let Some(l) = lat.filter(|l| !(-90.0..=90.0).contains(l)) {
+        return Err(CalibrateError::BadMetadata {
+            record: META_SITE,
+            key: "latitude_deg",
+            value: l.to_string(),
+        });
+    }
+    let axis_up = match site.get("axis").map(|a| a.trim()) {
+        None | Some("up") => true,
+        Some("down") => false,
+        Some(other) => {
+            return Err(CalibrateError::BadMetadata {
+                record: META_SITE,
+                key: "axis",
+                value: other.to_owned(),
+            })
+        }
+    };
+    Ok((lat, axis_up))
+}
+
 /// Table rate as the slope of its angle (module docs); empty for fewer than 3 samples.
 fn angle_rate(time_s: &[f64], angle_rad: &[f64]) -> Result<Vec<f64>, CalibrateError> {
     if time_s.len() < 3 {
@@ -154,7 +180,7 @@ fn angle_rate(time_s: &[f64], angle_rad: &[f64]) -> Result<Vec<f64>, CalibrateEr
 }
 
 /// Keep only strictly increasing times (a duplicate time stamp keeps its first sample).
-fn strictly_increasing(t: &mut Vec<f64>, cols: &mut [&mut Vec<f64>]) {
+pub(crate) fn strictly_increasing(t: &mut Vec<f64>, cols: &mut [&mut Vec<f64>]) {
     let mut keep = 0;
     for i in 0..t.len() {
         if keep == 0 || t[i] > t[keep - 1] {
@@ -185,31 +211,7 @@ pub fn calibration_data(rec: &Recording) -> Result<CalibrationData, CalibrateErr
     let origin_ns = rec.gyro[0].log_time_ns;
 
     // Site and model.
-    let (latitude_deg, axis_up) = match rec.metadata(META_SITE) {
-        None => (None, true),
-        Some(site) => {
-            let lat = meta_num(site, META_SITE, "latitude_deg")?;
-            if let Some(l) = lat.filter(|l| !(-90.0..=90.0).contains(l)) {
-                return Err(CalibrateError::BadMetadata {
-                    record: META_SITE,
-                    key: "latitude_deg",
-                    value: l.to_string(),
-                });
-            }
-            let axis_up = match site.get("axis").map(|a| a.trim()) {
-                None | Some("up") => true,
-                Some("down") => false,
-                Some(other) => {
-                    return Err(CalibrateError::BadMetadata {
-                        record: META_SITE,
-                        key: "axis",
-                        value: other.to_owned(),
-                    })
-                }
-            };
-            (lat, axis_up)
-        }
-    };
+    let (latitude_deg, axis_up) = site(rec)?;
     let model = rec
         .metadata(META_GYRO_MODEL)
         .map(GyroModel::from_metadata)

@@ -19,13 +19,22 @@
 //!
 //! [source]                      # where it came from (optional, informative)
 //! recording = "run.mcap"
+//!
+//! [effects]                     # effects beyond the model (optional; see docs/scenario.md)
+//! earth_rate = false
+//! warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900.0 }
 //! ```
 //!
 //! `[gyro_model]` must hold every key; unknown keys anywhere in it are errors (a typo must not
-//! silently fall back to zero). Errors name file, line and column.
+//! silently fall back to zero). `[effects]` takes the ids of [`bench_physics::effects`], each
+//! with every parameter of its struct. Errors name file, line and column.
+//!
+//! [`write_model_file`] / [`model_file_toml`] write a file from a model and effects (what
+//! `bench calibrate` and `bench diagnose` produce).
 
 use std::path::Path;
 
+use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use serde::{Deserialize, Serialize};
 
@@ -129,6 +138,14 @@ pub struct CalibrationFile {
     /// 1σ of the fitted coefficients.
     #[serde(default)]
     pub uncertainty: Uncertainty,
+    /// Effects beyond the model (none when the section is absent): recorded as `effect.*`
+    /// keys of `bench.gyro_model` and, on the simulated bench, simulated.
+    #[serde(default, skip_serializing_if = "no_effects")]
+    pub effects: Effects,
+}
+
+fn no_effects(e: &Effects) -> bool {
+    !e.any()
 }
 
 /// A calibration file that cannot be used.
@@ -155,6 +172,14 @@ pub enum ModelFileError {
         /// What is wrong.
         message: String,
     },
+    /// Effects that cannot be written: a file with them would not load back.
+    #[error("{path}: not written: [effects] {message}")]
+    BadEffects {
+        /// File.
+        path: String,
+        /// Which parameter and what is wrong.
+        message: String,
+    },
     /// A value out of range.
     #[error("{path}: [gyro_model] {key} = {value}: {why}")]
     Invalid {
@@ -170,6 +195,16 @@ pub enum ModelFileError {
 }
 
 impl CalibrationFile {
+    /// A file holding `model` and `effects`, with where it came from and the 1σ uncertainties.
+    pub fn new(
+        model: &GyroModel,
+        effects: &Effects,
+        source: Source,
+        uncertainty: Uncertainty,
+    ) -> Self {
+        Self { source, gyro_model: ModelKeys::from(model), uncertainty, effects: *effects }
+    }
+
     /// The gyro model.
     pub fn model(&self) -> GyroModel {
         GyroModel::from(&self.gyro_model)
@@ -179,8 +214,9 @@ impl CalibrationFile {
     pub fn to_toml(&self) -> String {
         let body = toml::to_string_pretty(self).unwrap_or_default();
         format!(
-            "# Gyro thermal calibration written by bench calibrate. SI units, named in the keys;\n\
-             # [uncertainty] holds 1σ standard errors. Load with `bench run --gyro-model FILE`.\n\n{body}"
+            "# Gyro model written by bench. SI units, named in the keys; [uncertainty] holds 1σ\n\
+             # standard errors, [effects] effects beyond the model. Load with\n\
+             # `bench run --gyro-model FILE`.\n\n{body}"
         )
     }
 
@@ -247,6 +283,14 @@ impl CalibrationFile {
                 return Err(ModelFileError::Invalid { path: path.to_owned(), key, value, why });
             }
         }
+        crate::effects_toml::check_located(&file.effects, text, &["effects"]).map_err(
+            |(line, column, message)| ModelFileError::Parse {
+                path: path.to_owned(),
+                line,
+                column,
+                message,
+            },
+        )?;
         Ok(file)
     }
 
@@ -257,11 +301,39 @@ impl CalibrationFile {
         Self::parse(&text, &path.display().to_string())
     }
 
-    /// Write the file.
+    /// Write the file. Effects that [`CalibrationFile::parse`] would reject (not finite, a
+    /// time constant not positive) are refused, naming the parameter.
     pub fn save(&self, path: &Path) -> Result<(), ModelFileError> {
+        self.effects.validate().map_err(|message| ModelFileError::BadEffects {
+            path: path.display().to_string(),
+            message,
+        })?;
         std::fs::write(path, self.to_toml())
             .map_err(|source| ModelFileError::Io { path: path.display().to_string(), source })
     }
+}
+
+/// The model file for `model` and `effects` (with `source` and the 1σ `uncertainty`) as TOML
+/// text, the format [`CalibrationFile::parse`] and `bench run --gyro-model` read back exactly.
+pub fn model_file_toml(
+    model: &GyroModel,
+    effects: &Effects,
+    source: &Source,
+    uncertainty: &Uncertainty,
+) -> String {
+    CalibrationFile::new(model, effects, source.clone(), uncertainty.clone()).to_toml()
+}
+
+/// Write the model file for `model` and `effects` (with `source` and the 1σ `uncertainty`)
+/// to `path`; refuses effects that would not load back (see [`CalibrationFile::save`]).
+pub fn write_model_file(
+    path: &Path,
+    model: &GyroModel,
+    effects: &Effects,
+    source: &Source,
+    uncertainty: &Uncertainty,
+) -> Result<(), ModelFileError> {
+    CalibrationFile::new(model, effects, source.clone(), uncertainty.clone()).save(path)
 }
 
 /// 1-based line and column (in characters) of byte offset `at` in `text`.
@@ -283,6 +355,7 @@ mod tests {
             source: Source { recording: "x.mcap".into(), ..Source::default() },
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty { bias_rad_s: Some(1e-9), ..Uncertainty::default() },
+            effects: Effects::default(),
         };
         let back = CalibrationFile::parse(&f.to_toml(), "cal.toml").expect("parses");
         assert_eq!(back, f);
@@ -296,6 +369,7 @@ mod tests {
             source: Source::default(),
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty::default(),
+            effects: Effects::default(),
         };
         let text = f.to_toml().replace("temp_coeff_rad_s_per_c =", "temp_cof_rad_s_per_c =");
         let e = CalibrationFile::parse(&text, "cal.toml").expect_err("rejects");
@@ -315,11 +389,135 @@ mod tests {
             source: Source::default(),
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty::default(),
+            effects: Effects::default(),
         };
         let e = CalibrationFile::parse(&f.to_toml(), "c.toml").expect_err("negative");
         assert_eq!(
             e.to_string(),
             "c.toml: [gyro_model] arw_rad_per_sqrt_s = -1: must be finite and not negative"
         );
+    }
+}
+
+#[cfg(test)]
+mod effects_tests {
+    use bench_physics::effects::{BiasStep, OncePerRevolution, ThermalLag, WarmUp};
+
+    use super::*;
+
+    fn fitted() -> Effects {
+        Effects {
+            earth_rate: true,
+            thermal_lag: Some(ThermalLag { time_constant_s: 412.25 }),
+            once_per_revolution: Some(OncePerRevolution {
+                amplitude_rad_s: 2.0000000000000004e-8,
+                phase_rad: -0.1 - 0.2,
+            }),
+            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
+            bias_step: Some(BiasStep { time_s: 3600.5, step_rad_s: -3e-9 }),
+            ..Effects::default()
+        }
+    }
+
+    #[test]
+    fn the_writer_round_trips_model_and_effects_exactly() {
+        let model = GyroModel { temp_coeff: 4.67e-9, ..GyroModel::default() };
+        let source = Source {
+            recording: "run.mcap".into(),
+            software: "bench test".into(),
+            method: "diagnose".into(),
+        };
+        let unc = Uncertainty { bias_rad_s: Some(1.25e-8), ..Uncertainty::default() };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("model.toml");
+        write_model_file(&path, &model, &fitted(), &source, &unc).expect("writes");
+        let back = CalibrationFile::load(&path).expect("loads");
+        assert_eq!(back.model(), model);
+        assert_eq!(back.effects, fitted());
+        assert_eq!(back.source, source);
+        assert_eq!(back.uncertainty, unc);
+        let text = model_file_toml(&model, &fitted(), &source, &unc);
+        assert!(text.contains("[effects]"), "{text}");
+        assert!(text.contains("[effects.warm_up]") || text.contains("warm_up = {"), "{text}");
+        // Without effects there is no [effects] section, and it reads back as none.
+        let plain = model_file_toml(&model, &Effects::default(), &source, &unc);
+        assert!(!plain.contains("\n[effects"), "{plain}");
+        let back = CalibrationFile::parse(&plain, "plain.toml").expect("parses");
+        assert_eq!(back.effects, Effects::default());
+    }
+
+    #[test]
+    fn an_effects_section_written_by_hand_is_read() {
+        let base = model_file_toml(
+            &GyroModel::default(),
+            &Effects::default(),
+            &Source::default(),
+            &Uncertainty::default(),
+        );
+        let text = format!(
+            "{base}\n[effects]\nearth_rate = true\nwarm_up = {{ amplitude_rad_s = 1e-7, \
+             time_constant_s = 900 }}\n"
+        );
+        let f = CalibrationFile::parse(&text, "m.toml").expect("parses");
+        assert!(f.effects.earth_rate);
+        assert_eq!(
+            f.effects.warm_up,
+            Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 })
+        );
+    }
+
+    #[test]
+    fn bad_effects_are_located_and_refused_by_the_writer() {
+        let base = model_file_toml(
+            &GyroModel::default(),
+            &Effects::default(),
+            &Source::default(),
+            &Uncertainty::default(),
+        );
+        // The effect's line: right after the `[effects]` header appended below.
+        let line = format!("{base}\n[effects]\n").lines().count() + 1;
+        let bad = |effects: &str| {
+            CalibrationFile::parse(&format!("{base}\n[effects]\n{effects}\n"), "m.toml")
+                .expect_err("rejected")
+                .to_string()
+        };
+        assert_eq!(
+            bad("warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 0 }"),
+            format!(
+                "m.toml:{line}:55: [effects] warm_up.time_constant_s = 0: must be greater than zero"
+            )
+        );
+        assert_eq!(
+            bad("bias_step = { time_s = inf, step_rad_s = 1e-9 }"),
+            format!("m.toml:{line}:24: [effects] bias_step.time_s = inf: must be a finite number")
+        );
+        let e = bad("warmup = { amplitude_rad_s = 1e-7, time_constant_s = 9 }");
+        assert!(e.starts_with(&format!("m.toml:{line}:1: unknown field `warmup`")), "{e}");
+        assert!(e.contains("`warm_up`"), "{e}");
+        let e = bad("warm_up = { amplitude_rad_s = 1e-7 }");
+        assert!(
+            e.starts_with(&format!("m.toml:{line}:11: missing field `time_constant_s`")),
+            "{e}"
+        );
+        let e = bad("warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 9, tau_s = 1 }");
+        assert!(
+            e.starts_with(&format!("m.toml:{line}:")) && e.contains("unknown field `tau_s`"),
+            "{e}"
+        );
+
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("bad.toml");
+        let mut effects = fitted();
+        effects.thermal_lag = Some(ThermalLag { time_constant_s: -1.0 });
+        let e = write_model_file(
+            &path,
+            &GyroModel::default(),
+            &effects,
+            &Source::default(),
+            &Uncertainty::default(),
+        )
+        .expect_err("refused");
+        assert!(e.to_string().contains("thermal_lag.time_constant_s"), "{e}");
+        assert!(!path.exists());
     }
 }

@@ -89,13 +89,27 @@ pub fn run(
     count: u64,
     jobs: usize,
     settings: &CalibrateSettings,
-    mut on_seed: impl FnMut(&SeedResult) + Send,
+    on_seed: impl FnMut(&SeedResult) + Send,
 ) -> anyhow::Result<MonteCarlo> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
-    let next = Mutex::new(first_seed);
+    let seeds =
+        parallel_seeds(first_seed, count, jobs, |seed| one_seed(&plan, seed, settings), on_seed)?;
+    Ok(summarise(scenario.display().to_string(), seeds))
+}
+
+/// Run `work` for seeds `first..first + count` on `jobs` threads, calling `on_done` as each
+/// finishes; results in seed order. The first error stops the study and is returned.
+pub fn parallel_seeds<R: Send>(
+    first: u64,
+    count: u64,
+    jobs: usize,
+    work: impl Fn(u64) -> anyhow::Result<R> + Sync,
+    mut on_done: impl FnMut(&R) + Send,
+) -> anyhow::Result<Vec<R>> {
+    let next = Mutex::new(first);
     let results = Mutex::new(Vec::new());
-    let report = Mutex::new(&mut on_seed);
-    let end = first_seed + count;
+    let report = Mutex::new(&mut on_done);
+    let end = first + count;
     std::thread::scope(|s| -> anyhow::Result<()> {
         let handles: Vec<_> = (0..jobs.max(1))
             .map(|_| {
@@ -109,12 +123,11 @@ pub fn run(
                             *n += 1;
                             *n - 1
                         };
-                        let r = one_seed(&plan, seed, settings)
-                            .with_context(|| format!("seed {seed}"))?;
+                        let r = work(seed).with_context(|| format!("seed {seed}"))?;
                         if let Ok(mut f) = report.lock() {
                             (*f)(&r);
                         }
-                        results.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.push(r);
+                        results.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.push((seed, r));
                     }
                 })
             })
@@ -124,9 +137,9 @@ pub fn run(
         }
         Ok(())
     })?;
-    let mut seeds = results.into_inner().map_err(|_| anyhow::anyhow!("poisoned"))?;
-    seeds.sort_by_key(|r| r.seed);
-    Ok(summarise(scenario.display().to_string(), seeds))
+    let mut out = results.into_inner().map_err(|_| anyhow::anyhow!("poisoned"))?;
+    out.sort_by_key(|(seed, _)| *seed);
+    Ok(out.into_iter().map(|(_, r)| r).collect())
 }
 
 fn one_seed(

@@ -28,79 +28,12 @@
 
 mod figures;
 mod html;
-mod plot;
 mod series;
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-/// Files written by [`write_report`].
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ReportFiles {
-    /// The HTML page.
-    pub html: PathBuf,
-    /// One PNG per figure, in figure order.
-    pub pngs: Vec<PathBuf>,
-}
-
-/// Why a report could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum ReportError {
-    /// A file or the directory could not be written.
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// The path.
-        path: PathBuf,
-        /// The cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A PNG could not be encoded.
-    #[error("cannot encode {path}: {source}")]
-    Png {
-        /// The PNG's path.
-        path: PathBuf,
-        /// The cause.
-        #[source]
-        source: png::EncodingError,
-    },
-    /// The embedded font could not be loaded for drawing text.
-    #[error("the report's embedded font (DejaVu Sans) could not be loaded")]
-    Font,
-    /// A figure could not be drawn.
-    #[error("figure `{figure}` ({format}): {source}")]
-    Plot {
-        /// The figure's file stem.
-        figure: &'static str,
-        /// `svg` or `png`.
-        format: &'static str,
-        /// The drawing backend's error.
-        #[source]
-        source: Box<dyn std::error::Error + Send + Sync>,
-    },
-}
-
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
-    move |source| ReportError::Io { path: path.to_path_buf(), source }
-}
-
-/// Encode packed RGB pixels as a PNG file at `path`.
-fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), ReportError> {
-    let file = File::create(path).map_err(io_err(path))?;
-    let mut out = BufWriter::new(file);
-    let png_err = |source| ReportError::Png { path: path.to_path_buf(), source };
-    {
-        let mut enc = png::Encoder::new(&mut out, w, h);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_compression(png::Compression::Fast);
-        let mut writer = enc.write_header().map_err(png_err)?;
-        writer.write_image_data(rgb).map_err(png_err)?;
-        writer.finish().map_err(png_err)?;
-    }
-    out.flush().map_err(io_err(path))
-}
+use crate::report::io_err;
+pub use crate::report::{ReportError, ReportFiles};
 
 /// Write `report.html` (figures as embedded inline SVG) and one PNG per figure into `dir`
 /// (created if missing). `source` is the recording's file name, for the title.
@@ -109,53 +42,8 @@ pub fn write_report(
     source: &str,
     dir: &Path,
 ) -> Result<ReportFiles, ReportError> {
-    if !plot::register_fonts() {
-        return Err(ReportError::Font);
-    }
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
-    let figs = figures::figures(outcome);
-
-    // Draw every figure twice (SVG text, RGB pixels) in parallel: rasterising dominates.
-    type Drawn = Result<(String, Vec<u8>), ReportError>;
-    let drawn: Vec<Drawn> = std::thread::scope(|s| {
-        let handles: Vec<_> = figs
-            .iter()
-            .map(|f| {
-                s.spawn(move || -> Drawn {
-                    let svg = plot::to_svg(&f.panels, f.size).map_err(|source| {
-                        ReportError::Plot { figure: f.name, format: "svg", source }
-                    })?;
-                    let rgb = plot::to_rgb(&f.panels, f.size).map_err(|source| {
-                        ReportError::Plot { figure: f.name, format: "png", source }
-                    })?;
-                    Ok((svg, rgb))
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .zip(&figs)
-            .map(|(h, f)| {
-                h.join().unwrap_or_else(|_| {
-                    Err(ReportError::Plot {
-                        figure: f.name,
-                        format: "svg/png",
-                        source: "the drawing thread panicked".into(),
-                    })
-                })
-            })
-            .collect()
-    });
-
-    let mut svgs = Vec::with_capacity(figs.len());
-    let mut pngs = Vec::with_capacity(figs.len());
-    for (f, d) in figs.into_iter().zip(drawn) {
-        let (svg, rgb) = d?;
-        let path = dir.join(format!("{}.png", f.name));
-        write_png(&path, &rgb, f.size)?;
-        pngs.push(path);
-        svgs.push((f, svg));
-    }
+    let svgs = crate::report::render(figures::figures(outcome), dir)?;
+    let pngs = svgs.iter().map(|(f, _)| dir.join(format!("{}.png", f.name))).collect();
     let page = html::page(outcome, source, &svgs);
     let html_path = dir.join("report.html");
     std::fs::write(&html_path, page).map_err(io_err(&html_path))?;
@@ -303,9 +191,9 @@ for.dir = ["cw", "ccw"]
 
         // The coefficient table holds the joint values in report units.
         let j = out.calibration.joint.as_ref().expect("joint fit on the short run");
-        let bias = html::sig(j.bias.value / bench_physics::units::DEG_PER_H, 4);
-        let tc = html::sig(j.temp_coeff.value / bench_physics::units::DEG_PER_H, 4);
-        let sf = html::sig(j.scale_factor_error.value * 1e6, 4);
+        let bias = crate::report::sig(j.bias.value / bench_physics::units::DEG_PER_H, 4);
+        let tc = crate::report::sig(j.temp_coeff.value / bench_physics::units::DEG_PER_H, 4);
+        let sf = crate::report::sig(j.scale_factor_error.value * 1e6, 4);
         for v in [&bias, &tc, &sf] {
             assert!(html.contains(&format!("<td>{v} ± ")), "joint value {v} in the table");
         }
@@ -347,10 +235,10 @@ for.dir = ["cw", "ccw"]
                 "fig8-allan"
             ]
         );
-        let points = |item: &plot::Item| match item {
-            plot::Item::Line { points, .. } => points.len(),
-            plot::Item::Band { points, .. } => points.len(),
-            plot::Item::Markers { points, .. } => points.len(),
+        let points = |item: &crate::report::plot::Item| match item {
+            crate::report::plot::Item::Line { points, .. } => points.len(),
+            crate::report::plot::Item::Band { points, .. } => points.len(),
+            crate::report::plot::Item::Markers { points, .. } => points.len(),
         };
         // Raw rate decimated to ≤ 4000 points, windows shaded.
         let raw = &figs[0].panels[0];
@@ -361,7 +249,7 @@ for.dir = ["cw", "ccw"]
         let marks: Vec<usize> = cw_ccw
             .items
             .iter()
-            .filter(|i| matches!(i, plot::Item::Markers { .. }))
+            .filter(|i| matches!(i, crate::report::plot::Item::Markers { .. }))
             .map(points)
             .collect();
         assert_eq!(marks, [2, 2, 2]);
@@ -385,7 +273,7 @@ for.dir = ["cw", "ccw"]
         assert!(figs[6].panels[0].note.as_deref().is_some_and(|n| n.contains("RMS")));
         let allan = &figs[7].panels[0];
         match &allan.items[0] {
-            plot::Item::Markers { points, .. } => {
+            crate::report::plot::Item::Markers { points, .. } => {
                 assert!(points.len() >= 3);
                 assert!(points
                     .iter()

@@ -134,6 +134,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
                 temp_coeff_rad_s_per_c: j.map(|j| j.temp_coeff.std_err),
                 temp_rate_coeff_rad_s_per_c_s: j.map(|j| j.temp_rate_coeff.std_err),
             },
+            effects: Default::default(),
         };
         let path = args.out.join("calibration.toml");
         file.save(&path)?;

@@ -1,6 +1,7 @@
 //! One file per subcommand.
 
 pub mod calibrate;
+pub mod diagnose;
 pub mod export;
 pub mod info;
 pub mod monte_carlo;

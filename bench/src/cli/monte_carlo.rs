@@ -25,6 +25,10 @@ pub struct MonteCarloArgs {
     /// Write every seed's result and the summary as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Study `bench diagnose` instead of the calibration: false discoveries on runs whose
+    /// truth is the nominal model, recovery of the scenario's concealed effects.
+    #[arg(long)]
+    pub diagnose: bool,
 }
 
 fn unit(key: &str) -> (&'static str, f64) {
@@ -36,10 +40,53 @@ fn unit(key: &str) -> (&'static str, f64) {
     }
 }
 
+/// The diagnosis study (`--diagnose`).
+fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> {
+    use bench::diagnose::monte_carlo;
+    let started = std::time::Instant::now();
+    let study = monte_carlo::run(
+        &args.scenario,
+        args.first_seed,
+        args.seeds,
+        jobs,
+        &bench_analysis::diagnose::DiagnoseOptions::default(),
+        |s| {
+            eprintln!(
+                "seed {:>4}: {} found [{}]{} in {:.2} s",
+                s.seed,
+                s.verdict.key(),
+                s.found.iter().map(|e| e.key()).collect::<Vec<_>>().join(", "),
+                if s.unexplained { ", unexplained structure" } else { "" },
+                s.seconds
+            )
+        },
+    )?;
+    let truth: Vec<&str> = study.truth.ids().iter().map(|e| e.key()).collect();
+    println!(
+        "{} seeds of {} in {:.0} s; concealed truth: [{}]",
+        study.seeds.len(),
+        args.scenario.display(),
+        started.elapsed().as_secs_f64(),
+        truth.join(", ")
+    );
+    println!("| figure | value |");
+    println!("| --- | --- |");
+    println!("| false-discovery rate | {:.1} % |", 100.0 * study.false_discovery_rate());
+    println!("| exactly the truth's effects named | {:.1} % |", 100.0 * study.exact_rate());
+    if !truth.is_empty() {
+        println!("| fitted parameters within 3σ | {:.1} % |", 100.0 * study.within_3_sigma());
+    }
+    println!("| median diagnosis time | {:.2} s |", study.median_seconds());
+    Ok(ExitCode::SUCCESS)
+}
+
 /// Run the study and print the accuracy table.
 pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
     let jobs =
         args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if args.diagnose {
+        return run_diagnose(&args, jobs);
+    }
     let started = std::time::Instant::now();
     let mc = monte_carlo::run(
         &args.scenario,

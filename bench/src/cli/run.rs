@@ -29,8 +29,9 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Bench config (TOML): real drivers, simulators behind virtual ports, or a `[replay]` of
-    /// a recording; `replay:REC.mcap` replays a recording in virtual time. Without it the
-    /// embedded simulated bench runs in virtual time.
+    /// a recording; a config without drivers is the embedded simulated bench at its site with
+    /// its `[simulation]` settings; `replay:REC.mcap` replays a recording in virtual time.
+    /// Without it the embedded simulated bench runs in virtual time.
     #[arg(long, short)]
     pub bench: Option<PathBuf>,
     /// Show the streams live in Foxglove (WebSocket server; open ws://127.0.0.1:8765).
@@ -52,9 +53,12 @@ pub struct RunArgs {
 /// Apply `--gyro-model` to a loaded plan.
 fn apply_gyro_model(plan: &mut RunPlan, path: Option<&Path>) -> anyhow::Result<()> {
     if let Some(path) = path {
-        let model = bench::calibrate::model_file::CalibrationFile::load(path)?.model();
+        let file = bench::calibrate::model_file::CalibrationFile::load(path)?;
+        let model = file.model();
         plan.gyro.model = model.clone();
+        plan.gyro.effects = file.effects;
         plan.sim.truth = model;
+        plan.sim.truth_effects = file.effects;
     }
     Ok(())
 }
@@ -82,40 +86,19 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     });
     let progress = !args.quiet && std::io::stderr().is_terminal();
     let report = match &args.bench {
-        None => {
-            let Some(mut plan) = load_plan(&args.scenario, &bench::simulate::capabilities())?
-            else {
-                return Ok(ExitCode::from(2));
-            };
-            apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
-            let rt = runtime()?;
-            let live = start_live(&rt, &args)?;
-            let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
-            let file = std::fs::File::create(&out)
-                .with_context(|| format!("cannot create recording {}", out.display()))?;
-            let (report, writer) = bench::simulate::run_plan(
-                &plan,
-                std::io::BufWriter::new(file),
-                &opts,
-                Some(super::console_layer(verbose)),
-            )?;
-            finish_file(writer, &out)?;
-            report
-        }
-        Some(spec) => {
-            let report = match BenchSource::load(spec)? {
-                BenchSource::Devices(config) => {
-                    run_on_bench(&args, *config, spec, &out, progress, verbose)?
-                }
-                BenchSource::Replay(replay) => {
-                    run_on_replay(&args, &replay, &out, progress, verbose)?
-                }
-            };
-            match report {
-                Some(r) => r,
-                None => return Ok(ExitCode::from(2)),
+        None => run_simulated(&args, &out, progress, verbose, None)?,
+        Some(spec) => match BenchSource::load(spec)? {
+            BenchSource::Replay(replay) => run_on_replay(&args, &replay, &out, progress, verbose)?,
+            BenchSource::Devices(config) if config.is_simulated() => {
+                run_simulated(&args, &out, progress, verbose, Some(&config))?
             }
-        }
+            BenchSource::Devices(config) => {
+                run_on_bench(&args, spec, *config, &out, progress, verbose)?
+            }
+        },
+    };
+    let Some(report) = report else {
+        return Ok(ExitCode::from(2));
     };
     println!(
         "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, peak RSS {}",
@@ -130,6 +113,46 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     Ok(if report.outcome == "completed" { ExitCode::SUCCESS } else { ExitCode::from(3) })
 }
 
+/// The embedded simulated bench in virtual time; with a bench config that names no drivers,
+/// at its site and with its `[simulation.effects]` over the scenario's truth effects.
+fn run_simulated(
+    args: &RunArgs,
+    out: &Path,
+    progress: bool,
+    verbose: u8,
+    config: Option<&BenchConfig>,
+) -> anyhow::Result<Option<RunReport>> {
+    let Some(mut plan) = load_plan(&args.scenario, &bench::simulate::capabilities())? else {
+        return Ok(None);
+    };
+    apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
+    if let Some(config) = config {
+        apply_sim_config(&mut plan, config);
+    }
+    let rt = runtime()?;
+    let live = start_live(&rt, args)?;
+    let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
+    let file = std::fs::File::create(out)
+        .with_context(|| format!("cannot create recording {}", out.display()))?;
+    let (report, writer) = bench::simulate::run_plan(
+        &plan,
+        std::io::BufWriter::new(file),
+        &opts,
+        Some(super::console_layer(verbose)),
+    )?;
+    finish_file(writer, out)?;
+    Ok(Some(report))
+}
+
+/// A bench config's site and `[simulation.effects]` applied to a plan for the simulated bench:
+/// the site replaces the scenario's, each effect replaces or adds to the truth effects.
+pub fn apply_sim_config(plan: &mut RunPlan, config: &BenchConfig) {
+    if let Some(site) = config.site() {
+        plan.site = site;
+    }
+    plan.sim.truth_effects = plan.sim.truth_effects.overridden_by(&config.sim_effects());
+}
+
 fn finish_file(writer: std::io::BufWriter<std::fs::File>, out: &Path) -> anyhow::Result<()> {
     writer
         .into_inner()
@@ -142,12 +165,19 @@ fn finish_file(writer: std::io::BufWriter<std::fs::File>, out: &Path) -> anyhow:
 /// scenario against what they report, run with Ctrl-C aborting to the safe state.
 fn run_on_bench(
     args: &RunArgs,
-    config: BenchConfig,
     config_path: &Path,
+    config: BenchConfig,
     out: &Path,
     progress: bool,
     verbose: u8,
 ) -> anyhow::Result<Option<RunReport>> {
+    if config.sim_effects().any() {
+        tracing::warn!(
+            "{}: [simulation.effects] ignored: the devices are reached through drivers (give \
+             the config to `bench sim serve --bench` to simulate them)",
+            config_path.display()
+        );
+    }
     let config_text = std::fs::read_to_string(config_path)
         .with_context(|| format!("cannot read {}", config_path.display()))?;
     let rt = runtime()?;
@@ -285,4 +315,65 @@ fn peak_rss_mb() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use bench::calibrate::model_file::{write_model_file, Source, Uncertainty};
+    use bench_physics::effects::{Effects, RateSquared, WarmUp};
+    use bench_physics::GyroModel;
+
+    use super::*;
+
+    fn plan() -> RunPlan {
+        let text = "[scenario]\nname = \"t\"\n[site]\nlatitude_deg = 10\n\
+                    [simulation.truth.effects]\nrate_squared = { coeff_s_per_rad = 1e-3 }\n\
+                    [[step]]\nwait = \"1 s\"\n";
+        bench::scenario::parse(text, "t.toml", &bench::simulate::capabilities()).expect("valid")
+    }
+
+    #[test]
+    fn a_model_file_with_effects_replaces_the_nominal_and_the_truth_effects() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("m.toml");
+        let model = GyroModel { bias: 3e-8, ..GyroModel::default() };
+        let effects = Effects {
+            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
+            ..Effects::default()
+        };
+        write_model_file(&path, &model, &effects, &Source::default(), &Uncertainty::default())
+            .expect("writes");
+        let mut p = plan();
+        assert!(p.sim.truth_effects.rate_squared.is_some());
+        apply_gyro_model(&mut p, Some(&path)).expect("applies");
+        assert_eq!(p.gyro.model, model);
+        assert_eq!(p.gyro.effects, effects);
+        assert_eq!(p.sim.truth_effects, effects);
+        // Recorded as effect keys of bench.gyro_model.
+        let meta = bench::simulate::run_info(&p, 0).gyro_model;
+        assert_eq!(meta.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
+    }
+
+    #[test]
+    fn a_simulated_bench_config_adds_its_site_and_concealed_effects() {
+        let config = BenchConfig::parse(
+            "[site]\nlatitude_deg = 45.5\n[simulation.effects]\nwarm_up = { amplitude_rad_s = \
+             1e-7, time_constant_s = 60 }\n",
+            "sim.toml",
+        )
+        .expect("valid");
+        let mut p = plan();
+        apply_sim_config(&mut p, &config);
+        assert_eq!(p.site.latitude_deg, 45.5);
+        assert_eq!(p.sim.truth_effects.rate_squared, Some(RateSquared { coeff_s_per_rad: 1e-3 }));
+        assert_eq!(
+            p.sim.truth_effects.warm_up,
+            Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 60.0 })
+        );
+        assert!(!p.gyro.effects.any(), "concealed: not the nominal model's");
+        let meta = bench::simulate::run_info(&p, 0).gyro_model;
+        assert!(meta.keys().all(|k| !k.starts_with("effect.")), "{meta:?}");
+        let sim = bench::simulate::sim_config(&p, 1);
+        assert_eq!(sim.gyro_effects, p.sim.truth_effects);
+    }
 }

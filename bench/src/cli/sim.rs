@@ -35,6 +35,10 @@ pub struct ServeArgs {
     /// from this scenario.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
+    /// Take the site and the `[simulation]` settings (effects beyond the gyro's model,
+    /// concealed from the recording) from this bench config; its drivers are not used.
+    #[arg(long)]
+    pub bench: Option<PathBuf>,
     /// Where to write the bench config.
     #[arg(long, default_value = "bench-sim.toml")]
     pub config_out: PathBuf,
@@ -51,13 +55,17 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
     if !(args.time_scale.is_finite() && args.time_scale > 0.0) {
         anyhow::bail!("--time-scale must be a positive number, got {}", args.time_scale);
     }
-    let config = match &args.scenario {
+    let mut config = match &args.scenario {
         Some(path) => {
             let plan = bench::scenario::load(path, &bench::simulate::capabilities())?;
             bench::simulate::sim_config(&plan, args.seed)
         }
         None => SimConfig { seed: args.seed, ..SimConfig::default() },
     };
+    if let Some(path) = &args.bench {
+        let bench = bench::bench_config::BenchConfig::load(path)?;
+        apply_bench_config(&mut config, &bench);
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -109,6 +117,16 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// A bench config's site and `[simulation.effects]` applied to the served simulator's
+/// configuration: the site replaces the scenario's, each effect replaces or adds to the truth.
+pub fn apply_bench_config(config: &mut SimConfig, bench: &bench::bench_config::BenchConfig) {
+    if let Some(site) = bench.site() {
+        config.latitude_deg = site.latitude_deg;
+        config.axis_up = site.axis_up;
+    }
+    config.gyro_effects = config.gyro_effects.overridden_by(&bench.sim_effects());
+}
+
 /// Apply one control command; the reply line.
 pub fn apply_fault_command(faults: &BenchFaults, line: &str) -> String {
     let mut v: serde_json::Value = match serde_json::from_str(line) {
@@ -158,6 +176,24 @@ async fn control_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bench_config_adds_its_site_and_effects_to_the_served_simulator() {
+        let bench = bench::bench_config::BenchConfig::parse(
+            "[site]\nlatitude_deg = -33.9\naxis = \"down\"\n[simulation.effects]\n\
+             rate_squared = { coeff_s_per_rad = 1e-3 }\n",
+            "sim.toml",
+        )
+        .expect("valid");
+        let mut config = SimConfig::default();
+        config.gyro_effects.earth_rate = true;
+        apply_bench_config(&mut config, &bench);
+        assert_eq!(config.latitude_deg, -33.9);
+        assert!(!config.axis_up);
+        assert!(config.gyro_effects.earth_rate, "kept");
+        assert_eq!(config.gyro_effects.rate_squared.map(|r| r.coeff_s_per_rad), Some(1e-3));
+        assert!(config.validate().is_ok());
+    }
 
     #[test]
     fn control_commands_switch_faults() {

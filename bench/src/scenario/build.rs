@@ -5,6 +5,7 @@ use std::collections::HashSet;
 use std::ops::Range;
 use std::time::Duration;
 
+use bench_physics::effects::{EffectId, Effects};
 use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel};
 
 use super::doc::{line_col, Entry, Node, Value};
@@ -427,7 +428,11 @@ impl<'a> Builder<'a> {
         let chamber_poll_hz = self.poll_rate(chamber_t, "chamber poll rate");
 
         // [gyro]
-        let mut gyro = GyroSetup { sample_rate_hz: 20.0, model: GyroModel::default() };
+        let mut gyro = GyroSetup {
+            sample_rate_hz: 20.0,
+            model: GyroModel::default(),
+            effects: Effects::default(),
+        };
         let gyro_t = self.table(top, "gyro");
         let mut rate_checked = gyro_t.is_err();
         if let Ok(Some(t)) = gyro_t {
@@ -442,7 +447,7 @@ impl<'a> Builder<'a> {
                 Err(Reported) => rate_checked = true,
             }
             if let Ok(Some(m)) = self.table(t, "model") {
-                self.model(m, &mut gyro.model, "[gyro.model]");
+                self.model(m, &mut gyro.model, &mut gyro.effects, "[gyro.model]");
             }
         }
         if !rate_checked {
@@ -452,7 +457,11 @@ impl<'a> Builder<'a> {
         }
 
         // [simulation]
-        let mut sim = SimSetup { initial_temp_c: 20.0, truth: gyro.model.clone() };
+        let mut sim = SimSetup {
+            initial_temp_c: 20.0,
+            truth: gyro.model.clone(),
+            truth_effects: gyro.effects,
+        };
         if let Ok(Some(t)) = self.table(top, "simulation") {
             self.check_keys(t, &["initial_temp", "initial_temp_c", "truth"], "[simulation]");
             if let Ok(Some((q, span))) = self.quantity(t, "initial_temp", Dim::Temperature) {
@@ -461,7 +470,7 @@ impl<'a> Builder<'a> {
                 }
             }
             if let Ok(Some(m)) = self.table(t, "truth") {
-                self.model(m, &mut sim.truth, "[simulation.truth]");
+                self.model(m, &mut sim.truth, &mut sim.truth_effects, "[simulation.truth]");
             }
         }
 
@@ -576,9 +585,15 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// `[gyro.model]` / `[simulation.truth]`: contract key names, SI numbers, over `model`.
-    fn model(&mut self, t: Tbl<'_>, model: &mut GyroModel, what: &str) {
-        self.check_keys(t, &GYRO_MODEL_KEYS, what);
+    /// `[gyro.model]` / `[simulation.truth]`: contract key names, SI numbers, over `model`;
+    /// its `effects` table over `effects`.
+    fn model(&mut self, t: Tbl<'a>, model: &mut GyroModel, effects: &mut Effects, what: &str) {
+        let mut allowed = GYRO_MODEL_KEYS.to_vec();
+        allowed.push("effects");
+        self.check_keys(t, &allowed, what);
+        if let Ok(Some(et)) = self.table(t, "effects") {
+            self.effects(et, effects, &format!("{}.effects]", what.trim_end_matches(']')));
+        }
         for e in t.entries {
             let key = e.key.as_str();
             if key == "earth_rate" {
@@ -619,6 +634,85 @@ impl<'a> Builder<'a> {
                 "bias_instability" => model.bias_instability = x,
                 "thermal_time_constant" => model.thermal_time_constant = x,
                 _ => {}
+            }
+        }
+    }
+
+    /// `[….effects]`: one entry per effect id over `effects`; `earth_rate = true/false`, every
+    /// other effect a table of its parameters (SI, units in the names) or `false` to switch off
+    /// an effect inherited from the nominal model.
+    fn effects(&mut self, t: Tbl<'_>, effects: &mut Effects, what: &str) {
+        let ids: Vec<&str> = EffectId::ALL.iter().map(|id| id.key()).collect();
+        for e in t.entries {
+            if EffectId::from_key(&e.key).is_none() {
+                let hint = closest(&e.key, &ids)
+                    .map(|k| format!("did you mean `{k}`? "))
+                    .unwrap_or_default();
+                self.err(
+                    &e.key_span,
+                    format!(
+                        "unknown effect `{}` in {what}; {hint}known effects: {}",
+                        e.key,
+                        ids.iter().map(|k| format!("`{k}`")).collect::<Vec<_>>().join(", ")
+                    ),
+                );
+            }
+        }
+        for e in t.entries {
+            let Some(id) = EffectId::from_key(&e.key) else { continue };
+            let key = id.key();
+            let params = id.params();
+            match &e.node.value {
+                Value::Bool(on) if id == EffectId::EarthRate => effects.earth_rate = *on,
+                Value::Bool(false) => effects.clear(id),
+                Value::Table(entries) if id != EffectId::EarthRate => {
+                    let pt = Tbl { entries, span: &e.node.span };
+                    self.check_keys(pt, params, &format!("effect `{key}`"));
+                    let mut values = Vec::with_capacity(params.len());
+                    for p in params {
+                        let got = self.number(pt, p);
+                        let msg = format!(
+                            "effect `{key}` needs `{p}`; its parameters: {}",
+                            params.join(", ")
+                        );
+                        let Some((x, span)) = self.required(got, &e.node.span, &msg) else {
+                            continue;
+                        };
+                        if id.param_must_be_positive(p) && x <= 0.0 {
+                            self.err(
+                                &span,
+                                format!(
+                                    "`{p}` of effect `{key}` must be greater than zero, got {}",
+                                    fmt_num(x)
+                                ),
+                            );
+                            continue;
+                        }
+                        values.push(x);
+                    }
+                    if values.len() == params.len() {
+                        // The count was just checked.
+                        let _ = effects.set(id, &values);
+                    }
+                }
+                v if id == EffectId::EarthRate => {
+                    self.err(
+                        &e.node.span,
+                        format!("effect `earth_rate` must be true or false, got {}", v.type_name()),
+                    );
+                }
+                v => {
+                    let example =
+                        params.iter().map(|p| format!("{p} = …")).collect::<Vec<_>>().join(", ");
+                    self.err(
+                        &e.node.span,
+                        format!(
+                            "effect `{key}` must be a table of its parameters, like `{key} = \
+                             {{ {example} }}`, or false to switch it off; got {}",
+                            v.type_name()
+                        ),
+                    );
+                }
             }
         }
     }

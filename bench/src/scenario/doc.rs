@@ -109,6 +109,17 @@ fn convert(v: &Spanned<DeValue<'_>>, depth: usize, errs: &mut Vec<(Range<usize>,
     Node { span, value }
 }
 
+/// The span of the value at the dotted `path` of keys in TOML `text` (`None` when the text
+/// does not parse or has no such key).
+pub(crate) fn value_span(text: &str, path: &[&str]) -> Option<Range<usize>> {
+    let mut node = parse(text).ok()?;
+    for key in path {
+        let Value::Table(entries) = node.value else { return None };
+        node = entries.into_iter().find(|e| e.key == *key)?.node;
+    }
+    Some(node.span)
+}
+
 /// 1-based line and column (in characters) of byte offset `pos` in `text`.
 pub(crate) fn line_col(text: &str, pos: usize) -> (usize, usize) {
     let mut pos = pos.min(text.len());

@@ -25,7 +25,7 @@ mod build;
 mod doc;
 pub mod quantity;
 
-pub(crate) use doc::line_col;
+pub(crate) use doc::{line_col, value_span};
 #[cfg(test)]
 mod tests;
 

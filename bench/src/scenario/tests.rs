@@ -780,3 +780,147 @@ proptest! {
         }
     }
 }
+
+// ------------------------------------------------------------------ effects
+
+#[test]
+fn every_effect_is_parsed_into_the_truth_and_the_nominal_model() {
+    use bench_physics::effects::*;
+    let p = ok(r#"[gyro.model.effects]
+rate_squared = { coeff_s_per_rad = 1e-3 }
+warm_up = { amplitude_rad_s = 5e-8, time_constant_s = 60 }
+[simulation.truth.effects]
+earth_rate = true
+thermal_lag = { time_constant_s = 300 }
+temperature_quadratic = { coeff_rad_s_per_c2 = 2e-11 }
+scale_factor_temperature = { coeff_per_c = -1e-6 }
+thermal_hysteresis = { half_width_rad_s = 4e-9, threshold_c_s = 0.001 }
+once_per_revolution = { amplitude_rad_s = 2e-8, phase_rad = 0.5 }
+time_offset = { offset_s = 0.01 }
+warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900 }
+bias_step = { time_s = 100, step_rad_s = 1e-6 }
+[simulation.truth.effects.rate_squared]
+coeff_s_per_rad = 2e-3
+[[step]]
+wait = "1 s"
+"#);
+    let nominal = Effects {
+        rate_squared: Some(RateSquared { coeff_s_per_rad: 1e-3 }),
+        warm_up: Some(WarmUp { amplitude_rad_s: 5e-8, time_constant_s: 60.0 }),
+        ..Effects::default()
+    };
+    assert_eq!(p.gyro.effects, nominal);
+    let truth = Effects {
+        earth_rate: true,
+        thermal_lag: Some(ThermalLag { time_constant_s: 300.0 }),
+        temperature_quadratic: Some(TemperatureQuadratic { coeff_rad_s_per_c2: 2e-11 }),
+        scale_factor_temperature: Some(ScaleFactorTemperature { coeff_per_c: -1e-6 }),
+        thermal_hysteresis: Some(ThermalHysteresis {
+            half_width_rad_s: 4e-9,
+            threshold_c_s: 0.001,
+        }),
+        once_per_revolution: Some(OncePerRevolution { amplitude_rad_s: 2e-8, phase_rad: 0.5 }),
+        time_offset: Some(TimeOffset { offset_s: 0.01 }),
+        warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
+        bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
+        rate_squared: Some(RateSquared { coeff_s_per_rad: 2e-3 }),
+    };
+    assert_eq!(p.sim.truth_effects, truth);
+    assert_eq!(p.sim.truth_effects.ids().len(), EffectId::ALL.len());
+    // The base model is untouched by effects.
+    assert_eq!(p.gyro.model, bench_physics::GyroModel::default());
+}
+
+#[test]
+fn truth_effects_start_from_the_nominal_ones_and_false_switches_one_off() {
+    let p = ok(r#"[gyro.model.effects]
+earth_rate = true
+bias_step = { time_s = 10, step_rad_s = 1e-7 }
+rate_squared = { coeff_s_per_rad = 1e-3 }
+[simulation.truth.effects]
+bias_step = false
+earth_rate = false
+[[step]]
+wait = "1 s"
+"#);
+    assert!(p.gyro.effects.earth_rate && p.gyro.effects.bias_step.is_some());
+    assert!(!p.sim.truth_effects.earth_rate);
+    assert_eq!(p.sim.truth_effects.bias_step, None);
+    assert_eq!(p.sim.truth_effects.rate_squared, p.gyro.effects.rate_squared);
+    // Without any effects table, none are on.
+    let p = ok("[[step]]\nwait = \"1 s\"\n");
+    assert!(!p.gyro.effects.any() && !p.sim.truth_effects.any());
+}
+
+#[test]
+fn effect_errors_are_located() {
+    // HEAD is 4 lines, the effects table header line 5, its entries from line 6.
+    let head = "[simulation.truth.effects]\n";
+    let step = "[[step]]\nwait = \"1 s\"\n";
+    let e =
+        err1(&format!("{head}warmup = {{ amplitude_rad_s = 1e-7, time_constant_s = 9 }}\n{step}"));
+    assert!(
+        e.starts_with(
+            "t.toml:6:1: unknown effect `warmup` in [simulation.truth.effects]; did you mean \
+             `warm_up`? known effects: `earth_rate`, `thermal_lag`,"
+        ),
+        "{e}"
+    );
+    assert!(e.ends_with("`rate_squared`"), "{e}");
+    // An unknown parameter and the missing one are both reported.
+    let e = errs(&with_head(&format!(
+        "{head}warm_up = {{ amplitude_rad_s = 1e-7, tau_s = 9 }}\n{step}"
+    )));
+    assert_eq!(
+        e,
+        [
+            "t.toml:6:11: effect `warm_up` needs `time_constant_s`; its parameters: \
+             amplitude_rad_s, time_constant_s",
+            "t.toml:6:37: unknown key `tau_s` in effect `warm_up`; allowed: `amplitude_rad_s`, \
+             `time_constant_s`",
+        ]
+    );
+    assert_eq!(
+        err1(&format!("{head}bias_step = {{ time_s = \"100 s\", step_rad_s = 1e-6 }}\n{step}")),
+        "t.toml:6:24: `time_s` must be a number, got a string"
+    );
+    assert_eq!(
+        err1(&format!(
+            "{head}once_per_revolution = {{ amplitude_rad_s = nan, phase_rad = 0 }}\n{step}"
+        )),
+        "t.toml:6:43: `amplitude_rad_s` must be a finite number"
+    );
+    assert_eq!(
+        err1(&format!("{head}thermal_lag = {{ time_constant_s = 0 }}\n{step}")),
+        "t.toml:6:35: `time_constant_s` of effect `thermal_lag` must be greater than zero, got 0"
+    );
+    assert_eq!(
+        err1(&format!("[gyro.model.effects]\nwarm_up = {{ amplitude_rad_s = 1e-7, time_constant_s = -5 }}\n{step}")),
+        "t.toml:6:55: `time_constant_s` of effect `warm_up` must be greater than zero, got -5"
+    );
+    assert_eq!(
+        err1(&format!("{head}thermal_hysteresis = {{ half_width_rad_s = 1e-9, threshold_c_s = 0 }}\n{step}")),
+        "t.toml:6:65: `threshold_c_s` of effect `thermal_hysteresis` must be greater than zero, got 0"
+    );
+    assert_eq!(
+        err1(&format!("{head}earth_rate = 1\n{step}")),
+        "t.toml:6:14: effect `earth_rate` must be true or false, got a number"
+    );
+    let e = err1(&format!("{head}rate_squared = 1e-3\n{step}"));
+    assert!(
+        e.starts_with(
+            "t.toml:6:16: effect `rate_squared` must be a table of its parameters, like \
+             `rate_squared = { coeff_s_per_rad = … }`, or false to switch it off; got a number"
+        ),
+        "{e}"
+    );
+    assert_eq!(
+        err1(&format!("{head}time_offset = true\n{step}")),
+        "t.toml:6:15: effect `time_offset` must be a table of its parameters, like \
+         `time_offset = { offset_s = … }`, or false to switch it off; got a boolean"
+    );
+    assert_eq!(
+        err1(&format!("[gyro.model]\neffects = 3\n{step}")),
+        "t.toml:6:11: `effects` must be a table, got a number"
+    );
+}

@@ -11,9 +11,10 @@ use bench_physics::earth::vertical_rate_rad_s;
 use bench_physics::units::DEG_PER_H;
 use bench_physics::GyroModel;
 
-use super::plot::{colour, Axis, Item, Marker, MarkerPoint, Plot, Span};
 use super::series::{bins, decimate, interpolate, lagged, rms};
 use crate::calibrate::CalibrationOutcome;
+use crate::report::plot::{colour, Axis, Item, Marker, MarkerPoint, Plot, Span};
+pub(super) use crate::report::Figure;
 
 /// Most points of a whole-run curve.
 const MAX_POINTS: usize = 4000;
@@ -23,21 +24,6 @@ const BIN_S: f64 = 60.0;
 const ONE: (u32, u32) = (960, 540);
 /// Size of a two-panel figure, px.
 const TWO: (u32, u32) = (1280, 540);
-
-/// One figure of the report.
-#[derive(Debug, Clone)]
-pub(super) struct Figure {
-    /// File stem of the PNG (e.g. `fig1-raw-rate`).
-    pub name: &'static str,
-    /// Heading.
-    pub title: &'static str,
-    /// What the figure shows, plain text.
-    pub caption: String,
-    /// Panels, left to right.
-    pub panels: Vec<Plot>,
-    /// Pixel size.
-    pub size: (u32, u32),
-}
 
 fn deg_h(x: f64) -> f64 {
     x / DEG_PER_H
@@ -632,8 +618,8 @@ fn residual(o: &CalibrationOutcome) -> Figure {
     } else {
         format!(
             "RMS of samples {} °/h\nRMS of bin means {} °/h",
-            super::html::sig(rms_samples, 3),
-            super::html::sig(rms_means, 3)
+            crate::report::sig(rms_samples, 3),
+            crate::report::sig(rms_means, 3)
         )
     });
     Figure {
@@ -643,8 +629,8 @@ fn residual(o: &CalibrationOutcome) -> Figure {
             "Gyro rate minus Earth's rate, the scaled table rate and the calibrated model's \
              thermal bias, in every record window; means over equal bins of at most \
              {BIN_S:.0} s, at least 10 per window. RMS over all samples: {} °/h; over the bin means: {} °/h.",
-            super::html::sig(rms_samples, 3),
-            super::html::sig(rms_means, 3)
+            crate::report::sig(rms_samples, 3),
+            crate::report::sig(rms_means, 3)
         ),
         panels: vec![p],
         size: ONE,
@@ -707,16 +693,16 @@ fn allan(o: &CalibrationOutcome) -> Figure {
                 }
             }
             if let (Some(f), Some(l)) = (pts.first(), pts.last()) {
-                let (t0, t1) = super::plot::decades(f.tau_s, l.tau_s);
+                let (t0, t1) = crate::report::plot::decades(f.tau_s, l.tau_s);
                 let taus: Vec<f64> =
                     (0..=80).map(|i| t0 * (t1 / t0).powf(f64::from(i) / 80.0)).collect();
                 if ylo.is_finite() {
-                    let (ylo, yhi) = super::plot::decades(ylo, yhi);
+                    let (ylo, yhi) = crate::report::plot::decades(ylo, yhi);
                     p.y.range = Some((ylo, yhi));
-                    p.x.range = Some(super::plot::decades(t0, t1));
+                    p.x.range = Some(crate::report::plot::decades(t0, t1));
                     let fit = &a.fit;
                     let floor = fit.flicker_floor();
-                    let sig = super::html::sig;
+                    let sig = crate::report::sig;
                     let lines = [
                         (
                             format!(

@@ -12,43 +12,7 @@ use bench_physics::GyroModel;
 
 use super::figures::Figure;
 use crate::calibrate::{CalibrationOutcome, FunctionErrors};
-
-/// `s` with `& < > " '` replaced by entities, safe in text and attribute values.
-pub(super) fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// `x` to `digits` significant digits: plain between 1e-3 and 1e5, else `1.23e-5`; `n/a`
-/// when not finite.
-pub(crate) fn sig(x: f64, digits: usize) -> String {
-    if !x.is_finite() {
-        return "n/a".into();
-    }
-    if x == 0.0 {
-        return "0".into();
-    }
-    let digits = digits.max(1);
-    let a = x.abs();
-    if !(1e-3..1e5).contains(&a) {
-        return format!("{x:.prec$e}", prec = digits - 1);
-    }
-    // The exponent after rounding to `digits` (9.9996 → 1.000e1), so the digits are right.
-    let e = format!("{a:.prec$e}", prec = digits - 1);
-    let exp: i32 = e.split_once('e').and_then(|(_, p)| p.parse().ok()).unwrap_or(0);
-    let decimals = (digits as i32 - 1 - exp).max(0) as usize;
-    format!("{x:.decimals$}")
-}
+use crate::report::{escape, sig, STYLE};
 
 /// `value ± σ`.
 fn pm(value: f64, sigma: f64) -> String {
@@ -83,19 +47,6 @@ fn direction_text(d: Direction) -> &'static str {
         Direction::Rest => "rest",
     }
 }
-
-const STYLE: &str = "\
-body{font-family:'DejaVu Sans',Verdana,Arial,sans-serif;margin:2em auto;max-width:1320px;\
-padding:0 1em;color:#1e1e1e;line-height:1.4}\
-h1{font-size:1.6em;margin-bottom:.2em}h2{font-size:1.25em;margin-top:1.6em;\
-border-bottom:1px solid #ccc}\
-table{border-collapse:collapse;margin:.6em 0;font-size:.92em}\
-th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right;vertical-align:top}\
-th{background:#f2f2f2}td.l,th.l{text-align:left}\
-.note{color:#555;font-size:.9em}.bad{color:#b00}.ok{color:#070}\
-figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #ddd}\
-figcaption{font-size:.9em;color:#333;max-width:70em}\
-ul.missing li{margin:.2em 0}";
 
 /// The coefficient rows: (name, unit, joint (value, σ), seed value, truth value).
 fn coefficient_rows(o: &CalibrationOutcome) -> String {

@@ -11,11 +11,11 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 /// DejaVu Sans (Bitstream Vera licence, `bench/assets/fonts/DejaVu-LICENSE.txt`).
-static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
 /// Register the embedded font under the family names `plotters` asks for. Idempotent; returns
 /// whether the font could be read.
-pub(super) fn register_fonts() -> bool {
+pub(crate) fn register_fonts() -> bool {
     static DONE: OnceLock<bool> = OnceLock::new();
     *DONE.get_or_init(|| {
         ["sans-serif", "serif", "monospace"]
@@ -25,7 +25,7 @@ pub(super) fn register_fonts() -> bool {
 }
 
 /// Colours of the report (a colour-blind-safe set, Okabe–Ito).
-pub(super) mod colour {
+pub(crate) mod colour {
     use plotters::style::RGBColor;
     /// Blue.
     pub const BLUE: RGBColor = RGBColor(0, 114, 178);
@@ -47,7 +47,7 @@ pub(super) mod colour {
 
 /// One axis.
 #[derive(Debug, Clone)]
-pub(super) struct Axis {
+pub(crate) struct Axis {
     /// Description with unit.
     pub label: String,
     /// Logarithmic scale (only positive values are drawn).
@@ -69,7 +69,7 @@ impl Axis {
 
 /// Marker shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Marker {
+pub(crate) enum Marker {
     /// Filled circle.
     Circle,
     /// Filled triangle.
@@ -79,12 +79,12 @@ pub(super) enum Marker {
 }
 
 /// A marker at `(x, y)` with an optional vertical error bar `(low, high)`.
-pub(super) type MarkerPoint = (f64, f64, Option<(f64, f64)>);
+pub(crate) type MarkerPoint = (f64, f64, Option<(f64, f64)>);
 
 /// Something drawn in a panel; points are `(x, y)` in axis units. Non-finite points (and, on a
 /// log axis, non-positive ones) are skipped.
 #[derive(Debug, Clone)]
-pub(super) enum Item {
+pub(crate) enum Item {
     /// A polyline.
     Line {
         /// Legend entry.
@@ -122,7 +122,7 @@ pub(super) enum Item {
 
 /// A shaded x interval (e.g. a record window on a time axis).
 #[derive(Debug, Clone)]
-pub(super) struct Span {
+pub(crate) struct Span {
     /// Start, x units.
     pub x0: f64,
     /// End, x units.
@@ -135,7 +135,7 @@ pub(super) struct Span {
 
 /// One panel.
 #[derive(Debug, Clone)]
-pub(super) struct Plot {
+pub(crate) struct Plot {
     /// Panel caption.
     pub title: String,
     /// x axis.
@@ -234,7 +234,7 @@ impl Plot {
 }
 
 /// `(lo, hi)` widened to whole decades (at least one), so that a log axis has labels.
-pub(super) fn decades(lo: f64, hi: f64) -> (f64, f64) {
+pub(crate) fn decades(lo: f64, hi: f64) -> (f64, f64) {
     let a = lo.log10().floor();
     let b = hi.log10().ceil().max(a + 1.0);
     (10f64.powf(a), 10f64.powf(b))
@@ -242,7 +242,7 @@ pub(super) fn decades(lo: f64, hi: f64) -> (f64, f64) {
 
 /// Tick label: up to 6 significant digits, trailing zeros trimmed, exponent form outside
 /// 1e-3..1e6.
-pub(super) fn tick(v: &f64) -> String {
+pub(crate) fn tick(v: &f64) -> String {
     let v = *v;
     if v == 0.0 || !v.is_finite() {
         return if v.is_finite() { "0".into() } else { v.to_string() };
@@ -478,7 +478,7 @@ where
 }
 
 /// Draw `panels` side by side on `root`, white background.
-pub(super) fn draw_figure<DB: DrawingBackend>(
+pub(crate) fn draw_figure<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     panels: &[Plot],
 ) -> DrawResult<DB> {
@@ -492,10 +492,10 @@ pub(super) fn draw_figure<DB: DrawingBackend>(
 }
 
 /// Boxed drawing error (the backends' error types differ).
-pub(super) type PlotError = Box<dyn std::error::Error + Send + Sync>;
+pub(crate) type PlotError = Box<dyn std::error::Error + Send + Sync>;
 
 /// The figure as an SVG document.
-pub(super) fn to_svg(panels: &[Plot], size: (u32, u32)) -> Result<String, PlotError> {
+pub(crate) fn to_svg(panels: &[Plot], size: (u32, u32)) -> Result<String, PlotError> {
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, size).into_drawing_area();
@@ -505,7 +505,7 @@ pub(super) fn to_svg(panels: &[Plot], size: (u32, u32)) -> Result<String, PlotEr
 }
 
 /// The figure as packed 8-bit RGB pixels, row by row.
-pub(super) fn to_rgb(panels: &[Plot], size: (u32, u32)) -> Result<Vec<u8>, PlotError> {
+pub(crate) fn to_rgb(panels: &[Plot], size: (u32, u32)) -> Result<Vec<u8>, PlotError> {
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();

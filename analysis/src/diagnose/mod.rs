@@ -1,0 +1,1281 @@
+//! Diagnosis: where a recording departs from the simulation of the same run, which physics
+//! the model left out, and how much better the fit gets with it.
+//!
+//! 1. **Simulate the run**: the nominal model ([`bench_physics::GyroModel`] plus any
+//!    [`Effects`] it already has) is driven by the recording's own table motion, temperatures,
+//!    time and latitude, and its prediction is subtracted from the gyro: the residual. All of
+//!    it is done on bin means ([`series`]).
+//! 2. **Refit the nominal parameters** (bias, scale factor, temperature and temperature-rate
+//!    coefficients) as corrections; they are jointly significant when their Wald statistic
+//!    under the noise model exceeds χ²_p(1 − α).
+//! 3. **Noise model**: the overlapping Allan deviation of the residual (short τ from the
+//!    native samples on settled table segments, long τ from the bins) fitted with white +
+//!    flicker (+ rate random walk) ([`crate::calibrate::fit_noise_spec`]); every test below
+//!    uses its covariance ([`noise`]), so slow bias wander is not mistaken for structure.
+//! 4. **Explain**: each effect of the library ([`bench_physics::effects`]) is tried as extra
+//!    regressors (nonlinear parameters by grid search, linear ones by projection), scored by a
+//!    Wald statistic with the noise model's covariance ([`fit`]). An effect is accepted when
+//!    (a) its Wald statistic passes χ²_k at `α / (effects × grid points)` (Bonferroni over
+//!    everything tried), (b) its ΔBIC = W − (k + q)·ln n_eff is positive, n_eff the noise
+//!    model's effective number of independent bins, and (c) the shape fitted on alternate
+//!    time blocks predicts the held-out blocks (combined z > 3). The best accepted effect
+//!    joins the model and the search repeats until nothing passes.
+//! 5. **Locate and report what is left**: residual by step, direction, heating/cooling,
+//!    temperature band and table angle; blocks whose mean departs from the noise model are
+//!    `unexplained`, with the signal they correlate with best.
+
+pub mod fit;
+pub mod noise;
+pub mod series;
+
+use bench_physics::allan::{chi2_quantile, normal_quantile, AdevPoint};
+use bench_physics::earth::vertical_rate_rad_s;
+use bench_physics::effects::{
+    lag_temperature, BiasStep, EffectId, EffectSample, Effects, OncePerRevolution, RateSquared,
+    ScaleFactorTemperature, TemperatureQuadratic, ThermalHysteresis, ThermalLag, TimeOffset,
+    WarmUp, HYSTERESIS_THRESHOLD_C_S,
+};
+use bench_physics::GyroModel;
+
+use crate::calibrate::{fit_noise_spec, pooled_adev};
+use crate::error::AnalysisError;
+use crate::joint_fit::NoiseSpec;
+use crate::windows::RecordWindow;
+
+use fit::Projector;
+use noise::BinNoise;
+use series::{bin_mean, make_bins, Bin, Native, RunSeries, TableMotion};
+
+/// Settings of a diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Bin length, s (default 10).
+    pub bin_s: f64,
+    /// Family-wise false-finding probability over every effect and grid point (default 0.01).
+    pub alpha: f64,
+    /// Hold-out block length, s (default 600): blocks alternate between fit and test.
+    pub holdout_block_s: f64,
+    /// Most effects to add (default 4).
+    pub max_effects: usize,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self { bin_s: 10.0, alpha: 0.01, holdout_block_s: 600.0, max_effects: 4 }
+    }
+}
+
+/// One of the nominal model's parameters, refitted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterUpdate {
+    /// `bench.gyro_model` key.
+    pub key: &'static str,
+    /// Nominal value.
+    pub nominal: f64,
+    /// Fitted value.
+    pub fitted: f64,
+    /// 1σ of the fitted value (noise model).
+    pub sigma: f64,
+}
+
+/// A fitted parameter of an effect.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectParameter {
+    /// Name (the effect's TOML key).
+    pub name: &'static str,
+    /// Value.
+    pub value: f64,
+    /// 1σ.
+    pub sigma: f64,
+    /// Unit.
+    pub unit: &'static str,
+}
+
+/// An effect of the library tested against the residual.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finding {
+    /// Which effect.
+    pub effect: EffectId,
+    /// Its parameters.
+    pub parameters: Vec<EffectParameter>,
+    /// Wald statistic under the noise model.
+    pub wald: f64,
+    /// The Wald threshold it had to pass.
+    pub threshold: f64,
+    /// W − (k + q)·ln n_eff.
+    pub delta_bic: f64,
+    /// Residual RMS before adding it, rad/s (bin means).
+    pub rms_before: f64,
+    /// Residual RMS after, rad/s.
+    pub rms_after: f64,
+    /// Combined z of the held-out blocks' agreement with the shape (≈ z of a unit gain).
+    pub holdout_z: f64,
+    /// Where the term is largest (its contribution above half its peak), s from the first
+    /// message, merged.
+    pub windows_s: Vec<(f64, f64)>,
+    /// Accepted into the model.
+    pub accepted: bool,
+    /// Why not, when not.
+    pub rejected_because: Option<String>,
+}
+
+/// Structure no effect explains.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unexplained {
+    /// Where, s.
+    pub windows_s: Vec<(f64, f64)>,
+    /// The signal the residual correlates with best, with the correlation.
+    pub correlates_with: String,
+    /// Residual RMS in those windows, rad/s.
+    pub rms: f64,
+}
+
+/// Residual statistics over a class of bins.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// What (a step label, `cw`, `heating`, `-20..-10 °C`, `angle 45..90°`).
+    pub name: String,
+    /// Bins in it.
+    pub bins: usize,
+    /// Mean residual, rad/s.
+    pub mean: f64,
+    /// Its 1σ under the noise model.
+    pub sigma: f64,
+}
+
+impl Region {
+    /// mean / σ.
+    pub fn z(&self) -> f64 {
+        self.mean / self.sigma
+    }
+}
+
+/// Where the residual (after the parameter refit, before any effect) sits.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Location {
+    /// Per step.
+    pub steps: Vec<Region>,
+    /// CW, CCW, rest.
+    pub direction: Vec<Region>,
+    /// Heating, cooling, steady.
+    pub thermal: Vec<Region>,
+    /// 10 °C bands.
+    pub temperature: Vec<Region>,
+    /// 45° sectors of the table angle (rotating bins).
+    pub angle: Vec<Region>,
+    /// Bins holding a table acceleration (starts, stops, reversals).
+    pub transitions: Option<Region>,
+    /// Strongest change point of the bias: (time s, Wald).
+    pub change_point: Option<(f64, f64)>,
+    /// Once- and twice-per-revolution amplitude (rad/s) and Wald.
+    pub harmonics: Vec<(u32, f64, f64)>,
+}
+
+/// Verdict of a diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// The recording matches the nominal model within its noise.
+    Consistent,
+    /// Only the nominal parameters' values differ.
+    ParametersOnly,
+    /// Physics is missing: effects found, or structure left unexplained.
+    MissingPhysics,
+}
+
+impl Verdict {
+    /// JSON spelling.
+    pub fn key(self) -> &'static str {
+        match self {
+            Verdict::Consistent => "consistent",
+            Verdict::ParametersOnly => "parameters_only",
+            Verdict::MissingPhysics => "missing_physics",
+        }
+    }
+}
+
+/// Bin-level series for figures.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Bin centres, s.
+    pub time_s: Vec<f64>,
+    /// Gyro minus the nominal simulation, rad/s.
+    pub residual_nominal: Vec<f64>,
+    /// After the parameter refit.
+    pub residual_before: Vec<f64>,
+    /// After the parameter refit and the accepted effects.
+    pub residual_after: Vec<f64>,
+    /// Model temperature, °C.
+    pub temp_c: Vec<f64>,
+    /// dT/dt, °C/s.
+    pub temp_rate_c_s: Vec<f64>,
+    /// Table rate, rad/s.
+    pub table_rate_rad_s: Vec<f64>,
+    /// Table angle (bin mean), rad.
+    pub angle_rad: Vec<f64>,
+    /// Each accepted effect's fitted contribution, rad/s.
+    pub contributions: Vec<(EffectId, Vec<f64>)>,
+}
+
+/// The result of [`diagnose`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnosis {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Parameter refit.
+    pub parameter_updates: Vec<ParameterUpdate>,
+    /// Wald statistic of the parameter corrections (all jointly) and its threshold.
+    pub parameters_wald: (f64, f64),
+    /// Effects accepted (in order) and then those tested but not accepted that came closest.
+    pub findings: Vec<Finding>,
+    /// Structure left over.
+    pub unexplained: Vec<Unexplained>,
+    /// Where the mismatch is.
+    pub location: Location,
+    /// Noise model before and after the effects.
+    pub noise_before: NoiseSpec,
+    /// After.
+    pub noise_after: NoiseSpec,
+    /// Effective number of independent bins (after).
+    pub n_eff: f64,
+    /// Bins used.
+    pub n_bins: usize,
+    /// Residual RMS of bin means: nominal, after the refit, after the effects, rad/s.
+    pub rms: (f64, f64, f64),
+    /// ADEV of the residual before (refit only) and after the effects.
+    pub adev_before: Vec<AdevPoint>,
+    /// After.
+    pub adev_after: Vec<AdevPoint>,
+    /// BIC-like score of the refit-only and the final model: RSS/σ̄² + p·ln n_eff.
+    pub bic: (f64, f64),
+    /// The updated model: nominal with refitted parameters and the accepted effects.
+    pub model: GyroModel,
+    /// The updated model's effects.
+    pub effects: Effects,
+    /// Figures' data.
+    pub series: Series,
+}
+
+/// Hysteresis threshold used for the candidate (the library's default).
+const HYST_C_S: f64 = HYSTERESIS_THRESHOLD_C_S;
+/// Thermal-lag grid, s.
+const LAG_GRID_S: [f64; 10] = [30., 60., 120., 240., 400., 600., 900., 1400., 2000., 3000.];
+/// Warm-up time-constant grid, s.
+const WARM_GRID_S: [f64; 9] = [60., 120., 240., 400., 600., 900., 1400., 2000., 3000.];
+/// z the held-out blocks must reach to confirm an effect.
+const HOLDOUT_Z: f64 = 3.0;
+/// Most positions tried for a bias step.
+const STEP_POSITIONS: usize = 400;
+
+/// A candidate fitted at its best grid value.
+struct Fitted {
+    /// Grid value (NaN for none).
+    p: f64,
+    /// Its columns.
+    cols: Vec<Vec<f64>>,
+    /// The test.
+    test: fit::TermTest,
+}
+
+/// Everything computed once per run.
+struct Prepared {
+    native: Native,
+    bins: Vec<Bin>,
+    axis: f64,
+    earth: f64,
+    /// Earth's rate in the model's input (0 where the model leaves it out).
+    earth_in: f64,
+    /// Temperature driving the model (°C) and its rate (°C/s), per sample.
+    temp: Vec<f64>,
+    temp_rate: Vec<f64>,
+    t0: f64,
+    /// Bin means.
+    y: Vec<f64>,
+    pred: Vec<f64>,
+    base: Vec<Vec<f64>>,
+    short_adev: Vec<AdevPoint>,
+}
+
+fn prepare(
+    run: &RunSeries,
+    model: &GyroModel,
+    effects: &Effects,
+    opts: &DiagnoseOptions,
+) -> Result<Prepared, AnalysisError> {
+    let motion =
+        TableMotion::fit(&run.table_time_s, &run.table_angle_rad, &run.table_rate_command_rad_s);
+    if motion.segments.is_empty() {
+        return Err(AnalysisError::Insufficient(
+            "diagnosis: the table never holds a constant rate long enough to fit its motion".into(),
+        ));
+    }
+    let native = Native::build(run, &motion, model.thermal_time_constant)?;
+    let (temp, temp_rate) = match effects.thermal_lag {
+        Some(l) => {
+            let lagged = lag_temperature(&native.t, &native.temp_c, l.time_constant_s);
+            let rate = native
+                .temp_c
+                .iter()
+                .zip(&lagged)
+                .map(|(a, b)| (a - b) / l.time_constant_s)
+                .collect();
+            (lagged, rate)
+        }
+        None => (native.temp_c.clone(), native.temp_rate_c_s.clone()),
+    };
+    let bins = make_bins(&native, &motion, opts.bin_s);
+    if bins.len() < 20 {
+        return Err(AnalysisError::TooFewSamples {
+            what: "diagnosis bins".into(),
+            got: bins.len(),
+            min: 20,
+        });
+    }
+    let axis = if run.axis_up { 1.0 } else { -1.0 };
+    let earth = run.latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, run.axis_up));
+    let t0 = model.reference_temperature;
+    let earth_in = if model.earth_rate || effects.earth_rate { earth } else { 0.0 };
+    let dt = &native.dt;
+    let y = bin_mean(&bins, dt, |k| native.v[k]);
+    let tmean = bin_mean(&bins, dt, |k| temp[k] - t0);
+    let rmean = bin_mean(&bins, dt, |k| temp_rate[k]);
+    let input: Vec<f64> = bins.iter().map(|b| axis * b.table_rate_rad_s + earth_in).collect();
+    let scale = 1.0 + model.scale_factor_error;
+    // Additive nominal effects, evaluated per sample and averaged.
+    let eff_mean = if effects.any() {
+        let hyst = HysteresisStateSeries::new(effects.hysteresis_threshold_c_s(), &temp_rate);
+        bin_mean(&bins, dt, |k| {
+            let s = EffectSample {
+                t_s: native.t[k],
+                input_rad_s: axis * native.table_rate_rad_s[k] + earth_in,
+                temp_minus_ref_c: temp[k] - t0,
+                angle_mid_rad: native.angle_mid_rad[k],
+                hysteresis: hyst.0[k],
+                earth_rad_s: earth,
+            };
+            // Earth through the effect is already in `input`: count it once, below.
+            Effects { earth_rate: false, ..*effects }.value(&s, scale)
+        })
+    } else {
+        vec![0.0; bins.len()]
+    };
+    let offset = effects.offset_s();
+    let pred: Vec<f64> = (0..bins.len())
+        .map(|i| {
+            scale * (input[i] - offset * axis * bins[i].table_accel_rad_s2)
+                + model.bias
+                + model.temp_coeff * tmean[i]
+                + model.temp_rate_coeff * rmean[i]
+                + eff_mean[i]
+        })
+        .collect();
+    let base = vec![vec![1.0; bins.len()], input.clone(), tmean, rmean];
+    let thermal: Vec<f64> = (0..native.t.len())
+        .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
+        .collect();
+    let short_adev = native_adev(&native, &motion, axis, &thermal);
+    Ok(Prepared {
+        native,
+        bins,
+        axis,
+        earth,
+        earth_in,
+        temp,
+        temp_rate,
+        t0,
+        y,
+        pred,
+        base,
+        short_adev,
+    })
+}
+
+struct HysteresisStateSeries(Vec<f64>);
+
+impl HysteresisStateSeries {
+    fn new(threshold: f64, rate: &[f64]) -> Self {
+        Self(bench_physics::effects::HysteresisState::series(threshold, rate))
+    }
+}
+
+/// Allan deviation of the gyro minus the nominal model (table rate and thermal terms) over the
+/// settled table segments of at least 60 s, pooled: the noise model's data. The refitted
+/// bin residual is not used for it: the refit absorbs slow wander and would understate the
+/// flicker floor several times over on a short run.
+fn native_adev(
+    native: &Native,
+    motion: &TableMotion,
+    axis: f64,
+    thermal: &[f64],
+) -> Vec<AdevPoint> {
+    let mut windows = Vec::new();
+    for seg in &motion.segments {
+        if seg.end_s - seg.start_s < 60.0 {
+            continue;
+        }
+        let a = native.t.partition_point(|t| *t - 0.05 < seg.start_s);
+        let b = native.t.partition_point(|t| *t <= seg.end_s);
+        // Split at gaps.
+        let mut s = a;
+        for k in a..=b {
+            if k == b || (k > s && native.gap_before[k]) {
+                if k - s >= 256 {
+                    let t = native.t[s..k].to_vec();
+                    let v: Vec<f64> = (s..k)
+                        .map(|i| native.v[i] - axis * native.table_rate_rad_s[i] - thermal[i])
+                        .collect();
+                    let zeros = vec![0.0; k - s];
+                    if let Ok(w) = RecordWindow::new("segment", t, v, zeros.clone(), None, zeros) {
+                        windows.push(w);
+                    }
+                }
+                s = k;
+            }
+        }
+    }
+    let refs: Vec<&RecordWindow> = windows.iter().collect();
+    pooled_adev(&refs)
+}
+
+/// Long-τ Allan deviation of a bin-level residual over runs of adjacent bins.
+fn bin_adev(bins: &[Bin], r: &[f64]) -> Vec<AdevPoint> {
+    let mut windows = Vec::new();
+    let mut s = 0;
+    for k in 0..=bins.len() {
+        let breaks = k == bins.len() || (k > s && bins[k].start_s > bins[k - 1].end_s + 1e-6);
+        if breaks {
+            if k - s >= 16 {
+                let t: Vec<f64> = bins[s..k].iter().map(Bin::centre_s).collect();
+                let zeros = vec![0.0; k - s];
+                if let Ok(w) =
+                    RecordWindow::new("bins", t, r[s..k].to_vec(), zeros.clone(), None, zeros)
+                {
+                    windows.push(w);
+                }
+            }
+            s = k;
+        }
+    }
+    let refs: Vec<&RecordWindow> = windows.iter().collect();
+    pooled_adev(&refs)
+}
+
+/// Noise model from the settled segments' Allan deviation ([`native_adev`]).
+fn noise_model(prep: &Prepared) -> Result<(NoiseSpec, Vec<AdevPoint>), AnalysisError> {
+    let pts = prep.short_adev.clone();
+    let spec = fit_noise_spec(&pts, false).ok_or_else(|| {
+        AnalysisError::Insufficient(
+            "diagnosis: too little steady data for an Allan-deviation noise model".into(),
+        )
+    })?;
+    Ok((spec, pts))
+}
+
+/// A candidate's columns for one grid value.
+fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -> Vec<Vec<f64>> {
+    let nat = &prep.native;
+    let dt = &nat.dt;
+    let bins = &prep.bins;
+    let t0 = prep.t0;
+    let axis = prep.axis;
+    match id {
+        EffectId::ThermalLag => {
+            let lagged = lag_temperature(&nat.t, &prep.temp, p);
+            let col = bin_mean(bins, dt, |k| {
+                let rate_lag = (prep.temp[k] - lagged[k]) / p;
+                model.temp_coeff * (lagged[k] - prep.temp[k])
+                    + model.temp_rate_coeff * (rate_lag - prep.temp_rate[k])
+            });
+            vec![col]
+        }
+        EffectId::TimeOffset => {
+            let scale = 1.0 + model.scale_factor_error;
+            vec![bins.iter().map(|b| -scale * axis * b.table_accel_rad_s2).collect()]
+        }
+        EffectId::EarthRate => vec![vec![prep.earth; bins.len()]],
+        EffectId::OncePerRevolution => {
+            let s = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].sin());
+            let c = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].cos());
+            vec![s, c]
+        }
+        // Grid positions are bin starts: the step is exactly 0 before and 1 from there on.
+        EffectId::BiasStep => {
+            vec![bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()]
+        }
+        EffectId::ThermalHysteresis => {
+            let h = HysteresisStateSeries::new(HYST_C_S, &prep.temp_rate);
+            vec![bin_mean(bins, dt, |k| h.0[k])]
+        }
+        _ => {
+            vec![bin_mean(bins, dt, |k| {
+                let mut out = [0.0; 2];
+                let s = EffectSample {
+                    t_s: nat.t[k],
+                    input_rad_s: axis * nat.table_rate_rad_s[k] + prep.earth_in,
+                    temp_minus_ref_c: prep.temp[k] - t0,
+                    angle_mid_rad: nat.angle_mid_rad[k],
+                    hysteresis: 0.0,
+                    earth_rad_s: prep.earth,
+                };
+                id.regressors(&s, p, &mut out);
+                out[0]
+            })]
+        }
+    }
+}
+
+/// The grid of a candidate's nonlinear parameter (a single NaN for none).
+fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
+    match id {
+        EffectId::ThermalLag => LAG_GRID_S.to_vec(),
+        EffectId::WarmUp => WARM_GRID_S.to_vec(),
+        EffectId::BiasStep => {
+            let n = prep.bins.len();
+            let lo = n / 50 + 1;
+            let hi = n - n / 50 - 1;
+            let stride = ((hi - lo) / STEP_POSITIONS).max(1);
+            (lo..hi).step_by(stride).map(|i| prep.bins[i].start_s).collect()
+        }
+        _ => vec![f64::NAN],
+    }
+}
+
+/// The run's first-message-relative span where a contribution exceeds half its peak.
+fn windows_of(bins: &[Bin], contribution: &[f64]) -> Vec<(f64, f64)> {
+    let peak = contribution.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if peak == 0.0 {
+        return Vec::new();
+    }
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (b, c) in bins.iter().zip(contribution) {
+        if c.abs() >= 0.5 * peak {
+            match out.last_mut() {
+                Some(last) if b.start_s - last.1 <= 60.0 => last.1 = b.end_s,
+                _ => out.push((b.start_s, b.end_s)),
+            }
+        }
+    }
+    out.truncate(20);
+    out
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// Held-out check (module docs): combined z of the gain with which the shape fitted on one
+/// set of alternate blocks explains the other.
+fn holdout_z(
+    design: &[Vec<f64>],
+    g: &[Vec<f64>],
+    y: &[f64],
+    bins: &[Bin],
+    noise: &BinNoise,
+    block_s: f64,
+) -> f64 {
+    let parity = |b: &Bin| ((b.centre_s() / block_s).floor() as i64).rem_euclid(2);
+    let set =
+        |p: i64| -> Vec<usize> { (0..bins.len()).filter(|&i| parity(&bins[i]) == p).collect() };
+    let (a, b) = (set(0), set(1));
+    let mut num = 0.0;
+    let mut den = 0.0;
+    for (fit_rows, test_rows) in [(&a, &b), (&b, &a)] {
+        if fit_rows.len() < 10 || test_rows.len() < 10 {
+            continue;
+        }
+        let mut cols = design.to_vec();
+        cols.extend(g.iter().cloned());
+        let Ok(pf) = Projector::new(&cols, fit_rows) else { continue };
+        let beta = pf.beta(y);
+        let mut shape = vec![0.0; bins.len()];
+        for (c, &j) in pf.kept.iter().enumerate() {
+            if j >= design.len() {
+                for (i, s) in shape.iter_mut().enumerate() {
+                    *s += beta[c] * g[j - design.len()][i];
+                }
+            }
+        }
+        let Ok(pt) = Projector::new(design, test_rows) else { continue };
+        if let Some(t) = pt.test(&[shape], y, noise) {
+            let var = t.cov[(0, 0)];
+            if var > 0.0 {
+                num += t.theta[0] / var;
+                den += 1.0 / var;
+            }
+        }
+    }
+    if den > 0.0 {
+        num / den.sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Mean of `r` over bins `idx` and its σ under the noise model.
+fn region(name: String, idx: &[usize], r: &[f64], noise: &BinNoise) -> Option<Region> {
+    if idx.is_empty() {
+        return None;
+    }
+    let w_each = 1.0 / idx.len() as f64;
+    let mut w = vec![0.0; r.len()];
+    for &i in idx {
+        w[i] = w_each;
+    }
+    let mean = idx.iter().map(|&i| r[i]).sum::<f64>() * w_each;
+    Some(Region { name, bins: idx.len(), mean, sigma: noise.quad(&w, &w).sqrt() })
+}
+
+/// Diagnose `run` against the nominal `model` with its `effects` (module docs).
+pub fn diagnose(
+    run: &RunSeries,
+    model: &GyroModel,
+    effects: &Effects,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, AnalysisError> {
+    if !(opts.bin_s.is_finite() && opts.bin_s > 0.0) {
+        return Err(AnalysisError::InvalidParameter {
+            name: "bin_s",
+            value: opts.bin_s,
+            why: "must be a positive number of seconds",
+        });
+    }
+    if !(opts.alpha > 0.0 && opts.alpha < 1.0) {
+        return Err(AnalysisError::InvalidParameter {
+            name: "alpha",
+            value: opts.alpha,
+            why: "must be a probability in (0, 1)",
+        });
+    }
+    let prep = prepare(run, model, effects, opts)?;
+    let n = prep.bins.len();
+    let all: Vec<usize> = (0..n).collect();
+    let mut y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
+
+    // 2. Parameter refit.
+    let base_keys = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"];
+    let base_proj = Projector::new(&prep.base, &all)?;
+    let r_base = base_proj.residual(&y, n);
+    let (noise_before, adev_segments) = noise_model(&prep)?;
+    let noise0 = BinNoise::new(&prep.bins, noise_before);
+    let beta0 = base_proj.beta(&y);
+    let cov0 = base_proj.covariance(&noise0);
+    let p0 = beta0.len();
+    let params_wald = nalgebra::DVector::from_vec(beta0.clone());
+    let wald_params = cov0
+        .clone()
+        .try_inverse()
+        .map_or(0.0, |ci| (params_wald.transpose() * ci * &params_wald)[(0, 0)]);
+    let thr_params =
+        if p0 > 0 { chi2_quantile(1.0 - opts.alpha, p0 as f64) } else { f64::INFINITY };
+
+    // 5 (first part). Location of the refit residual.
+    let location = locate(&prep, run, &r_base, &noise0, &base_proj, &y);
+
+    // 4. Effects.
+    let mut candidates: Vec<EffectId> = EffectId::ALL
+        .into_iter()
+        .filter(|&id| !effects.has(id))
+        .filter(|&id| {
+            id != EffectId::EarthRate || (!model.earth_rate && run.latitude_deg.is_some())
+        })
+        .filter(|&id| {
+            id != EffectId::ThermalLag || model.temp_coeff != 0.0 || model.temp_rate_coeff != 0.0
+        })
+        .collect();
+    let m_candidates = candidates.len().max(1) as f64;
+    let mut design = prep.base.clone();
+    let mut accepted_cols: Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)> = Vec::new();
+    let mut findings: Vec<Finding> = Vec::new();
+    let noise = noise0.clone();
+    let mut proj = base_proj.clone();
+    let mut r = r_base.clone();
+    let mut rejected: Vec<Finding> = Vec::new();
+    let mut earth_found = false;
+    // Candidate columns depend on the run only: computed once, reused every round.
+    let mut column_cache: std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>> =
+        std::collections::BTreeMap::new();
+    for _round in 0..opts.max_effects {
+        let n_eff = noise.n_eff();
+        let mut best: Option<(f64, Finding, Fitted)> = None;
+        let mut tried: Vec<Finding> = Vec::new();
+        for &id in &candidates {
+            let g = grid(&prep, id);
+            let m_grid = g.len() as f64;
+            let mut top: Option<Fitted> = None;
+            let mut profile: Vec<(f64, f64)> = Vec::new();
+            let cached = column_cache.entry(id).or_insert_with(|| {
+                g.iter().map(|&p| candidate_columns(&prep, id, p, model)).collect()
+            });
+            for (&p, cols) in g.iter().zip(cached.iter()) {
+                let cols = cols.clone();
+                let t = if id == EffectId::EarthRate {
+                    // Earth's rate is a constant: it can only show as the bias correction
+                    // being Earth's rate. Test that shift (bias column, current design).
+                    earth_test(&proj, &design, &y, &noise, prep.earth)
+                } else {
+                    proj.test(&cols, &y, &noise)
+                };
+                let Some(t) = t else { continue };
+                profile.push((p, t.wald));
+                // The grid value is chosen by fit (least squares), the term judged by W there.
+                if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
+                    top = Some(Fitted { p, cols, test: t });
+                }
+            }
+            let Some(Fitted { p, cols, test: t }) = top else { continue };
+            let k = cols.len() as f64;
+            let q = if m_grid > 1.0 { 1.0 } else { 0.0 };
+            let thr = chi2_quantile(1.0 - opts.alpha / (m_candidates * m_grid), k);
+            let dbic = t.wald - (k + q) * n_eff.ln();
+            let rms_before = rms(&r);
+            let rms_after =
+                ((rms_before * rms_before * n as f64 - t.delta_rss).max(0.0) / n as f64).sqrt();
+            let contribution: Vec<f64> =
+                (0..n).map(|i| cols.iter().zip(&t.theta).map(|(c, th)| c[i] * th).sum()).collect();
+            let parameters = effect_parameters(id, p, &t, &profile, &prep);
+            let mut f = Finding {
+                effect: id,
+                parameters,
+                wald: t.wald,
+                threshold: thr,
+                delta_bic: dbic,
+                rms_before,
+                rms_after,
+                holdout_z: f64::NAN,
+                windows_s: windows_of(&prep.bins, &contribution),
+                accepted: false,
+                rejected_because: None,
+            };
+            if id == EffectId::EarthRate {
+                // Consistency with Earth's rate is part of its test.
+                let z_diff = (t.theta[0] - 1.0) / t.sigma(0).max(1e-300);
+                if z_diff.abs() > 3.0 {
+                    f.rejected_because =
+                        Some(format!("bias shift is not Earth's rate (z = {z_diff:.1})"));
+                    tried.push(f);
+                    continue;
+                }
+            }
+            if t.wald <= thr {
+                f.rejected_because = Some(format!("Wald {:.1} ≤ threshold {:.1}", t.wald, thr));
+                tried.push(f);
+                continue;
+            }
+            if dbic <= 0.0 {
+                f.rejected_because = Some(format!("ΔBIC {dbic:.1} ≤ 0"));
+                tried.push(f);
+                continue;
+            }
+            let score = t.wald - thr;
+            if best.as_ref().is_none_or(|(s, ..)| score > *s) {
+                if let Some((_, prev, _)) = best.take() {
+                    tried.push(prev);
+                }
+                best = Some((score, f, Fitted { p, cols, test: t }));
+            } else {
+                tried.push(f);
+            }
+        }
+        let Some((_, mut f, Fitted { p, cols, test: t })) = best else {
+            rejected.extend(tried);
+            break;
+        };
+        let hz = if f.effect == EffectId::EarthRate {
+            f64::INFINITY
+        } else {
+            holdout_z(&design, &cols, &y, &prep.bins, &noise, opts.holdout_block_s)
+        };
+        f.holdout_z = hz;
+        candidates.retain(|&c| c != f.effect);
+        if hz <= HOLDOUT_Z {
+            f.rejected_because = Some(format!("held-out blocks do not confirm it (z = {hz:.1})"));
+            rejected.push(f);
+            rejected.extend(tried);
+            continue;
+        }
+        f.accepted = true;
+        let f_id = f.effect;
+        findings.push(f);
+        rejected
+            .extend(tried.into_iter().filter(|t| !findings.iter().any(|a| a.effect == t.effect)));
+        if f_id == EffectId::EarthRate {
+            // A constant the bias column spans: move it into the prediction (through the
+            // scale factor) rather than the design, so the bias correction is re-estimated.
+            let scale = 1.0 + model.scale_factor_error;
+            for v in &mut y {
+                *v -= scale * prep.earth;
+            }
+            if let Some(input) = design.get_mut(1) {
+                for v in input.iter_mut() {
+                    *v += prep.earth;
+                }
+            }
+            earth_found = true;
+        } else {
+            design.extend(cols.iter().cloned());
+            accepted_cols.push((f_id, p, cols, t));
+        }
+        proj = Projector::new(&design, &all)?;
+        r = proj.residual(&y, n);
+    }
+    // Keep, per effect, the last rejection only.
+    let mut seen = std::collections::BTreeSet::new();
+    let mut rej: Vec<Finding> = rejected
+        .into_iter()
+        .rev()
+        .filter(|f| !findings.iter().any(|a| a.effect == f.effect) && seen.insert(f.effect))
+        .collect();
+    rej.sort_by(|a, b| (b.wald / b.threshold).total_cmp(&(a.wald / a.threshold)));
+
+    // Final fit: parameters and effects' coefficients together.
+    let beta = proj.beta(&y);
+    let cov = proj.covariance(&noise);
+    let coef = |j: usize| -> (f64, f64) {
+        proj.kept
+            .iter()
+            .position(|&c| c == j)
+            .map_or((0.0, f64::NAN), |c| (beta[c], cov[(c, c)].sqrt()))
+    };
+    let nominal_values =
+        [model.bias, model.scale_factor_error, model.temp_coeff, model.temp_rate_coeff];
+    let mut parameter_updates = Vec::new();
+    let mut updated = model.clone();
+    for (j, key) in base_keys.iter().enumerate() {
+        let (d, s) = coef(j);
+        let fitted = nominal_values[j] + d;
+        parameter_updates.push(ParameterUpdate {
+            key,
+            nominal: nominal_values[j],
+            fitted,
+            sigma: s,
+        });
+        match j {
+            0 => updated.bias = fitted,
+            1 => updated.scale_factor_error = fitted,
+            2 => updated.temp_coeff = fitted,
+            _ => updated.temp_rate_coeff = fitted,
+        }
+    }
+    // Effects' final coefficients (refitted jointly) into the findings and the model.
+    let mut new_effects = *effects;
+    new_effects.earth_rate |= earth_found;
+    let mut col = prep.base.len();
+    let mut contributions = Vec::new();
+    for (id, p, cols, _) in &accepted_cols {
+        let k = cols.len();
+        let th: Vec<(f64, f64)> = (0..k).map(|a| coef(col + a)).collect();
+        col += k;
+        let mut contribution = vec![0.0; n];
+        for (c, (v, _)) in cols.iter().zip(&th) {
+            for i in 0..n {
+                contribution[i] += c[i] * v;
+            }
+        }
+        contributions.push((*id, contribution));
+        if let Some(f) = findings.iter_mut().find(|f| f.effect == *id) {
+            let cov_block = nalgebra::DMatrix::from_fn(k, k, |a, b| {
+                let ia = proj.kept.iter().position(|&c| c == col - k + a);
+                let ib = proj.kept.iter().position(|&c| c == col - k + b);
+                match (ia, ib) {
+                    (Some(ia), Some(ib)) => cov[(ia, ib)],
+                    _ => 0.0,
+                }
+            });
+            let t = fit::TermTest {
+                theta: th.iter().map(|x| x.0).collect(),
+                cov: cov_block,
+                wald: f.wald,
+                delta_rss: 0.0,
+            };
+            let profile = vec![(*p, f.wald)];
+            let keep_profile_sigma = f
+                .parameters
+                .iter()
+                .find(|q| q.name == "time_constant_s" || q.name == "time_s")
+                .map(|q| q.sigma);
+            f.parameters = effect_parameters(*id, *p, &t, &profile, &prep);
+            if let (Some(s), Some(q)) = (
+                keep_profile_sigma,
+                f.parameters.iter_mut().find(|q| q.name == "time_constant_s" || q.name == "time_s"),
+            ) {
+                q.sigma = s;
+            }
+        }
+        apply_effect(&mut new_effects, *id, *p, &th, model);
+    }
+    let rms_nominal = rms(&y);
+    let rms_before = rms(&r_base);
+    let rms_after = rms(&r);
+    let sig2 = noise.mean_bin_variance();
+    let n_eff = noise.n_eff();
+    let bic_before =
+        r_base.iter().map(|x| x * x).sum::<f64>() / sig2 + base_proj.kept.len() as f64 * n_eff.ln();
+    let q_total: usize = accepted_cols
+        .iter()
+        .map(|(id, ..)| {
+            usize::from(matches!(id, EffectId::ThermalLag | EffectId::WarmUp | EffectId::BiasStep))
+        })
+        .sum();
+    let bic_after = r.iter().map(|x| x * x).sum::<f64>() / sig2
+        + (proj.kept.len() + q_total) as f64 * n_eff.ln();
+    let unexplained = unexplained(&prep, &r, &noise, opts);
+    let verdict = if !findings.is_empty() || !unexplained.is_empty() {
+        Verdict::MissingPhysics
+    } else if wald_params > thr_params {
+        Verdict::ParametersOnly
+    } else {
+        Verdict::Consistent
+    };
+    let adev_before = bin_adev(&prep.bins, &r_base);
+    let adev_after = bin_adev(&prep.bins, &r);
+    let _ = &adev_segments;
+    let dt = &prep.native.dt;
+    let series = Series {
+        time_s: prep.bins.iter().map(Bin::centre_s).collect(),
+        residual_nominal: y.clone(),
+        residual_before: r_base.clone(),
+        residual_after: r.clone(),
+        temp_c: bin_mean(&prep.bins, dt, |k| prep.temp[k]),
+        temp_rate_c_s: bin_mean(&prep.bins, dt, |k| prep.temp_rate[k]),
+        table_rate_rad_s: prep.bins.iter().map(|b| b.table_rate_rad_s).collect(),
+        angle_rad: bin_mean(&prep.bins, dt, |k| prep.native.angle_mid_rad[k]),
+        contributions,
+    };
+    findings.extend(rej.into_iter().take(5));
+    Ok(Diagnosis {
+        verdict,
+        parameter_updates,
+        parameters_wald: (wald_params, thr_params),
+        findings,
+        unexplained,
+        location,
+        noise_before,
+        noise_after: noise.spec(),
+        n_eff,
+        n_bins: n,
+        rms: (rms_nominal, rms_before, rms_after),
+        adev_before,
+        adev_after,
+        bic: (bic_before, bic_after),
+        model: updated,
+        effects: new_effects,
+        series,
+    })
+}
+
+/// Earth's rate as the bias correction: θ = bias correction / Earth's rate (1 if the missing
+/// term is Earth's rate).
+fn earth_test(
+    proj: &Projector,
+    _design: &[Vec<f64>],
+    y: &[f64],
+    noise: &BinNoise,
+    earth: f64,
+) -> Option<fit::TermTest> {
+    if earth == 0.0 {
+        return None;
+    }
+    let j = proj.kept.iter().position(|&c| c == 0)?;
+    let beta = proj.beta(y);
+    let w = proj.weights(j, noise.len());
+    let var = noise.quad(&w, &w) / (earth * earth);
+    let theta = beta[j] / earth;
+    Some(fit::TermTest {
+        theta: vec![theta],
+        cov: nalgebra::DMatrix::from_element(1, 1, var),
+        wald: theta * theta / var,
+        delta_rss: 0.0,
+    })
+}
+
+/// The effect's parameters in its own terms from the linear fit `t` at grid value `p`, with a
+/// grid parameter's σ from the Wald profile (the span where W stays within 1 of its peak).
+fn effect_parameters(
+    id: EffectId,
+    p: f64,
+    t: &fit::TermTest,
+    profile: &[(f64, f64)],
+    prep: &Prepared,
+) -> Vec<EffectParameter> {
+    let lin =
+        |name, unit, a: usize| EffectParameter { name, value: t.theta[a], sigma: t.sigma(a), unit };
+    let grid_sigma = || {
+        let peak = profile.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+        let inside: Vec<f64> = profile.iter().filter(|x| x.1 >= peak - 1.0).map(|x| x.0).collect();
+        let (lo, hi) = inside
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        // Half the width of the interval, at least half the local grid spacing.
+        let spacing = profile
+            .windows(2)
+            .filter(|w| w[0].0 <= p && w[1].0 >= p)
+            .map(|w| w[1].0 - w[0].0)
+            .fold(f64::INFINITY, f64::min);
+        let spacing = if spacing.is_finite() { spacing } else { 0.0 };
+        (0.5 * (hi - lo)).max(0.5 * spacing)
+    };
+    match id {
+        EffectId::EarthRate => {
+            let rate = t.theta[0] * prep.earth;
+            let s = t.sigma(0) * prep.earth.abs();
+            let e = bench_physics::earth::EARTH_RATE_RAD_S;
+            let sin = (rate / e * prep.axis).clamp(-1.0, 1.0);
+            let lat = sin.asin().to_degrees();
+            let dlat =
+                s / (e * lat.to_radians().cos().abs().max(1e-6)) * 180.0 / std::f64::consts::PI;
+            vec![
+                EffectParameter { name: "rate_rad_s", value: rate, sigma: s, unit: "rad/s" },
+                EffectParameter { name: "latitude_deg", value: lat, sigma: dlat, unit: "deg" },
+            ]
+        }
+        EffectId::ThermalLag => vec![
+            EffectParameter { name: "time_constant_s", value: p, sigma: grid_sigma(), unit: "s" },
+            lin("gain", "1", 0),
+        ],
+        EffectId::TemperatureQuadratic => vec![lin("coeff_rad_s_per_c2", "rad/s/°C²", 0)],
+        EffectId::ScaleFactorTemperature => vec![lin("coeff_per_c", "1/°C", 0)],
+        EffectId::ThermalHysteresis => vec![lin("half_width_rad_s", "rad/s", 0)],
+        EffectId::OncePerRevolution => {
+            let (a, b) = (t.theta[0], t.theta[1]);
+            let amp = a.hypot(b);
+            let phase = b.atan2(a);
+            // Delta method.
+            let (va, vb, cab) = (t.cov[(0, 0)], t.cov[(1, 1)], t.cov[(0, 1)]);
+            let amp_var = if amp > 0.0 {
+                (a * a * va + b * b * vb + 2.0 * a * b * cab) / (amp * amp)
+            } else {
+                va.max(vb)
+            };
+            let ph_var = if amp > 0.0 {
+                (b * b * va + a * a * vb - 2.0 * a * b * cab) / amp.powi(4)
+            } else {
+                f64::INFINITY
+            };
+            vec![
+                EffectParameter {
+                    name: "amplitude_rad_s",
+                    value: amp,
+                    sigma: amp_var.max(0.0).sqrt(),
+                    unit: "rad/s",
+                },
+                EffectParameter {
+                    name: "phase_rad",
+                    value: phase,
+                    sigma: ph_var.max(0.0).sqrt(),
+                    unit: "rad",
+                },
+            ]
+        }
+        EffectId::TimeOffset => vec![lin("offset_s", "s", 0)],
+        EffectId::WarmUp => vec![
+            lin("amplitude_rad_s", "rad/s", 0),
+            EffectParameter { name: "time_constant_s", value: p, sigma: grid_sigma(), unit: "s" },
+        ],
+        EffectId::BiasStep => vec![
+            EffectParameter { name: "time_s", value: p, sigma: grid_sigma(), unit: "s" },
+            lin("step_rad_s", "rad/s", 0),
+        ],
+        EffectId::RateSquared => vec![lin("coeff_s_per_rad", "s/rad", 0)],
+    }
+}
+
+/// Put an accepted effect with its fitted parameters into `e`.
+fn apply_effect(e: &mut Effects, id: EffectId, p: f64, th: &[(f64, f64)], model: &GyroModel) {
+    let v = |a: usize| th.get(a).map_or(0.0, |x| x.0);
+    match id {
+        EffectId::EarthRate => e.earth_rate = true,
+        EffectId::ThermalLag => {
+            let _ = model;
+            e.thermal_lag = Some(ThermalLag { time_constant_s: p });
+        }
+        EffectId::TemperatureQuadratic => {
+            e.temperature_quadratic = Some(TemperatureQuadratic { coeff_rad_s_per_c2: v(0) })
+        }
+        EffectId::ScaleFactorTemperature => {
+            e.scale_factor_temperature = Some(ScaleFactorTemperature { coeff_per_c: v(0) })
+        }
+        EffectId::ThermalHysteresis => {
+            e.thermal_hysteresis =
+                Some(ThermalHysteresis { half_width_rad_s: v(0), threshold_c_s: HYST_C_S })
+        }
+        EffectId::OncePerRevolution => {
+            let (a, b) = (v(0), v(1));
+            e.once_per_revolution =
+                Some(OncePerRevolution { amplitude_rad_s: a.hypot(b), phase_rad: b.atan2(a) })
+        }
+        EffectId::TimeOffset => e.time_offset = Some(TimeOffset { offset_s: v(0) }),
+        EffectId::WarmUp => e.warm_up = Some(WarmUp { amplitude_rad_s: v(0), time_constant_s: p }),
+        EffectId::BiasStep => e.bias_step = Some(BiasStep { time_s: p, step_rad_s: v(0) }),
+        EffectId::RateSquared => e.rate_squared = Some(RateSquared { coeff_s_per_rad: v(0) }),
+    }
+}
+
+/// Location of the residual (module docs, step 5).
+fn locate(
+    prep: &Prepared,
+    run: &RunSeries,
+    r: &[f64],
+    noise: &BinNoise,
+    proj: &Projector,
+    y: &[f64],
+) -> Location {
+    let bins = &prep.bins;
+    let n = bins.len();
+    let dt = &prep.native.dt;
+    let mut loc = Location::default();
+    for s in &run.steps {
+        let idx: Vec<usize> = (0..n)
+            .filter(|&i| bins[i].centre_s() >= s.start_s && bins[i].centre_s() < s.end_s)
+            .collect();
+        let name = if s.label.is_empty() { s.name.clone() } else { s.label.clone() };
+        if let Some(reg) = region(format!("#{} {name}", s.index), &idx, r, noise) {
+            loc.steps.push(reg);
+        }
+    }
+    let by = |f: &dyn Fn(usize) -> bool| -> Vec<usize> { (0..n).filter(|&i| f(i)).collect() };
+    let rate = |i: usize| bins[i].table_rate_rad_s;
+    for (name, idx) in [
+        ("cw", by(&|i| rate(i) < -1e-6)),
+        ("ccw", by(&|i| rate(i) > 1e-6)),
+        ("rest", by(&|i| rate(i).abs() <= 1e-6)),
+    ] {
+        if let Some(reg) = region(name.into(), &idx, r, noise) {
+            loc.direction.push(reg);
+        }
+    }
+    let tr = bin_mean(bins, dt, |k| prep.temp_rate[k]);
+    let thr = HYST_C_S;
+    for (name, idx) in [
+        ("heating", by(&|i| tr[i] > thr)),
+        ("cooling", by(&|i| tr[i] < -thr)),
+        ("steady", by(&|i| tr[i].abs() <= thr)),
+    ] {
+        if let Some(reg) = region(name.into(), &idx, r, noise) {
+            loc.thermal.push(reg);
+        }
+    }
+    let tm = bin_mean(bins, dt, |k| prep.temp[k]);
+    let lo = tm.iter().fold(f64::INFINITY, |a, b| a.min(*b));
+    let hi = tm.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b));
+    if lo.is_finite() && hi.is_finite() {
+        let mut band = (lo / 10.0).floor() * 10.0;
+        while band < hi {
+            let idx = by(&|i| tm[i] >= band && tm[i] < band + 10.0);
+            if let Some(reg) = region(format!("{band:.0}..{:.0} °C", band + 10.0), &idx, r, noise)
+            {
+                loc.temperature.push(reg);
+            }
+            band += 10.0;
+        }
+    }
+    let ang = bin_mean(bins, dt, |k| prep.native.angle_mid_rad[k]);
+    for s in 0..8 {
+        let (a0, a1) = (s as f64 * 45.0, (s + 1) as f64 * 45.0);
+        let idx = by(&|i| {
+            let d = ang[i].to_degrees().rem_euclid(360.0);
+            rate(i).abs() > 1e-6 && d >= a0 && d < a1
+        });
+        if let Some(reg) = region(format!("angle {a0:.0}..{a1:.0}°"), &idx, r, noise) {
+            loc.angle.push(reg);
+        }
+    }
+    loc.transitions = region("table accelerations".into(), &by(&|i| bins[i].transition), r, noise);
+    // Change point: the bias-step scan.
+    let mut best: Option<(f64, f64)> = None;
+    for p in grid(prep, EffectId::BiasStep) {
+        let cols = vec![bins.iter().map(|b| if b.start_s >= p { 1.0 } else { 0.0 }).collect()];
+        if let Some(t) = proj.test(&cols, y, noise) {
+            if best.is_none_or(|b| t.wald > b.1) {
+                best = Some((p, t.wald));
+            }
+        }
+    }
+    loc.change_point = best;
+    for h in [1u32, 2] {
+        let hf = f64::from(h);
+        let s = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).sin());
+        let c = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).cos());
+        if let Some(t) = proj.test(&[s, c], y, noise) {
+            loc.harmonics.push((h, t.theta[0].hypot(t.theta[1]), t.wald));
+        }
+    }
+    loc
+}
+
+/// Blocks of the final residual that depart from the noise model (module docs).
+fn unexplained(
+    prep: &Prepared,
+    r: &[f64],
+    noise: &BinNoise,
+    opts: &DiagnoseOptions,
+) -> Vec<Unexplained> {
+    let bins = &prep.bins;
+    let block = opts.holdout_block_s;
+    let mut blocks: Vec<Vec<usize>> = Vec::new();
+    let mut cur_key = i64::MIN;
+    for (i, bin) in bins.iter().enumerate() {
+        let key = (bin.centre_s() / block).floor() as i64;
+        if key != cur_key {
+            blocks.push(Vec::new());
+            cur_key = key;
+        }
+        if let Some(b) = blocks.last_mut() {
+            b.push(i);
+        }
+    }
+    let nb = blocks.len().max(1) as f64;
+    let z_thr = normal_quantile(1.0 - opts.alpha / (2.0 * nb));
+    let mut windows: Vec<(f64, f64)> = Vec::new();
+    let mut flagged: Vec<usize> = Vec::new();
+    for b in &blocks {
+        if b.len() < 3 {
+            continue;
+        }
+        if let Some(reg) = region(String::new(), b, r, noise) {
+            if reg.z().abs() > z_thr {
+                let (s, e) = (bins[b[0]].start_s, bins[b[b.len() - 1]].end_s);
+                match windows.last_mut() {
+                    Some(last) if s - last.1 <= 1.0 => last.1 = e,
+                    _ => windows.push((s, e)),
+                }
+                flagged.extend(b.iter().copied());
+            }
+        }
+    }
+    if windows.is_empty() {
+        return Vec::new();
+    }
+    let dt = &prep.native.dt;
+    let signals: Vec<(&str, Vec<f64>)> = vec![
+        ("temperature", bin_mean(bins, dt, |k| prep.temp[k])),
+        ("temperature rate", bin_mean(bins, dt, |k| prep.temp_rate[k])),
+        ("table rate", bins.iter().map(|b| b.table_rate_rad_s).collect()),
+        ("|table rate|", bins.iter().map(|b| b.table_rate_rad_s.abs()).collect()),
+        ("time", bins.iter().map(Bin::centre_s).collect()),
+    ];
+    let corr = |a: &[f64], b: &[f64]| {
+        let m = a.len() as f64;
+        let (ma, mb) = (a.iter().sum::<f64>() / m, b.iter().sum::<f64>() / m);
+        let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+        for (x, y) in a.iter().zip(b) {
+            sab += (x - ma) * (y - mb);
+            saa += (x - ma) * (x - ma);
+            sbb += (y - mb) * (y - mb);
+        }
+        if saa > 0.0 && sbb > 0.0 {
+            sab / (saa * sbb).sqrt()
+        } else {
+            0.0
+        }
+    };
+    let (name, c) = signals
+        .iter()
+        .map(|(name, s)| (*name, corr(r, s)))
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .unwrap_or(("nothing", 0.0));
+    let sel: Vec<f64> = flagged.iter().map(|&i| r[i]).collect();
+    vec![Unexplained {
+        windows_s: windows,
+        correlates_with: format!("{name} (r = {c:.2})"),
+        rms: rms(&sel),
+    }]
+}

@@ -1,0 +1,141 @@
+//! `bench diagnose RECORDING`: where the recording departs from the simulation of the same
+//! run, the physics that explains it, and the updated model.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench::diagnose::{diagnose_file, json, report};
+use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
+use bench_physics::units::DEG_PER_H;
+
+/// Arguments of `bench diagnose`.
+#[derive(clap::Args, Debug)]
+pub struct DiagnoseArgs {
+    /// Recording (MCAP, per the recording contract).
+    pub recording: PathBuf,
+    /// Nominal model (a calibration/model TOML file); default: the recording's
+    /// `bench.gyro_model`.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Directory for `model.toml` (the updated model), `report.html` and the PNG figures.
+    #[arg(long, default_value = "diagnosis")]
+    pub out: PathBuf,
+    /// Also write the machine-readable result here (docs/diagnose.md).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Bin length, s.
+    #[arg(long, default_value_t = 10.0)]
+    pub bin_s: f64,
+    /// Family-wise probability of a false finding over every effect and grid point tried.
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Skip the HTML/PNG report.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+/// Diagnose and write the outputs. Exit code 0 for `consistent`, 3 for `parameters_only`,
+/// 4 for `missing_physics`.
+pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
+    let started = std::time::Instant::now();
+    let nominal = match &args.model {
+        Some(path) => {
+            let file = CalibrationFile::load(path)?;
+            Some((file.model(), file.effects, path.display().to_string()))
+        }
+        None => None,
+    };
+    let opts = DiagnoseOptions { bin_s: args.bin_s, alpha: args.alpha, ..Default::default() };
+    let out = diagnose_file(&args.recording, nominal, &opts)
+        .with_context(|| format!("cannot diagnose {}", args.recording.display()))?;
+    let name = args
+        .recording
+        .file_name()
+        .map_or_else(|| args.recording.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let d = &out.diagnosis;
+    println!("{name}: verdict {} (nominal model: {})", d.verdict.key(), out.nominal.2);
+    println!(
+        "residual RMS of {} s bins: nominal {:.3e} °/h, parameters refitted {:.3e} °/h, with \
+         effects {:.3e} °/h",
+        opts.bin_s,
+        d.rms.0 / DEG_PER_H,
+        d.rms.1 / DEG_PER_H,
+        d.rms.2 / DEG_PER_H
+    );
+    println!("| parameter | nominal | fitted ± 1σ |");
+    println!("| --- | --- | --- |");
+    for u in &d.parameter_updates {
+        println!("| {} | {:.4e} | {:.4e} ± {:.1e} |", u.key, u.nominal, u.fitted, u.sigma);
+    }
+    for f in d.findings.iter().filter(|f| f.accepted) {
+        let params: Vec<String> = f
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {:.4e} ± {:.1e} {}", p.name, p.value, p.sigma, p.unit))
+            .collect();
+        println!(
+            "found {}: {} (ΔBIC {:.1}, RMS {:.3e} → {:.3e} °/h) — {}",
+            f.effect.key(),
+            params.join(", "),
+            f.delta_bic,
+            f.rms_before / DEG_PER_H,
+            f.rms_after / DEG_PER_H,
+            f.effect.description()
+        );
+    }
+    for u in &d.unexplained {
+        println!(
+            "unexplained: {} window(s), RMS {:.3e} °/h, correlates with {}",
+            u.windows_s.len(),
+            u.rms / DEG_PER_H,
+            u.correlates_with
+        );
+    }
+    if let Some(r) = &out.resimulated {
+        println!(
+            "re-simulated with the updated model: residual RMS {:.3e} °/h, verdict {}",
+            r.rms.0 / DEG_PER_H,
+            r.verdict.key()
+        );
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let sigma = |key: &str| {
+        d.parameter_updates.iter().find(|u| u.key == key).map(|u| u.sigma).filter(|s| s.is_finite())
+    };
+    let file = CalibrationFile {
+        source: Source {
+            recording: name.clone(),
+            software: format!("bench {}", env!("CARGO_PKG_VERSION")),
+            method: "diagnose: nominal model refitted, effects added (docs/diagnose.md)".into(),
+        },
+        gyro_model: ModelKeys::from(&d.model),
+        uncertainty: Uncertainty {
+            bias_rad_s: sigma("bias"),
+            scale_factor_error: sigma("scale_factor_error"),
+            temp_coeff_rad_s_per_c: sigma("temp_coeff"),
+            temp_rate_coeff_rad_s_per_c_s: sigma("temp_rate_coeff"),
+        },
+        effects: d.effects,
+    };
+    let path = args.out.join("model.toml");
+    file.save(&path)?;
+    println!("wrote {}", path.display());
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if !args.no_report {
+        let files = report::write_report(&out, &name, &args.out)?;
+        println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
+    }
+    eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    Ok(match d.verdict {
+        Verdict::Consistent => ExitCode::SUCCESS,
+        Verdict::ParametersOnly => ExitCode::from(3),
+        Verdict::MissingPhysics => ExitCode::from(4),
+    })
+}
