@@ -332,6 +332,132 @@ impl BenchConfig {
     }
 }
 
+/// `[replay]`: the devices are a recording played back ([`crate::replay`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReplayConfig {
+    /// The recording (MCAP); a relative path is taken from the config file's directory.
+    pub recording: PathBuf,
+    /// Absent: virtual time (as fast as the CPU allows). A positive number: real time × that
+    /// factor (1 = as recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<f64>,
+}
+
+/// A bench config whose devices are a recording: `[replay]` and optionally `[bench]`. The site
+/// is the recording's `bench.site`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReplayBenchConfig {
+    /// Which recording and how fast.
+    pub replay: ReplayConfig,
+    /// Fault-handling settings (`time_scale` is not used: see `speed`).
+    #[serde(default)]
+    pub bench: BenchSettings,
+}
+
+/// What `bench run --bench` names: devices to connect to, or a recording to replay.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BenchSource {
+    /// `[table]`, `[chamber]`, `[gyro]`: real drivers or served simulators; none of them: the
+    /// embedded simulated bench ([`BenchConfig::is_simulated`]).
+    Devices(Box<BenchConfig>),
+    /// `[replay]` or `replay:PATH`.
+    Replay(ReplayBenchConfig),
+}
+
+/// Prefix of a `--bench` argument that names a recording to replay in virtual time.
+pub const REPLAY_PREFIX: &str = "replay:";
+
+impl BenchSource {
+    /// `replay:PATH` (a recording, replayed in virtual time), or a bench config file with
+    /// either device sections or a `[replay]` section.
+    pub fn load(spec: &Path) -> Result<Self, ConfigError> {
+        if let Some(rec) = spec.to_str().and_then(|s| s.strip_prefix(REPLAY_PREFIX)) {
+            return Ok(Self::Replay(ReplayBenchConfig {
+                replay: ReplayConfig { recording: PathBuf::from(rec), speed: None },
+                bench: BenchSettings::default(),
+            }));
+        }
+        let text = std::fs::read_to_string(spec)
+            .map_err(|source| ConfigError::Io { path: spec.to_path_buf(), source })?;
+        let mut source = Self::parse(&text, &spec.display().to_string())?;
+        if let Self::Replay(r) = &mut source {
+            if r.replay.recording.is_relative() {
+                if let Some(dir) = spec.parent() {
+                    r.replay.recording = dir.join(&r.replay.recording);
+                }
+            }
+        }
+        Ok(source)
+    }
+
+    /// Parse config `text`: a `[replay]` section makes it a replay (no device sections
+    /// allowed beside it); errors name `file:line:column`.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let is_replay =
+            text.parse::<toml::Table>().map(|t| t.contains_key("replay")).unwrap_or(false);
+        if !is_replay {
+            return BenchConfig::parse(text, file).map(|c| Self::Devices(Box::new(c)));
+        }
+        let cfg: ReplayBenchConfig = toml::from_str(text).map_err(|e| {
+            let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
+            ConfigError::Invalid {
+                file: file.to_string(),
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        let at_key = |key: &str| {
+            let (line, column) = text
+                .find(&format!("{key} "))
+                .or_else(|| text.find(key))
+                .map_or((1, 1), |at| crate::scenario::line_col(text, at));
+            (line, column)
+        };
+        if let Some(speed) = cfg.replay.speed {
+            if !(speed.is_finite() && speed > 0.0) {
+                let (line, column) = at_key("speed");
+                return Err(ConfigError::Invalid {
+                    file: file.to_string(),
+                    line,
+                    column,
+                    message: format!(
+                        "[replay] speed must be a positive number (× real time), got {speed}; \
+                         leave it out for virtual time"
+                    ),
+                });
+            }
+        }
+        // The fault-handling settings are checked as for a device bench.
+        let b = &cfg.bench;
+        for (key, v) in
+            [("stale_after_s", b.stale_after_s), ("safe_state_timeout_s", b.safe_state_timeout_s)]
+        {
+            if !(v.is_finite() && v > 0.0 && v < 1e9) {
+                let (line, column) = at_key(key);
+                return Err(ConfigError::Invalid {
+                    file: file.to_string(),
+                    line,
+                    column,
+                    message: format!("[bench] {key} must be a positive number of seconds, got {v}"),
+                });
+            }
+        }
+        Ok(Self::Replay(cfg))
+    }
+}
+
+/// A `[replay]` config pointing at `recording` (what `bench replay --serve` writes beside its
+/// device config, for replaying without the wire).
+pub fn for_replay(recording: &Path, speed: Option<f64>) -> ReplayBenchConfig {
+    ReplayBenchConfig {
+        replay: ReplayConfig { recording: recording.to_path_buf(), speed },
+        bench: BenchSettings::default(),
+    }
+}
+
 /// The bench config that reaches a served simulated bench (`bench sim serve`): the table's
 /// Actidyn port, the chamber's Modbus RTU port and the gyro's SLCAN adapter, at the served
 /// time scale and the simulator's latitude.
@@ -431,6 +557,36 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         let text = GOOD.replace("43.56", "95.0");
         let e = BenchConfig::parse(&text, "x.toml").expect_err("rejected").to_string();
         assert!(e.contains("latitude_deg 95 is outside -90..90"), "{e}");
+    }
+
+    #[test]
+    fn a_replay_section_or_prefix_names_a_recording() {
+        let c = BenchSource::parse("[replay]\nrecording = \"run.mcap\"\nspeed = 10\n", "r.toml")
+            .expect("valid");
+        let BenchSource::Replay(r) = c else { panic!("not a replay") };
+        assert_eq!((r.replay.recording, r.replay.speed), (PathBuf::from("run.mcap"), Some(10.0)));
+        let c = BenchSource::load(Path::new("replay:/tmp/x.mcap")).expect("valid");
+        let BenchSource::Replay(r) = c else { panic!("not a replay") };
+        assert_eq!((r.replay.recording, r.replay.speed), (PathBuf::from("/tmp/x.mcap"), None));
+        assert!(matches!(BenchSource::parse(GOOD, "lab.toml"), Ok(BenchSource::Devices(_))));
+    }
+
+    #[test]
+    fn replay_config_errors_are_located() {
+        let text = "[replay]\nrecording = \"run.mcap\"\n\n[table]\ndialect = \"actidyn\"\n";
+        let e = BenchSource::parse(text, "r.toml").expect_err("rejected").to_string();
+        assert!(
+            e.starts_with("r.toml:4:2: unknown field `table`, expected `replay` or `bench`"),
+            "{e}"
+        );
+        let e = BenchSource::parse("[replay]\nrecordin = \"a\"\n", "r.toml")
+            .expect_err("rejected")
+            .to_string();
+        assert!(e.starts_with("r.toml:2:1: unknown field `recordin`"), "{e}");
+        let e = BenchSource::parse("[replay]\nrecording = \"a\"\nspeed = -2\n", "r.toml")
+            .expect_err("rejected")
+            .to_string();
+        assert!(e.starts_with("r.toml:3:1: [replay] speed must be a positive number"), "{e}");
     }
 
     const SIM: &str = r#"[site]

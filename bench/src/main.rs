@@ -30,6 +30,13 @@ enum Command {
     Calibrate(cli::calibrate::CalibrateArgs),
     /// Calibration accuracy over many simulated seeds (seed method vs joint fit).
     MonteCarlo(cli::monte_carlo::MonteCarloArgs),
+    /// Put a recording back on the bench: its devices on virtual ports (--serve), its streams
+    /// live in Foxglove (--live).
+    Replay(cli::replay::ReplayArgs),
+    /// Rebuild a readable, indexed file from a truncated recording.
+    Recover(cli::recover::RecoverArgs),
+    /// Export a recording's channels as CSV or Parquet tables, one per channel.
+    Export(cli::export::ExportArgs),
     /// Where a recording departs from the simulation of its run: missing physics named and fitted.
     Diagnose(cli::diagnose::DiagnoseArgs),
     /// List the serial ports of this machine.
@@ -47,6 +54,9 @@ fn main() -> ExitCode {
         Command::Info(a) => cli::info::run(a),
         Command::Calibrate(a) => cli::calibrate::run(a),
         Command::MonteCarlo(a) => cli::monte_carlo::run(a),
+        Command::Replay(a) => cli::replay::run(a),
+        Command::Recover(a) => cli::recover::run(a),
+        Command::Export(a) => cli::export::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
         Command::Ports => cli::ports::run(),
         Command::Sim(c) => cli::sim::run(c),

@@ -29,6 +29,8 @@ pub struct RealtimeOptions {
     pub console: Option<ConsoleLayer>,
     /// Limits of the fault handling.
     pub policy: FaultPolicy,
+    /// Also show the streams in a Foxglove live view.
+    pub live: Option<Arc<crate::live_view::LiveView>>,
 }
 
 /// Run `plan` on `devices` with `clock` on the current tokio runtime, recording into `writer`
@@ -43,8 +45,10 @@ pub async fn run_plan_realtime<W: Write + Seek + Send + 'static>(
     info: RunInfo,
     opts: RealtimeOptions,
 ) -> anyhow::Result<(RunReport, W)> {
+    let epoch_ns = info.epoch_ns;
     let recorder = Recorder::new(writer, info).context("cannot start the recording")?;
     let sink = ThreadedSink::new(recorder, 1).context("cannot start the recorder thread")?;
+    let sink = crate::live_view::LiveTee::new(sink, opts.live.clone(), epoch_ns);
     let live = Arc::new(Live::default());
     let progress = opts.progress.then(|| {
         crate::progress::Progress::start(live.clone(), plan.estimated_duration(), plan.steps.len())
@@ -63,7 +67,7 @@ pub async fn run_plan_realtime<W: Write + Seek + Send + 'static>(
     .await;
     let wall_time = wall.elapsed();
     drop(progress);
-    let (recorder, thread_error) = result.sink.finish()?;
+    let (recorder, thread_error) = result.sink.into_inner().finish()?;
     let outcome = match result.record_error.or(thread_error) {
         Some(e) => Outcome::Aborted(format!("recording failed: {e}")),
         None => result.outcome,

@@ -15,6 +15,7 @@ use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use bench_sim::{SimBench, SimConfig};
 
+use crate::live_view::LiveTee;
 use crate::plan::RunPlan;
 use crate::record::{Axis, Recorder, RunInfo, Site};
 use crate::run::threaded::ThreadedSink;
@@ -34,11 +35,13 @@ pub struct SimOptions {
     pub epoch_ns: u64,
     /// Show a progress bar on a terminal (default false).
     pub progress: bool,
+    /// Also show the streams in a Foxglove live view (default none).
+    pub live: Option<Arc<crate::live_view::LiveView>>,
 }
 
 impl Default for SimOptions {
     fn default() -> Self {
-        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false }
+        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false, live: None }
     }
 }
 
@@ -162,15 +165,32 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     // concealed.
     let mut info = run_info(plan, opts.epoch_ns);
     info.gyro_model = gyro_model_metadata(&plan.sim.truth, &plan.gyro.effects);
+    run_devices_virtual(plan, devices, &clock, info, writer, opts, console)
+}
+
+/// Run `plan` on `devices` whose clock is `clock`, in virtual time, recording into `writer`
+/// with `info` (the simulated bench and replays in virtual time). `opts.seed` is not used.
+pub fn run_devices_virtual<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    devices: Devices,
+    clock: &VirtualClock,
+    info: RunInfo,
+    writer: W,
+    opts: &SimOptions,
+    console: Option<ConsoleLayer>,
+) -> anyhow::Result<(RunReport, W)> {
+    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let epoch_ns = info.epoch_ns;
     let recorder = Recorder::new(writer, info).context("cannot start the recording")?;
     // Serialising and compressing run on the second core; batches amortise the hand-over.
     let recorder = ThreadedSink::new(recorder, 4096).context("cannot start the recorder thread")?;
+    let recorder = LiveTee::new(recorder, opts.live.clone(), epoch_ns);
     let live = Arc::new(Live::default());
     let progress = opts.progress.then(|| {
         crate::progress::Progress::start(live.clone(), plan.estimated_duration(), plan.steps.len())
     });
     let wall = Instant::now();
-    let result = run_virtual(&clock, |spawner| {
+    let result = run_virtual(clock, |spawner| {
         execute(
             plan,
             devices,
@@ -184,7 +204,7 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     .context("simulated run stalled")?;
     let wall_time = wall.elapsed();
     drop(progress);
-    let (recorder, thread_error) = result.sink.finish()?;
+    let (recorder, thread_error) = result.sink.into_inner().finish()?;
     let outcome = match result.record_error.or(thread_error) {
         Some(e) => Outcome::Aborted(format!("recording failed: {e}")),
         None => result.outcome,

@@ -2,9 +2,12 @@
 
 pub mod calibrate;
 pub mod diagnose;
+pub mod export;
 pub mod info;
 pub mod monte_carlo;
 pub mod ports;
+pub mod recover;
+pub mod replay;
 pub mod run;
 pub mod sim;
 pub mod validate;
@@ -23,4 +26,20 @@ pub fn console_layer(
     };
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
     tracing_subscriber::fmt::layer().with_writer(std::io::stderr).with_filter(filter).boxed()
+}
+
+/// Start the Foxglove live view on `rt` at `addr` if `on`, and say where it listens.
+pub fn start_live(
+    rt: &tokio::runtime::Runtime,
+    on: bool,
+    addr: std::net::SocketAddr,
+) -> anyhow::Result<Option<std::sync::Arc<bench::live_view::LiveView>>> {
+    if !on {
+        return Ok(None);
+    }
+    let host = addr.ip().to_string();
+    let live = rt.block_on(bench::live_view::LiveView::start(&host, addr.port()))?;
+    let shown = if addr.ip().is_ipv6() { format!("[{host}]") } else { host };
+    eprintln!("live view: Foxglove → Open connection → ws://{shown}:{}", live.port());
+    Ok(Some(std::sync::Arc::new(live)))
 }

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use bench::bench_config::BenchConfig;
+use bench::bench_config::{BenchConfig, BenchSource, ReplayBenchConfig};
 use bench::plan::RunPlan;
 use bench::realtime::{run_plan_realtime, RealtimeOptions};
 use bench::record::TomlAttachment;
@@ -28,11 +28,18 @@ pub struct RunArgs {
     /// (simulated bench only).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Bench config (TOML): real drivers, or simulators behind virtual ports; a config without
-    /// drivers is the embedded simulated bench at its site with its `[simulation]` settings.
+    /// Bench config (TOML): real drivers, simulators behind virtual ports, or a `[replay]` of
+    /// a recording; a config without drivers is the embedded simulated bench at its site with
+    /// its `[simulation]` settings; `replay:REC.mcap` replays a recording in virtual time.
     /// Without it the embedded simulated bench runs in virtual time.
     #[arg(long, short)]
     pub bench: Option<PathBuf>,
+    /// Show the streams live in Foxglove (WebSocket server; open ws://127.0.0.1:8765).
+    #[arg(long)]
+    pub live: bool,
+    /// Address of the live view's server (only loopback unless you say otherwise).
+    #[arg(long, default_value = "127.0.0.1:8765", requires = "live")]
+    pub live_addr: std::net::SocketAddr,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -78,25 +85,20 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
         PathBuf::from(stem).with_extension("mcap")
     });
     let progress = !args.quiet && std::io::stderr().is_terminal();
-    let config = match &args.bench {
-        Some(path) => Some((path, BenchConfig::load(path)?)),
-        None => None,
-    };
-    let report = match config {
-        None => match run_simulated(&args, &out, progress, verbose, None)? {
-            Some(r) => r,
-            None => return Ok(ExitCode::from(2)),
-        },
-        Some((_, config)) if config.is_simulated() => {
-            match run_simulated(&args, &out, progress, verbose, Some(&config))? {
-                Some(r) => r,
-                None => return Ok(ExitCode::from(2)),
+    let report = match &args.bench {
+        None => run_simulated(&args, &out, progress, verbose, None)?,
+        Some(spec) => match BenchSource::load(spec)? {
+            BenchSource::Replay(replay) => run_on_replay(&args, &replay, &out, progress, verbose)?,
+            BenchSource::Devices(config) if config.is_simulated() => {
+                run_simulated(&args, &out, progress, verbose, Some(&config))?
             }
-        }
-        Some((path, config)) => match run_on_bench(&args, path, config, &out, progress, verbose)? {
-            Some(r) => r,
-            None => return Ok(ExitCode::from(2)),
+            BenchSource::Devices(config) => {
+                run_on_bench(&args, spec, *config, &out, progress, verbose)?
+            }
         },
+    };
+    let Some(report) = report else {
+        return Ok(ExitCode::from(2));
     };
     println!(
         "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, peak RSS {}",
@@ -127,7 +129,9 @@ fn run_simulated(
     if let Some(config) = config {
         apply_sim_config(&mut plan, config);
     }
-    let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress };
+    let rt = runtime()?;
+    let live = start_live(&rt, args)?;
+    let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let (report, writer) = bench::simulate::run_plan(
@@ -176,11 +180,8 @@ fn run_on_bench(
     }
     let config_text = std::fs::read_to_string(config_path)
         .with_context(|| format!("cannot read {}", config_path.display()))?;
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .context("cannot start the tokio runtime")?;
+    let rt = runtime()?;
+    let live = start_live(&rt, args)?;
     rt.block_on(async {
         let clock = SystemClock::new(config.bench.time_scale);
         // Bench time zero is now: log times are wall-clock times (scaled around this instant
@@ -231,12 +232,81 @@ fn run_on_bench(
                 stop: Some(stop),
                 console: Some(super::console_layer(verbose)),
                 policy: config.bench.policy(),
+                live,
             },
         )
         .await?;
         finish_file(writer, out)?;
         Ok(Some(report))
     })
+}
+
+/// Against a recording: the scenario is validated against what the replay offers, then run in
+/// virtual time (no `speed`) or in real time × `speed`. Commands that disagree with the
+/// recording are counted and reported.
+fn run_on_replay(
+    args: &RunArgs,
+    config: &ReplayBenchConfig,
+    out: &Path,
+    progress: bool,
+    verbose: u8,
+) -> anyhow::Result<Option<RunReport>> {
+    let rec = &config.replay.recording;
+    let data = Arc::new(bench::replay::ReplayData::load(rec)?);
+    let Some(mut plan) = load_plan(&args.scenario, &data.capabilities())? else {
+        return Ok(None);
+    };
+    apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
+    let file = std::fs::File::create(out)
+        .with_context(|| format!("cannot create recording {}", out.display()))?;
+    let writer = std::io::BufWriter::new(file);
+    let console = Some(super::console_layer(verbose));
+    let rt = runtime()?;
+    let live = start_live(&rt, args)?;
+    let (report, writer) = match config.replay.speed {
+        None => bench::replay::run_virtual(&plan, &data, writer, console, progress, live)?,
+        Some(speed) => rt.block_on(async {
+            let (stopper, stop) = Stopper::new();
+            tokio::spawn(async move {
+                if tokio::signal::ctrl_c().await.is_ok() {
+                    stopper.stop("interrupted by the operator (Ctrl-C)");
+                }
+            });
+            let opts = RealtimeOptions {
+                progress,
+                stop: Some(stop),
+                console,
+                policy: config.bench.policy(),
+                live,
+            };
+            bench::replay::run_realtime(&plan, &data, speed, writer, opts).await
+        })?,
+    };
+    finish_file(writer, out)?;
+    let (tc, tm, cc, cm) = report.checks.counts();
+    println!(
+        "replay of {}: {tc} table command(s), {tm} disagreeing with the recording; {cc} chamber \
+         target(s), {cm} disagreeing",
+        rec.display()
+    );
+    Ok(Some(report.run))
+}
+
+/// A two-worker tokio runtime.
+pub(crate) fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")
+}
+
+/// The live view, if `--live`: started on `rt`, its address printed.
+fn start_live(
+    rt: &tokio::runtime::Runtime,
+    args: &RunArgs,
+) -> anyhow::Result<Option<Arc<bench::live_view::LiveView>>> {
+    super::start_live(rt, args.live, args.live_addr)
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), MB.

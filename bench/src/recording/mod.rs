@@ -300,6 +300,7 @@ pub struct RecordingReader<R> {
     channels: HashMap<u16, Chan>,
     end: End,
     failed: bool,
+    raw: bool,
 }
 
 /// Largest record or chunk accepted when the file size is unknown.
@@ -335,7 +336,15 @@ impl<R: Read> RecordingReader<R> {
             channels: HashMap::new(),
             end: End::Reading,
             failed: false,
+            raw: false,
         }
+    }
+
+    /// Decode nothing: every message, on every channel, comes as [`Item::Other`] with its raw
+    /// body (for tools that copy or export any channel).
+    pub fn raw(mut self) -> Self {
+        self.raw = true;
+        self
     }
 
     /// How the file ended (meaningful once the iterator returned `None`).
@@ -373,6 +382,7 @@ impl<R: Read> RecordingReader<R> {
                 let (schema_name, schema_encoding) =
                     self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 let kind = match c.topic.as_str() {
+                    _ if self.raw => Kind::Other,
                     TOPIC_GYRO => Kind::Gyro,
                     TOPIC_TABLE => Kind::Table,
                     TOPIC_CHAMBER => Kind::Chamber,

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use bench_drivers::protocol::modbus_map::Preset;
 use bench_drivers::real::table::Dialect;
 use bench_drivers::transport::{Endpoint, SerialSettings};
-use bench_drivers::Clock;
+use bench_drivers::{Chamber, Clock, Gyro, RateTable};
 use tokio::task::JoinHandle;
 
 use super::chamber::{serve_chamber_rtu, serve_chamber_tcp, ChamberServeOptions, ServedChamber};
@@ -99,6 +99,31 @@ pub async fn serve_bench(
 ) -> Result<ServedBench, ServeError> {
     let gyro_rate_hz = config.gyro_sample_rate_hz;
     let sim = SimBench::new(config, clock.clone())?;
+    serve_devices(sim.table, sim.chamber, sim.gyro, gyro_rate_hz, clock).await
+}
+
+/// Serve any table, chamber and gyro (simulators, replays of a recording) on every port
+/// [`serve_bench`] opens. Each server gets its own clone of the device: clones of the
+/// simulators share one world, clones of a replay play the same recording on the same clock.
+/// Needs a tokio runtime; returns once every server is listening.
+pub async fn serve_devices<T, C, G>(
+    table: T,
+    chamber: C,
+    gyro: G,
+    gyro_rate_hz: f64,
+    clock: Arc<dyn Clock>,
+) -> Result<ServedBench, ServeError>
+where
+    T: RateTable + Clone + 'static,
+    C: Chamber + Clone + 'static,
+    G: Gyro + Clone + 'static,
+{
+    struct Parts<T, C, G> {
+        table: T,
+        chamber: C,
+        gyro: G,
+    }
+    let sim = Parts { table, chamber, gyro };
     let faults = BenchFaults::default();
     let mut tasks = Vec::new();
     let log_end = |what: &'static str| {

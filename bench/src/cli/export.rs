@@ -1,0 +1,50 @@
+//! `bench export REC.mcap --format csv|parquet [--out DIR]`: one table per channel.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use bench::export::Format;
+
+/// Table format.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum FormatArg {
+    /// Comma-separated text.
+    Csv,
+    /// Apache Parquet.
+    Parquet,
+}
+
+/// Arguments of `bench export`.
+#[derive(clap::Args, Debug)]
+pub struct ExportArgs {
+    /// The recording.
+    pub recording: PathBuf,
+    /// Table format.
+    #[arg(long, value_enum, default_value = "csv")]
+    pub format: FormatArg,
+    /// Output directory (default: the recording's name without `.mcap`, beside it).
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+}
+
+/// Export and list the tables written.
+pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
+    let out = args.out.clone().unwrap_or_else(|| args.recording.with_extension(""));
+    let format = match args.format {
+        FormatArg::Csv => Format::Csv,
+        FormatArg::Parquet => Format::Parquet,
+    };
+    let report = bench::export::export_file(&args.recording, &out, format)
+        .with_context(|| format!("cannot export {}", args.recording.display()))?;
+    for t in &report.tables {
+        println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
+    }
+    for (topic, enc) in &report.skipped {
+        println!("{topic:<16} skipped: message encoding `{enc}` is not json");
+    }
+    if let Some((at, reason)) = &report.cut {
+        println!("the recording is cut at byte {at} ({reason}): exported up to there");
+    }
+    Ok(ExitCode::SUCCESS)
+}

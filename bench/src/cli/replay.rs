@@ -1,0 +1,160 @@
+//! `bench replay REC.mcap --serve | --live`: put a recording back on the bench — its devices
+//! served over the real wire protocols (like `bench sim serve`), and/or its streams shown live
+//! in Foxglove — in real time × `--speed`.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use bench::bench_config::for_served_bench;
+use bench::live_view::LiveView;
+use bench::recording::{Item, RecordingReader};
+use bench::replay::{AtEnd, ReplayData, ReplayOptions};
+use bench_drivers::{Clock, SystemClock};
+use bench_sim::serve::bench::serve_devices;
+
+/// Arguments of `bench replay`.
+#[derive(clap::Args, Debug)]
+pub struct ReplayArgs {
+    /// The recording (any conforming MCAP file, with or without summary).
+    pub recording: PathBuf,
+    /// Serve the recorded table, chamber and gyro over their wire protocols on virtual ports
+    /// (table serial/TCP, chamber Modbus RTU/TCP, gyro SLCAN/KVH) and write a bench config
+    /// that points a second bench at them.
+    #[arg(long)]
+    pub serve: bool,
+    /// Show every channel live in Foxglove (WebSocket server).
+    #[arg(long)]
+    pub live: bool,
+    /// Address of the live view's server (only loopback unless you say otherwise).
+    #[arg(long, default_value = "127.0.0.1:8765")]
+    pub live_addr: SocketAddr,
+    /// Replay speed, × real time.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// Where `--serve` writes the bench config.
+    #[arg(long, default_value = "bench-replay.toml")]
+    pub config_out: PathBuf,
+}
+
+/// Run `bench replay`.
+pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
+    if !(args.speed.is_finite() && args.speed > 0.0) {
+        anyhow::bail!("--speed must be a positive number, got {}", args.speed);
+    }
+    if !args.serve && !args.live {
+        anyhow::bail!(
+            "nothing to do: say --serve (devices on virtual ports) and/or --live (Foxglove); \
+             to re-run a scenario on the recording, use `bench run SCENARIO --bench replay:{}`",
+            args.recording.display()
+        );
+    }
+    let rt = super::run::runtime()?;
+    let live = super::start_live(&rt, args.live, args.live_addr)?;
+    rt.block_on(async move {
+        let clock = SystemClock::new(args.speed);
+        let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+        let mut served = None;
+        let mut data = None;
+        if args.serve {
+            let d = Arc::new(ReplayData::load(&args.recording)?);
+            let bench = d.devices(shared.clone(), ReplayOptions { at_end: AtEnd::Hold });
+            let s = serve_devices(
+                bench.table,
+                bench.chamber,
+                bench.gyro,
+                d.gyro_rate_hz(),
+                shared.clone(),
+            )
+            .await?;
+            let site = d.site();
+            let (lat, up) = site.map_or((0.0, true), |s| (s.latitude_deg, s.axis_up));
+            let cfg = for_served_bench(&s.endpoints, args.speed, lat, up);
+            let e = &s.endpoints;
+            let text = format!(
+                "# Written by `bench replay --serve` for the replay of {} it serves; valid while \
+                 it runs.\n# Alternatives: table Actidyn on {}, ACUTROL on {}; chamber Modbus \
+                 TCP on {}; gyro KVH 1750 on {}, DSP-3000 (binary) on {}.\n\n{}",
+                args.recording.display(),
+                e.table_actidyn_tcp,
+                e.table_acutrol_tcp,
+                e.chamber_tcp,
+                e.gyro_kvh1750.path,
+                e.gyro_dsp3000.path,
+                cfg.to_toml().context("cannot write the bench config")?
+            );
+            std::fs::write(&args.config_out, text)
+                .with_context(|| format!("cannot write {}", args.config_out.display()))?;
+            println!(
+                "replaying {} ({:.1} s of bench time) at {}× real time",
+                args.recording.display(),
+                d.duration().as_secs_f64(),
+                args.speed
+            );
+            println!("  table    Actidyn  {}", e.table_actidyn_pty);
+            println!("  table    Actidyn  {}", e.table_actidyn_tcp);
+            println!("  table    ACUTROL  {}", e.table_acutrol_tcp);
+            println!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
+            println!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
+            println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
+            println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
+            println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+            println!("bench config written to {}; Ctrl-C stops", args.config_out.display());
+            served = Some(s);
+            data = Some(d);
+        }
+        let player = async {
+            match &live {
+                Some(live) => play(&args.recording, live, shared.as_ref()).await,
+                None => {
+                    let end = data.as_ref().map_or(Duration::ZERO, |d| d.duration());
+                    shared.sleep_until(end).await;
+                    Ok(0)
+                }
+            }
+        };
+        tokio::select! {
+            r = player => {
+                let n = r?;
+                println!(
+                    "recording ended at {:.1} s of bench time{}",
+                    shared.now().as_secs_f64(),
+                    if live.is_some() { format!(" ({n} messages shown)") } else { String::new() }
+                );
+                if served.is_some() {
+                    println!("serving the last readings; Ctrl-C stops");
+                    tokio::signal::ctrl_c().await?;
+                }
+            }
+            r = tokio::signal::ctrl_c() => r?,
+        }
+        drop(served);
+        Ok::<_, anyhow::Error>(())
+    })?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Publish every message of the recording to `live` when `clock` reaches its log time (bench
+/// time zero = the first message); the number published.
+async fn play(path: &std::path::Path, live: &LiveView, clock: &dyn Clock) -> anyhow::Result<u64> {
+    let mut first: Option<u64> = None;
+    let mut n = 0u64;
+    let mut reader = RecordingReader::open(path)?.raw();
+    for item in reader.by_ref() {
+        let Item::Other(m) = item? else { continue };
+        let t0 = *first.get_or_insert(m.log_time_ns);
+        clock.sleep_until(Duration::from_nanos(m.log_time_ns.saturating_sub(t0))).await;
+        let c = &m.channel;
+        // Channels beyond the contract's are shown with their schema name only.
+        let _ = live.channel(&c.topic, None, &c.message_encoding);
+        live.publish(&c.topic, m.log_time_ns, &m.data);
+        n += 1;
+    }
+    if let bench::recording::End::Cut { at_byte, reason } = reader.end() {
+        eprintln!("{}: cut at byte {at_byte}: {reason}", path.display());
+    }
+    Ok(n)
+}
