@@ -196,15 +196,7 @@ impl BenchConfig {
 
     /// Parse bench config `text`; errors name `file:line:column`.
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
-        let cfg: Self = toml::from_str(text).map_err(|e| {
-            let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
-            ConfigError::Invalid {
-                file: file.to_string(),
-                line,
-                column,
-                message: e.message().trim().to_string(),
-            }
-        })?;
+        let cfg: Self = toml::from_str(text).map_err(|e| toml_error(text, file, &e))?;
         let bad = |message: String| ConfigError::Invalid {
             file: file.to_string(),
             line: 1,
@@ -400,15 +392,8 @@ impl BenchSource {
         if !is_replay {
             return BenchConfig::parse(text, file).map(|c| Self::Devices(Box::new(c)));
         }
-        let cfg: ReplayBenchConfig = toml::from_str(text).map_err(|e| {
-            let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
-            ConfigError::Invalid {
-                file: file.to_string(),
-                line,
-                column,
-                message: e.message().trim().to_string(),
-            }
-        })?;
+        let cfg: ReplayBenchConfig =
+            toml::from_str(text).map_err(|e| toml_error(text, file, &e))?;
         let at_key = |key: &str| {
             let (line, column) = text
                 .find(&format!("{key} "))
@@ -493,6 +478,17 @@ impl BenchConfig {
     /// As TOML text (the format [`BenchConfig::load`] reads).
     pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
         toml::to_string(self)
+    }
+}
+
+/// A TOML parse or shape error of `file`, at its line and column.
+fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ConfigError {
+    let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
+    ConfigError::Invalid {
+        file: file.to_string(),
+        line,
+        column,
+        message: e.message().trim().to_string(),
     }
 }
 

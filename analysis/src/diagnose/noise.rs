@@ -80,48 +80,12 @@ impl BinNoise {
 
     /// `aᵀ·Σ·b`.
     pub fn quad(&self, a: &[f64], b: &[f64]) -> f64 {
-        let n = self.centre.len();
-        let c = &self.centre;
-        let mut total: f64 = (0..n).map(|i| a[i] * b[i] * self.diag[i]).sum();
-        let mut u = vec![0.0; n];
-        let mut v = vec![0.0; n];
-        for (t, var, g, corr) in &self.comps {
-            for i in 0..n {
-                u[i] = a[i] * g[i];
-                v[i] = b[i] * g[i];
-                total += a[i] * b[i] * corr[i];
-            }
-            // Σ_ij u_i v_j e^{−|c_i − c_j|/T} = Σ_i u_i (F_i + B_i − v_i).
-            let mut fwd = vec![0.0; n];
-            let mut f = 0.0;
-            for i in 0..n {
-                let decay = if i == 0 { 0.0 } else { (-(c[i] - c[i - 1]) / t).exp() };
-                f = v[i] + decay * f;
-                fwd[i] = f;
-            }
-            let mut bsum = 0.0;
-            let mut acc = 0.0;
-            for i in (0..n).rev() {
-                let decay = if i + 1 == n { 0.0 } else { (-(c[i + 1] - c[i]) / t).exp() };
-                bsum = v[i] + decay * bsum;
-                acc += u[i] * (fwd[i] + bsum - v[i]);
-            }
-            total += var * acc;
-        }
-        if self.rrw2 > 0.0 && n > 1 {
-            // Σ_ij a_i b_j (min(c_i, c_j) − c_0) = Σ_k (c_k − c_{k−1})·A_k·B_k, tail sums.
-            let (mut ta, mut tb, mut acc) = (0.0, 0.0, 0.0);
-            for k in (1..n).rev() {
-                ta += a[k];
-                tb += b[k];
-                acc += (c[k] - c[k - 1]) * ta * tb;
-            }
-            total += self.rrw2 * acc;
-        }
-        total
+        self.apply(b).iter().zip(a).map(|(x, y)| x * y).sum()
     }
 
-    /// `Σ·b` (so that `aᵀ·(Σ·b)` is [`BinNoise::quad`]), in O(n) per component.
+    /// `Σ·b`, in O(n) per component: white and within-bin parts on the diagonal, each
+    /// Gauss–Markov component by a forward and a backward exponential recursion
+    /// (`Σ_j v_j e^{−|c_i − c_j|/T} = F_i + B_i − v_i`), rate random walk by tail sums.
     pub fn apply(&self, b: &[f64]) -> Vec<f64> {
         let n = self.centre.len();
         let c = &self.centre;
