@@ -43,3 +43,26 @@ pub fn start_live(
     eprintln!("live view: Foxglove → Open connection → ws://{shown}:{}", live.port());
     Ok(Some(std::sync::Arc::new(live)))
 }
+
+/// Write the bench config for served devices to `path`, headed by who wrote it (`written_by`,
+/// e.g. "`bench sim serve` for the simulated bench it serves") and the ports not in it.
+pub(crate) fn write_served_config(
+    path: &std::path::Path,
+    written_by: &str,
+    e: &bench_sim::serve::bench::ServedEndpoints,
+    cfg: &bench::bench_config::BenchConfig,
+) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let text = format!(
+        "# Written by {written_by}; valid while it runs.\n# Alternatives: table Actidyn on {}, \
+         ACUTROL on {}; chamber Modbus TCP on {}; gyro KVH 1750 on {}, DSP-3000 (binary) on \
+         {}.\n\n{}",
+        e.table_actidyn_tcp,
+        e.table_acutrol_tcp,
+        e.chamber_tcp,
+        e.gyro_kvh1750.path,
+        e.gyro_dsp3000.path,
+        cfg.to_toml().context("cannot write the bench config")?
+    );
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}

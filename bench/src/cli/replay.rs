@@ -8,7 +8,6 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::Context as _;
 use bench::bench_config::for_served_bench;
 use bench::live_view::LiveView;
 use bench::recording::{Item, RecordingReader};
@@ -74,20 +73,15 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             let (lat, up) = site.map_or((0.0, true), |s| (s.latitude_deg, s.axis_up));
             let cfg = for_served_bench(&s.endpoints, args.speed, lat, up);
             let e = &s.endpoints;
-            let text = format!(
-                "# Written by `bench replay --serve` for the replay of {} it serves; valid while \
-                 it runs.\n# Alternatives: table Actidyn on {}, ACUTROL on {}; chamber Modbus \
-                 TCP on {}; gyro KVH 1750 on {}, DSP-3000 (binary) on {}.\n\n{}",
-                args.recording.display(),
-                e.table_actidyn_tcp,
-                e.table_acutrol_tcp,
-                e.chamber_tcp,
-                e.gyro_kvh1750.path,
-                e.gyro_dsp3000.path,
-                cfg.to_toml().context("cannot write the bench config")?
-            );
-            std::fs::write(&args.config_out, text)
-                .with_context(|| format!("cannot write {}", args.config_out.display()))?;
+            super::write_served_config(
+                &args.config_out,
+                &format!(
+                    "`bench replay --serve` for the replay of {} it serves",
+                    args.recording.display()
+                ),
+                e,
+                &cfg,
+            )?;
             println!(
                 "replaying {} ({:.1} s of bench time) at {}× real time",
                 args.recording.display(),

@@ -77,19 +77,12 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
         let served = serve_bench(config, clock).await?;
         let e = &served.endpoints;
         let bench = for_served_bench(e, args.time_scale, lat, up);
-        let text = format!(
-            "# Written by `bench sim serve` for the simulated bench it serves; valid while it \
-             runs.\n# Alternatives: table Actidyn on {}, ACUTROL on {}; chamber Modbus TCP on \
-             {}; gyro KVH 1750 on {}, DSP-3000 (binary) on {}.\n\n{}",
-            e.table_actidyn_tcp,
-            e.table_acutrol_tcp,
-            e.chamber_tcp,
-            e.gyro_kvh1750.path,
-            e.gyro_dsp3000.path,
-            bench.to_toml().context("cannot write the bench config")?
-        );
-        std::fs::write(&args.config_out, text)
-            .with_context(|| format!("cannot write {}", args.config_out.display()))?;
+        super::write_served_config(
+            &args.config_out,
+            "`bench sim serve` for the simulated bench it serves",
+            e,
+            &bench,
+        )?;
         let control = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
         println!("simulated bench at {}× real time (seed {})", args.time_scale, args.seed);
         println!("  table    Actidyn  {}", e.table_actidyn_pty);
