@@ -15,11 +15,15 @@
 //! 4. **Explain**: each effect of the library ([`bench_physics::effects`]) is tried as extra
 //!    regressors (nonlinear parameters by grid search, linear ones by projection), scored by a
 //!    Wald statistic with the noise model's covariance ([`fit`]). An effect is accepted when
-//!    (a) its Wald statistic passes χ²_k at `α / (effects × grid points)` (Bonferroni over
-//!    everything tried), (b) its ΔBIC = W − (k + q)·ln n_eff is positive, n_eff the noise
-//!    model's effective number of independent bins, and (c) the shape fitted on alternate
-//!    time blocks predicts the held-out blocks (combined z > 3). The best accepted effect
-//!    joins the model and the search repeats until nothing passes.
+//!    (a) its Wald statistic passes its threshold at `α / effects`: χ²_k, or for a grid the
+//!    tail of W at the grid's least-squares peak under the noise model ([`scan`]), (b) its
+//!    ΔBIC = W − (k + q)·ln n_eff is positive, n_eff the noise model's effective number of
+//!    independent bins, and (c) the shape fitted on alternate time blocks (sized to the term)
+//!    predicts the held-out blocks (combined z > 3). The passing candidate with the largest
+//!    ΔBIC joins the model; when its held-out check fails, the best partner is tried with it
+//!    (two missing effects spoil each other's hold-out). Each time an effect joins, the
+//!    earlier ones' grid values are refitted and any that is no longer significant is dropped.
+//!    The search repeats until nothing passes.
 //! 5. **Locate and report what is left**: residual by step, direction, heating/cooling,
 //!    temperature band and table angle; blocks whose mean departs from the noise model are
 //!    `unexplained`, with the signal they correlate with best.
