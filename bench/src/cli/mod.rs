@@ -66,3 +66,15 @@ pub(crate) fn write_served_config(
     );
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
+
+/// Print the ports of served devices, one per line.
+pub(crate) fn print_endpoints(e: &bench_sim::serve::bench::ServedEndpoints) {
+    println!("  table    Actidyn  {}", e.table_actidyn_pty);
+    println!("  table    Actidyn  {}", e.table_actidyn_tcp);
+    println!("  table    ACUTROL  {}", e.table_acutrol_tcp);
+    println!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
+    println!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
+    println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
+    println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
+    println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+}

@@ -88,14 +88,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 d.duration().as_secs_f64(),
                 args.speed
             );
-            println!("  table    Actidyn  {}", e.table_actidyn_pty);
-            println!("  table    Actidyn  {}", e.table_actidyn_tcp);
-            println!("  table    ACUTROL  {}", e.table_acutrol_tcp);
-            println!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
-            println!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
-            println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
-            println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
-            println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+            super::print_endpoints(e);
             println!("bench config written to {}; Ctrl-C stops", args.config_out.display());
             served = Some(s);
             data = Some(d);

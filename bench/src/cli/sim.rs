@@ -85,14 +85,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
         )?;
         let control = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
         println!("simulated bench at {}× real time (seed {})", args.time_scale, args.seed);
-        println!("  table    Actidyn  {}", e.table_actidyn_pty);
-        println!("  table    Actidyn  {}", e.table_actidyn_tcp);
-        println!("  table    ACUTROL  {}", e.table_acutrol_tcp);
-        println!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
-        println!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
-        println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
-        println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
-        println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+        super::print_endpoints(e);
         println!("  faults   JSON lines on tcp {}", control.local_addr()?);
         println!(
             "           e.g. {{\"device\":\"table\",\"fault\":\"silence\"}}, \
