@@ -23,7 +23,10 @@ use std::{
     fs::File,
     io::{BufReader, Read, Seek, SeekFrom},
     path::{Path, PathBuf},
-    sync::Arc,
+    sync::{
+        mpsc::{sync_channel, Receiver, SyncSender},
+        Arc,
+    },
 };
 
 use mcap::{
@@ -291,20 +294,91 @@ struct Chan {
 }
 
 /// Streams one recording from any byte source, in file order.
+///
+/// Framing (reading, chunk decompression and CRC checks) runs on the caller's thread; once a file
+/// holds more than one batch of messages, the JSON bodies of the contract's channels are decoded
+/// on a second thread, a batch behind, so the two overlap. Items, errors and their order are the
+/// same either way.
+///
+/// A chunk's CRC is checked before any of its records is handed out, so a damaged chunk yields
+/// nothing: the file reads as cut at that chunk ([`End::Cut`]). A chunk the file ends inside
+/// is likewise not read (`bench recover` keeps the same records).
 pub struct RecordingReader<R> {
+    framer: Framer<R>,
+    /// Items ready to hand out, in file order.
+    ready: std::vec::IntoIter<Result<Item, RecordingError>>,
+    decoder: Decoder,
+}
+
+/// The single-threaded half: bytes in, records framed, message bodies batched.
+struct Framer<R> {
     source: R,
     reader: LinearReader,
+    state: FrameState,
+}
+
+struct FrameState {
     at_byte: u64,
     records: u64,
     schemas: HashMap<u16, (String, String)>,
     channels: HashMap<u16, Chan>,
     end: End,
-    failed: bool,
+    /// No more input: the file ended, was cut, or failed.
+    done: bool,
     raw: bool,
 }
 
-/// Largest record or chunk accepted when the file size is unknown.
+/// Where message bodies are decoded.
+enum Decoder {
+    /// Nothing framed yet.
+    Unstarted,
+    /// On the caller's thread (a file of one batch, or no thread could be started).
+    Inline,
+    /// On a worker thread, `in_flight` batches behind the framing.
+    Worker {
+        to: SyncSender<Batch>,
+        from: Receiver<Vec<Result<Item, RecordingError>>>,
+        in_flight: usize,
+    },
+}
+
+/// Messages framed per batch handed to the decoder.
+const BATCH_MESSAGES: usize = 2048;
+/// Batches the framing may run ahead of the decoding.
+const MAX_IN_FLIGHT: usize = 2;
+
+/// Framed records in file order; message bodies still to decode are slices of `bytes`.
+#[derive(Default)]
+struct Batch {
+    bytes: Vec<u8>,
+    slots: Vec<Slot>,
+}
+
+enum Slot {
+    Ready(Result<Item, RecordingError>),
+    Body(Body),
+}
+
+/// A message on one of the contract's channels, framed but not decoded.
+struct Body {
+    kind: Kind,
+    log_time_ns: u64,
+    publish_time_ns: u64,
+    sequence: u32,
+    at_byte: u64,
+    range: std::ops::Range<usize>,
+}
+
+/// Largest record or chunk (compressed or not) accepted.
 const MAX_RECORD: usize = 1 << 30;
+/// A chunk that claims to decompress to more than this many times the whole file's size is
+/// damage (JSON sensor data compresses 5–20×): refused before its buffer is allocated.
+const MAX_EXPANSION: usize = 1024;
+
+/// The record length limit for a file of `len` bytes.
+fn record_limit(len: u64) -> usize {
+    usize::try_from(len).unwrap_or(MAX_RECORD).saturating_mul(MAX_EXPANSION).clamp(4096, MAX_RECORD)
+}
 
 impl RecordingReader<BufReader<File>> {
     /// Open a file.
@@ -312,71 +386,131 @@ impl RecordingReader<BufReader<File>> {
         let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
         let file = File::open(path).map_err(open)?;
         let len = file.metadata().map_err(open)?.len();
-        let limit = usize::try_from(len).unwrap_or(MAX_RECORD).min(MAX_RECORD);
-        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), limit))
+        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), record_limit(len)))
     }
 }
 
 impl<R: Read> RecordingReader<R> {
-    /// Read from any source (records larger than 1 GiB are refused as damage).
+    /// Read from any source (records and chunks larger than 1 GiB are refused as damage).
     pub fn new(source: R) -> Self {
         Self::with_limit(source, MAX_RECORD)
     }
 
     fn with_limit(source: R, record_length_limit: usize) -> Self {
         let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(record_length_limit.max(4096));
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(record_length_limit);
         Self {
-            source,
-            reader: LinearReader::new_with_options(options),
-            at_byte: 0,
-            records: 0,
-            schemas: HashMap::new(),
-            channels: HashMap::new(),
-            end: End::Reading,
-            failed: false,
-            raw: false,
+            framer: Framer {
+                source,
+                reader: LinearReader::new_with_options(options),
+                state: FrameState {
+                    at_byte: 0,
+                    records: 0,
+                    schemas: HashMap::new(),
+                    channels: HashMap::new(),
+                    end: End::Reading,
+                    done: false,
+                    raw: false,
+                },
+            },
+            ready: Vec::new().into_iter(),
+            decoder: Decoder::Unstarted,
         }
     }
 
     /// Decode nothing: every message, on every channel, comes as [`Item::Other`] with its raw
     /// body (for tools that copy or export any channel).
     pub fn raw(mut self) -> Self {
-        self.raw = true;
+        self.framer.state.raw = true;
         self
     }
 
     /// How the file ended (meaningful once the iterator returned `None`).
     pub fn end(&self) -> &End {
-        &self.end
+        &self.framer.state.end
     }
 
-    /// Channels seen so far, by id.
+    /// Channels seen so far, by id (framing may run a few thousand messages ahead of the items
+    /// handed out).
     pub fn channels(&self) -> impl Iterator<Item = &ChannelInfo> {
-        self.channels.values().map(|c| c.info.as_ref())
+        self.framer.state.channels.values().map(|c| c.info.as_ref())
     }
 
-    /// Bytes read so far.
+    /// Bytes read so far (framing may run ahead of the items handed out).
     pub fn bytes_read(&self) -> u64 {
-        self.at_byte
+        self.framer.state.at_byte
     }
+}
 
-    fn stop(&mut self, reason: String) -> Option<Result<Item, RecordingError>> {
-        self.failed = true;
-        if self.records == 0 {
-            return Some(Err(RecordingError::NotMcap { at_byte: self.at_byte, reason }));
+impl<R: Read> Framer<R> {
+    /// Frame records until a batch is full or the input ends.
+    fn batch(&mut self) -> Batch {
+        let mut batch = Batch::default();
+        let state = &mut self.state;
+        while !state.done && batch.slots.len() < BATCH_MESSAGES {
+            let Some(event) = self.reader.next_event() else {
+                state.done = true;
+                break;
+            };
+            let parsed = match event {
+                Err(e) => {
+                    state.stop(e.to_string(), &mut batch);
+                    break;
+                }
+                Ok(LinearReadEvent::ReadRequest(need)) => {
+                    let n = loop {
+                        match self.source.read(self.reader.insert(need)) {
+                            Ok(n) => break Ok(n),
+                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                            Err(source) => break Err(source),
+                        }
+                    };
+                    match n {
+                        Ok(n) => {
+                            self.reader.notify_read(n);
+                            state.at_byte += n as u64;
+                        }
+                        Err(source) => {
+                            state.done = true;
+                            let at_byte = state.at_byte;
+                            batch
+                                .slots
+                                .push(Slot::Ready(Err(RecordingError::Io { at_byte, source })));
+                        }
+                    }
+                    continue;
+                }
+                Ok(LinearReadEvent::Record { opcode, data }) => mcap::parse_record(opcode, data),
+            };
+            match parsed {
+                Err(e) => state.stop(format!("bad record: {e}"), &mut batch),
+                Ok(record) => state.on_record(record, &mut batch),
+            }
         }
-        self.end = End::Cut { at_byte: self.at_byte, reason };
-        None
+        batch
+    }
+}
+
+impl FrameState {
+    /// The MCAP reader gave up: a file that never looked like MCAP is an error, anything after
+    /// the first record is a cut file.
+    fn stop(&mut self, reason: String, batch: &mut Batch) {
+        self.done = true;
+        if self.records == 0 {
+            let at_byte = self.at_byte;
+            batch.slots.push(Slot::Ready(Err(RecordingError::NotMcap { at_byte, reason })));
+        } else {
+            self.end = End::Cut { at_byte: self.at_byte, reason };
+        }
     }
 
-    fn on_record(&mut self, record: Record<'_>) -> Result<Option<Item>, RecordingError> {
+    fn on_record(&mut self, record: Record<'_>, batch: &mut Batch) {
         self.records += 1;
-        Ok(match record {
+        let ready = |batch: &mut Batch, item| batch.slots.push(Slot::Ready(item));
+        match record {
             Record::Schema { header, .. } => {
                 self.schemas.insert(header.id, (header.name, header.encoding));
-                None
             }
             Record::Channel(c) => {
                 let (schema_name, schema_encoding) =
@@ -390,10 +524,11 @@ impl<R: Read> RecordingReader<R> {
                     _ => Kind::Other,
                 };
                 if kind != Kind::Other && c.message_encoding != MESSAGE_ENCODING {
-                    return Err(RecordingError::UnsupportedEncoding {
+                    let error = RecordingError::UnsupportedEncoding {
                         topic: c.topic,
                         encoding: c.message_encoding,
-                    });
+                    };
+                    return ready(batch, Err(error));
                 }
                 let info = ChannelInfo {
                     id: c.id,
@@ -404,105 +539,183 @@ impl<R: Read> RecordingReader<R> {
                 };
                 // The summary repeats channels; keep the first definition.
                 self.channels.entry(c.id).or_insert(Chan { info: Arc::new(info), kind });
-                None
             }
             Record::Message { header, data } => {
                 let Some(chan) = self.channels.get(&header.channel_id) else {
-                    return Err(RecordingError::UnknownChannel {
+                    let error = RecordingError::UnknownChannel {
                         channel_id: header.channel_id,
                         sequence: header.sequence,
                         at_byte: self.at_byte,
-                    });
-                };
-                let bad = |source| RecordingError::BadMessage {
-                    topic: chan.info.topic.clone(),
-                    sequence: header.sequence,
-                    log_time_ns: header.log_time,
-                    at_byte: self.at_byte,
-                    detail: diagnose(chan.kind, &data, &source),
-                    source,
-                };
-                macro_rules! stamped {
-                    ($variant:ident) => {
-                        Item::$variant(Stamped {
-                            log_time_ns: header.log_time,
-                            publish_time_ns: header.publish_time,
-                            sequence: header.sequence,
-                            msg: serde_json::from_slice(&data).map_err(bad)?,
-                        })
                     };
-                }
-                Some(match chan.kind {
-                    Kind::Gyro => stamped!(Gyro),
-                    Kind::Table => stamped!(Table),
-                    Kind::Chamber => stamped!(Chamber),
-                    Kind::Step => stamped!(Step),
-                    Kind::Other => Item::Other(OtherMessage {
+                    return ready(batch, Err(error));
+                };
+                if chan.kind == Kind::Other {
+                    let item = Item::Other(OtherMessage {
                         channel: chan.info.clone(),
                         log_time_ns: header.log_time,
                         publish_time_ns: header.publish_time,
                         sequence: header.sequence,
                         data: data.into_owned(),
-                    }),
-                })
+                    });
+                    return ready(batch, Ok(item));
+                }
+                let start = batch.bytes.len();
+                batch.bytes.extend_from_slice(&data);
+                batch.slots.push(Slot::Body(Body {
+                    kind: chan.kind,
+                    log_time_ns: header.log_time,
+                    publish_time_ns: header.publish_time,
+                    sequence: header.sequence,
+                    at_byte: self.at_byte,
+                    range: start..batch.bytes.len(),
+                }));
             }
-            Record::Metadata(m) => {
-                Some(Item::Metadata(MetadataRecord { name: m.name, entries: m.metadata }))
-            }
-            Record::Attachment { header, data, .. } => Some(Item::Attachment(AttachmentRecord {
-                name: header.name,
-                media_type: header.media_type,
-                log_time_ns: header.log_time,
-                data: data.into_owned(),
-            })),
-            Record::Footer(_) => {
-                self.end = End::Complete;
-                None
-            }
-            _ => None,
-        })
+            Record::Metadata(m) => ready(
+                batch,
+                Ok(Item::Metadata(MetadataRecord { name: m.name, entries: m.metadata })),
+            ),
+            Record::Attachment { header, data, .. } => ready(
+                batch,
+                Ok(Item::Attachment(AttachmentRecord {
+                    name: header.name,
+                    media_type: header.media_type,
+                    log_time_ns: header.log_time,
+                    data: data.into_owned(),
+                })),
+            ),
+            Record::Footer(_) => self.end = End::Complete,
+            _ => {}
+        }
     }
+}
+
+/// Decode a batch's message bodies, keeping file order.
+fn decode(batch: Batch) -> Vec<Result<Item, RecordingError>> {
+    let Batch { bytes, slots } = batch;
+    slots
+        .into_iter()
+        .map(|slot| match slot {
+            Slot::Ready(item) => item,
+            Slot::Body(b) => decode_body(&b, &bytes[b.range.clone()]),
+        })
+        .collect()
+}
+
+fn decode_body(b: &Body, data: &[u8]) -> Result<Item, RecordingError> {
+    let topic = match b.kind {
+        Kind::Gyro => TOPIC_GYRO,
+        Kind::Table => TOPIC_TABLE,
+        Kind::Chamber => TOPIC_CHAMBER,
+        Kind::Step => TOPIC_STEP,
+        Kind::Other => "",
+    };
+    let bad = |source| RecordingError::BadMessage {
+        topic: topic.to_string(),
+        sequence: b.sequence,
+        log_time_ns: b.log_time_ns,
+        at_byte: b.at_byte,
+        detail: diagnose(b.kind, data, &source),
+        source,
+    };
+    macro_rules! stamped {
+        ($variant:ident) => {
+            Item::$variant(Stamped {
+                log_time_ns: b.log_time_ns,
+                publish_time_ns: b.publish_time_ns,
+                sequence: b.sequence,
+                msg: serde_json::from_slice(data).map_err(bad)?,
+            })
+        };
+    }
+    Ok(match b.kind {
+        Kind::Gyro => stamped!(Gyro),
+        Kind::Table => stamped!(Table),
+        Kind::Chamber => stamped!(Chamber),
+        Kind::Step => stamped!(Step),
+        // Framing hands out other channels' messages as they are.
+        Kind::Other => return Err(bad(serde::de::Error::custom("not a contract channel"))),
+    })
+}
+
+/// A thread decoding batches in the order they are sent; `None` if it cannot be started.
+fn spawn_decoder() -> Option<Decoder> {
+    let (to, batches) = sync_channel::<Batch>(MAX_IN_FLIGHT);
+    let (decoded, from) = sync_channel(MAX_IN_FLIGHT);
+    std::thread::Builder::new()
+        .name("recording-decode".into())
+        .spawn(move || {
+            // Ends when the reader is dropped (either channel closes).
+            for batch in batches {
+                if decoded.send(decode(batch)).is_err() {
+                    break;
+                }
+            }
+        })
+        .map_err(|e| tracing::debug!("decoding recordings on the reading thread: {e}"))
+        .ok()?;
+    Some(Decoder::Worker { to, from, in_flight: 0 })
 }
 
 impl<R: Read> Iterator for RecordingReader<R> {
     type Item = Result<Item, RecordingError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.failed {
-            return None;
-        }
         loop {
-            let parsed = match self.reader.next_event()? {
-                Err(e) => return self.stop(e.to_string()),
-                Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let n = loop {
-                        match self.source.read(self.reader.insert(need)) {
-                            Ok(n) => break n,
-                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                            Err(source) => {
-                                self.failed = true;
-                                return Some(Err(RecordingError::Io {
-                                    at_byte: self.at_byte,
-                                    source,
-                                }));
+            if let Some(item) = self.ready.next() {
+                return Some(item);
+            }
+            match &mut self.decoder {
+                Decoder::Unstarted => {
+                    let batch = self.framer.batch();
+                    let worker = if self.framer.state.done { None } else { spawn_decoder() };
+                    let unsent = match worker {
+                        Some(Decoder::Worker { to, from, .. }) => match to.send(batch) {
+                            Ok(()) => {
+                                self.decoder = Decoder::Worker { to, from, in_flight: 1 };
+                                continue;
                             }
-                        }
+                            Err(std::sync::mpsc::SendError(batch)) => batch,
+                        },
+                        _ => batch,
                     };
-                    self.reader.notify_read(n);
-                    self.at_byte += n as u64;
-                    continue;
+                    // One batch, or no thread: decode here.
+                    self.decoder = Decoder::Inline;
+                    self.ready = decode(unsent).into_iter();
                 }
-                Ok(LinearReadEvent::Record { opcode, data }) => {
-                    mcap::parse_record(opcode, data).map(Record::into_owned)
+                Decoder::Inline => {
+                    if self.framer.state.done {
+                        return None;
+                    }
+                    self.ready = decode(self.framer.batch()).into_iter();
                 }
-            };
-            match parsed {
-                Err(e) => return self.stop(format!("bad record: {e}")),
-                Ok(record) => match self.on_record(record) {
-                    Ok(Some(item)) => return Some(Ok(item)),
-                    Ok(None) => {}
-                    Err(e) => return Some(Err(e)),
-                },
+                Decoder::Worker { to, from, in_flight } => {
+                    while *in_flight < MAX_IN_FLIGHT && !self.framer.state.done {
+                        if to.send(self.framer.batch()).is_err() {
+                            break;
+                        }
+                        *in_flight += 1;
+                    }
+                    if *in_flight == 0 {
+                        return None;
+                    }
+                    match from.recv() {
+                        Ok(items) => {
+                            *in_flight -= 1;
+                            self.ready = items.into_iter();
+                        }
+                        Err(_) => {
+                            // The decoding thread is gone (it cannot panic on input, so this
+                            // is a resource failure): report it where reading stopped.
+                            let at_byte = self.framer.state.at_byte;
+                            self.framer.state.done = true;
+                            self.decoder = Decoder::Inline;
+                            return Some(Err(RecordingError::Io {
+                                at_byte,
+                                source: std::io::Error::other("the decoding thread stopped"),
+                            }));
+                        }
+                    }
+                }
             }
         }
     }
@@ -604,7 +817,7 @@ impl Recording {
 
     /// Read a recording from memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, RecordingError> {
-        Self::from_items(RecordingReader::with_limit(bytes, bytes.len()))
+        Self::from_items(RecordingReader::with_limit(bytes, record_limit(bytes.len() as u64)))
     }
 
     fn from_items<R: Read>(mut reader: RecordingReader<R>) -> Result<Self, RecordingError> {

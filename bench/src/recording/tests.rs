@@ -369,3 +369,77 @@ proptest! {
         let _ = info_from_reader(RecordingReader::new(&file[..]));
     }
 }
+
+/// A file of several decoding batches: other channels, metadata and a bad body in the middle
+/// come out in file order, the error names its message and reading goes on after it, and a reader
+/// dropped part-way returns.
+#[test]
+fn files_of_many_batches_decode_in_file_order_with_errors_in_place() {
+    let n = (3 * BATCH_MESSAGES + 100) as u32;
+    let bad = 2 * BATCH_MESSAGES as u32 + 7;
+    let mut w = WriteOptions::new()
+        .chunk_size(Some(16 * 1024))
+        .create(Cursor::new(Vec::new()))
+        .expect("create");
+    let none = BTreeMap::new();
+    let gyro = w.add_channel(0, "/gyro/rate", "json", &none).expect("channel");
+    let log = w.add_channel(0, "/log", "json", &none).expect("channel");
+    for i in 0..n {
+        let h =
+            MessageHeader { channel_id: gyro, sequence: i, log_time: i.into(), publish_time: 0 };
+        let body = if i == bad {
+            r#"{"rate":"x","seq":0,"status":0}"#.to_string()
+        } else {
+            format!(r#"{{"rate":{},"temperature":null,"seq":{i},"status":0}}"#, f64::from(i) * 0.1)
+        };
+        w.write_to_known_channel(&h, body.as_bytes()).expect("write");
+        if i % 1000 == 0 {
+            let h =
+                MessageHeader { channel_id: log, sequence: i, log_time: i.into(), publish_time: 0 };
+            w.write_to_known_channel(&h, b"{}").expect("write");
+            let meta = mcap::records::Metadata { name: format!("m{i}"), metadata: BTreeMap::new() };
+            w.write_metadata(&meta).expect("metadata");
+        }
+    }
+    w.finish().expect("finish");
+    let file = w.into_inner().into_inner();
+
+    let mut reader = RecordingReader::new(&file[..]);
+    let mut expected_gyro = 0u32;
+    let mut others = Vec::new();
+    let mut errors = Vec::new();
+    for item in reader.by_ref() {
+        match item {
+            Ok(Item::Gyro(g)) => {
+                assert_eq!(g.sequence, expected_gyro);
+                assert_eq!(g.msg.seq, u64::from(expected_gyro));
+                assert_eq!(g.msg.rate_rad_s, f64::from(expected_gyro) * 0.1);
+                expected_gyro += 1;
+            }
+            Ok(Item::Other(o)) => others.push(format!("log{}@{expected_gyro}", o.sequence)),
+            Ok(Item::Metadata(m)) => others.push(format!("{}@{expected_gyro}", m.name)),
+            Ok(other) => panic!("unexpected {other:?}"),
+            Err(e) => {
+                errors.push(e.to_string());
+                assert!(
+                    matches!(e, RecordingError::BadMessage { sequence, .. } if sequence == bad)
+                );
+                expected_gyro += 1;
+            }
+        }
+    }
+    assert_eq!(expected_gyro, n);
+    assert_eq!(*reader.end(), End::Complete);
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(errors[0].contains("field `rate` must be a number"), "{}", errors[0]);
+    // Each log message and metadata record right after gyro message i (i % 1000 == 0).
+    let want: Vec<String> = (0..n)
+        .step_by(1000)
+        .flat_map(|i| [format!("log{i}@{}", i + 1), format!("m{i}@{}", i + 1)])
+        .collect();
+    assert_eq!(others, want);
+
+    // Dropping a reader with batches in flight returns (the decoding thread ends).
+    let first: Vec<_> = RecordingReader::new(&file[..]).take(10).collect();
+    assert_eq!(first.len(), 10);
+}
