@@ -252,6 +252,64 @@ impl Clock for SystemClock {
     }
 }
 
+/// Real time × `scale` like [`SystemClock`], but held at bench time zero until
+/// [`HeldClock::start`] is called: for a replay served to programs that connect later, whose
+/// bench time should begin with their first request rather than when the server started.
+#[derive(Clone, Debug)]
+pub struct HeldClock {
+    start: Arc<tokio::sync::watch::Sender<Option<tokio::time::Instant>>>,
+    scale: f64,
+}
+
+impl HeldClock {
+    /// A held clock that will run at `scale` × real time (non-finite or non-positive: 1.0).
+    pub fn new(scale: f64) -> Self {
+        let scale = if scale.is_finite() && scale > 0.0 { scale } else { 1.0 };
+        Self { start: Arc::new(tokio::sync::watch::Sender::new(None)), scale }
+    }
+
+    /// Start the clock now; later calls do nothing. True for the call that started it.
+    pub fn start(&self) -> bool {
+        self.start.send_if_modified(|start| {
+            let first = start.is_none();
+            start.get_or_insert_with(tokio::time::Instant::now);
+            first
+        })
+    }
+
+    /// Whether [`HeldClock::start`] was called.
+    pub fn is_started(&self) -> bool {
+        self.start.borrow().is_some()
+    }
+}
+
+impl Clock for HeldClock {
+    fn now(&self) -> BenchTime {
+        self.start.borrow().map_or(Duration::ZERO, |s| s.elapsed().mul_f64(self.scale))
+    }
+    fn sleep_until(&self, t: BenchTime) -> BoxFuture<'static, ()> {
+        if t.is_zero() {
+            return Box::pin(std::future::ready(()));
+        }
+        let mut started = self.start.subscribe();
+        let scale = self.scale;
+        Box::pin(async move {
+            // Err: every handle of the clock is gone, so nothing can start it: never wake.
+            let start = match started.wait_for(Option::is_some).await {
+                Ok(start) => *start,
+                Err(_) => None,
+            };
+            match start {
+                Some(start) => tokio::time::sleep_until(start + t.div_f64(scale)).await,
+                None => std::future::pending().await,
+            }
+        })
+    }
+    fn is_virtual(&self) -> bool {
+        false
+    }
+}
+
 /// Spawns onto the current tokio runtime, so run code written against
 /// [`futures::task::Spawn`] runs as tokio tasks.
 #[derive(Clone, Copy, Debug, Default)]
@@ -271,6 +329,31 @@ impl futures::task::Spawn for TokioSpawner {
 mod tests {
     use super::*;
     use futures::task::SpawnExt;
+
+    #[tokio::test(start_paused = true)]
+    async fn held_clock_stays_at_zero_until_started_then_runs_scaled() {
+        let clock = HeldClock::new(10.0);
+        let c = clock.clone();
+        let sleeper = tokio::spawn(async move {
+            c.sleep_until(Duration::from_secs(5)).await;
+            tokio::time::Instant::now()
+        });
+        tokio::time::sleep(Duration::from_secs(100)).await;
+        assert_eq!(clock.now(), Duration::ZERO);
+        assert!(!clock.is_started() && !sleeper.is_finished());
+        // A zero deadline is already reached.
+        clock.sleep_until(Duration::ZERO).await;
+
+        let t0 = tokio::time::Instant::now();
+        assert!(clock.start());
+        assert!(!clock.start(), "only the first call starts it");
+        let woke = sleeper.await.expect("sleeper");
+        assert_eq!(woke - t0, Duration::from_millis(500), "5 s of bench time at 10× real time");
+        assert_eq!(clock.now(), Duration::from_secs(5));
+        // A deadline already past completes at once.
+        clock.sleep_until(Duration::from_secs(1)).await;
+        assert_eq!(tokio::time::Instant::now(), woke);
+    }
 
     #[test]
     fn virtual_time_interleaves_tasks_by_deadline() {

@@ -22,7 +22,7 @@ pub mod table;
 pub mod transport;
 
 pub use chamber::{Chamber, ChamberCapabilities, ChamberReading};
-pub use clock::{BenchTime, Clock, SystemClock, VirtualClock};
+pub use clock::{BenchTime, Clock, HeldClock, SystemClock, VirtualClock};
 pub use error::{DeviceError, DeviceResult, ErrorKind};
 pub use gyro::{Gyro, GyroCapabilities, GyroSample};
 pub use table::{RateTable, TableCapabilities, TableMode, TableReading};

@@ -93,3 +93,48 @@ async fn a_replayed_gyro_over_slcan_reads_back_as_recorded() {
     assert_eq!(driver.sample_rate_hz(), 20.0);
     server.abort();
 }
+
+/// `bench replay --serve` without `--start-now`: the whole bench served from a replay on a held
+/// clock. Nothing plays while nobody asks; a bench connecting seconds later (through the bench
+/// config the command writes) starts the replay with its first request and reads the gyro from
+/// the first samples. On a free-running clock it would have started 6 s of bench time late.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_served_replay_waits_for_its_first_client() {
+    use bench::bench_config::for_served_bench;
+    use bench::replay::StartOnRequest;
+    use bench_drivers::HeldClock;
+    use bench_sim::serve::bench::serve_devices;
+
+    const SPEED: f64 = 2.0;
+    let rec = recording();
+    let data = Arc::new(ReplayData::from_recording(&rec, "gyro.mcap").expect("replayable"));
+    let held = HeldClock::new(SPEED);
+    let clock: Arc<dyn Clock> = Arc::new(held.clone());
+    let devices = data.devices(clock.clone(), ReplayOptions { at_end: AtEnd::Hold });
+    let served = serve_devices(
+        StartOnRequest::new(devices.table, held.clone()),
+        StartOnRequest::new(devices.chamber, held.clone()),
+        devices.gyro,
+        data.gyro_rate_hz(),
+        clock.clone(),
+    )
+    .await
+    .expect("served");
+
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert!(!held.is_started(), "nobody asked yet");
+    assert_eq!(held.now(), Duration::ZERO);
+
+    let config = for_served_bench(&served.endpoints, SPEED, 45.0, true);
+    let own_clock = Arc::new(SystemClock::new(SPEED));
+    let (mut devices, _) = config.connect(own_clock).await.expect("devices answer");
+    assert!(held.is_started(), "connecting asks the table");
+    // Connecting takes well under 1.5 s of wall time (3 s of bench time); the free-running
+    // clock would be past 6 s.
+    let connected = held.now();
+    assert!(connected < Duration::from_secs(3), "replay at {connected:?} when connected");
+    let first = devices.gyro.next_sample().await.expect("sample");
+    assert!(first.seq < 60, "first sample {} of the replay", first.seq);
+    let r = &rec.gyro[first.seq as usize].msg;
+    assert!((first.rate_rad_s - r.rate_rad_s).abs() <= 0.5 * ANGLE_LSB_RAD * 20.0 + 1e-15);
+}

@@ -11,8 +11,8 @@ use std::time::Duration;
 use bench::bench_config::for_served_bench;
 use bench::live_view::LiveView;
 use bench::recording::{Item, RecordingReader};
-use bench::replay::{AtEnd, ReplayData, ReplayOptions};
-use bench_drivers::{Clock, SystemClock};
+use bench::replay::{AtEnd, ReplayData, ReplayOptions, StartOnRequest};
+use bench_drivers::{Clock, HeldClock};
 use bench_sim::serve::bench::serve_devices;
 
 /// Arguments of `bench replay`.
@@ -34,6 +34,11 @@ pub struct ReplayArgs {
     /// Replay speed, × real time.
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    /// Start replaying at once. By default `--serve` holds the replay at its first sample until
+    /// a client's first request to the table or chamber, so a bench that connects later misses
+    /// nothing (a program that only listens to a gyro stream needs this flag).
+    #[arg(long)]
+    pub start_now: bool,
     /// Where `--serve` writes the bench config.
     #[arg(long, default_value = "bench-replay.toml")]
     pub config_out: PathBuf,
@@ -54,7 +59,10 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     let rt = super::run::runtime()?;
     let live = super::start_live(&rt, args.live, args.live_addr)?;
     rt.block_on(async move {
-        let clock = SystemClock::new(args.speed);
+        let clock = HeldClock::new(args.speed);
+        if !args.serve || args.start_now {
+            clock.start();
+        }
         let shared: Arc<dyn Clock> = Arc::new(clock.clone());
         let mut served = None;
         let mut data = None;
@@ -62,8 +70,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             let d = Arc::new(ReplayData::load(&args.recording)?);
             let bench = d.devices(shared.clone(), ReplayOptions { at_end: AtEnd::Hold });
             let s = serve_devices(
-                bench.table,
-                bench.chamber,
+                StartOnRequest::new(bench.table, clock.clone()),
+                StartOnRequest::new(bench.chamber, clock.clone()),
                 bench.gyro,
                 d.gyro_rate_hz(),
                 shared.clone(),
@@ -90,6 +98,12 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             );
             super::print_endpoints(e);
             println!("bench config written to {}; Ctrl-C stops", args.config_out.display());
+            if !clock.is_started() {
+                println!(
+                    "held at the first sample until the first request to the table or chamber \
+                     (--start-now starts at once)"
+                );
+            }
             served = Some(s);
             data = Some(d);
         }

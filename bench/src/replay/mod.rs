@@ -41,8 +41,8 @@ use std::time::Duration;
 use async_trait::async_trait;
 use bench_drivers::{
     Chamber, ChamberCapabilities, ChamberReading, Clock, DeviceError, DeviceInfo, DeviceResult,
-    ErrorKind, Gyro, GyroCapabilities, GyroSample, RateTable, TableCapabilities, TableMode,
-    TableReading,
+    ErrorKind, Gyro, GyroCapabilities, GyroSample, HeldClock, RateTable, TableCapabilities,
+    TableMode, TableReading,
 };
 
 use crate::record::schema::{META_GYRO_MODEL, META_RUN, META_SITE};
@@ -297,6 +297,68 @@ impl ReplayData {
             },
             checks,
         }
+    }
+}
+
+/// A table or chamber that starts a [`HeldClock`] at its first request (a read or a command):
+/// a served replay (`bench replay --serve`) then begins when a client first asks for something,
+/// not when the server started, so a bench that connects late misses nothing.
+#[derive(Clone)]
+pub struct StartOnRequest<D> {
+    device: D,
+    clock: HeldClock,
+}
+
+impl<D> StartOnRequest<D> {
+    /// Wrap `device`; its first request starts `clock`.
+    pub fn new(device: D, clock: HeldClock) -> Self {
+        Self { device, clock }
+    }
+
+    fn request(&self, what: &str) {
+        if self.clock.start() {
+            tracing::info!("replay started by the first request ({what})");
+        }
+    }
+}
+
+#[async_trait]
+impl<T: RateTable + Sync> RateTable for StartOnRequest<T> {
+    fn info(&self) -> &DeviceInfo<TableCapabilities> {
+        self.device.info()
+    }
+    async fn set_rate(&mut self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<()> {
+        self.request("table command");
+        self.device.set_rate(rate_rad_s, accel_rad_s2).await
+    }
+    async fn stop(&mut self, decel_rad_s2: f64) -> DeviceResult<()> {
+        self.request("table stop");
+        self.device.stop(decel_rad_s2).await
+    }
+    async fn read(&mut self) -> DeviceResult<TableReading> {
+        self.request("table read");
+        self.device.read().await
+    }
+    async fn service(&mut self) -> DeviceResult<()> {
+        self.device.service().await
+    }
+}
+
+#[async_trait]
+impl<C: Chamber + Sync> Chamber for StartOnRequest<C> {
+    fn info(&self) -> &DeviceInfo<ChamberCapabilities> {
+        self.device.info()
+    }
+    async fn set_target(&mut self, target_c: f64, ramp_c_s: Option<f64>) -> DeviceResult<()> {
+        self.request("chamber set point");
+        self.device.set_target(target_c, ramp_c_s).await
+    }
+    async fn read(&mut self) -> DeviceResult<ChamberReading> {
+        self.request("chamber read");
+        self.device.read().await
+    }
+    async fn service(&mut self) -> DeviceResult<()> {
+        self.device.service().await
     }
 }
 
