@@ -321,7 +321,8 @@ struct FrameState {
     at_byte: u64,
     records: u64,
     schemas: HashMap<u16, (String, String)>,
-    channels: HashMap<u16, Chan>,
+    /// Indexed by channel id.
+    channels: Vec<Option<Chan>>,
     end: End,
     /// No more input: the file ended, was cut, or failed.
     done: bool,
@@ -408,7 +409,7 @@ impl<R: Read> RecordingReader<R> {
                     at_byte: 0,
                     records: 0,
                     schemas: HashMap::new(),
-                    channels: HashMap::new(),
+                    channels: Vec::new(),
                     end: End::Reading,
                     done: false,
                     raw: false,
@@ -434,7 +435,7 @@ impl<R: Read> RecordingReader<R> {
     /// Channels seen so far, by id (framing may run a few thousand messages ahead of the items
     /// handed out).
     pub fn channels(&self) -> impl Iterator<Item = &ChannelInfo> {
-        self.framer.state.channels.values().map(|c| c.info.as_ref())
+        self.framer.state.channels.iter().flatten().map(|c| c.info.as_ref())
     }
 
     /// Bytes read so far (framing may run ahead of the items handed out).
@@ -446,7 +447,10 @@ impl<R: Read> RecordingReader<R> {
 impl<R: Read> Framer<R> {
     /// Frame records until a batch is full or the input ends.
     fn batch(&mut self) -> Batch {
-        let mut batch = Batch::default();
+        let mut batch = Batch {
+            bytes: Vec::with_capacity(BATCH_MESSAGES * 128),
+            slots: Vec::with_capacity(BATCH_MESSAGES),
+        };
         let state = &mut self.state;
         while !state.done && batch.slots.len() < BATCH_MESSAGES {
             let Some(event) = self.reader.next_event() else {
@@ -538,10 +542,14 @@ impl FrameState {
                     message_encoding: c.message_encoding,
                 };
                 // The summary repeats channels; keep the first definition.
-                self.channels.entry(c.id).or_insert(Chan { info: Arc::new(info), kind });
+                let id = usize::from(c.id);
+                if self.channels.len() <= id {
+                    self.channels.resize_with(id + 1, || None);
+                }
+                self.channels[id].get_or_insert(Chan { info: Arc::new(info), kind });
             }
             Record::Message { header, data } => {
-                let Some(chan) = self.channels.get(&header.channel_id) else {
+                let Some(Some(chan)) = self.channels.get(usize::from(header.channel_id)) else {
                     let error = RecordingError::UnknownChannel {
                         channel_id: header.channel_id,
                         sequence: header.sequence,
