@@ -299,10 +299,7 @@ struct Chan {
 /// holds more than one batch of messages, the JSON bodies of the contract's channels are decoded
 /// on a second thread, a batch behind, so the two overlap. Items, errors and their order are the
 /// same either way.
-///
-/// A chunk's CRC is checked before any of its records is handed out, so a damaged chunk yields
-/// nothing: the file reads as cut at that chunk ([`End::Cut`]). A chunk the file ends inside
-/// is likewise not read (`bench recover` keeps the same records).
+
 pub struct RecordingReader<R> {
     framer: Framer<R>,
     /// Items ready to hand out, in file order.
@@ -370,16 +367,8 @@ struct Body {
     range: std::ops::Range<usize>,
 }
 
-/// Largest record or chunk (compressed or not) accepted.
+/// Largest record or chunk accepted when the file size is unknown.
 const MAX_RECORD: usize = 1 << 30;
-/// A chunk that claims to decompress to more than this many times the whole file's size is
-/// damage (JSON sensor data compresses 5–20×): refused before its buffer is allocated.
-const MAX_EXPANSION: usize = 1024;
-
-/// The record length limit for a file of `len` bytes.
-fn record_limit(len: u64) -> usize {
-    usize::try_from(len).unwrap_or(MAX_RECORD).saturating_mul(MAX_EXPANSION).clamp(4096, MAX_RECORD)
-}
 
 impl RecordingReader<BufReader<File>> {
     /// Open a file.
@@ -387,20 +376,21 @@ impl RecordingReader<BufReader<File>> {
         let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
         let file = File::open(path).map_err(open)?;
         let len = file.metadata().map_err(open)?.len();
-        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), record_limit(len)))
+        let limit = usize::try_from(len).unwrap_or(MAX_RECORD).min(MAX_RECORD);
+        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), limit))
     }
 }
 
 impl<R: Read> RecordingReader<R> {
-    /// Read from any source (records and chunks larger than 1 GiB are refused as damage).
+    /// Read from any source (records larger than 1 GiB are refused as damage).
     pub fn new(source: R) -> Self {
         Self::with_limit(source, MAX_RECORD)
     }
 
     fn with_limit(source: R, record_length_limit: usize) -> Self {
         let options = LinearReaderOptions::default()
-            .with_prevalidate_chunk_crcs(true)
-            .with_record_length_limit(record_length_limit);
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(record_length_limit.max(4096));
         Self {
             framer: Framer {
                 source,
@@ -825,7 +815,7 @@ impl Recording {
 
     /// Read a recording from memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, RecordingError> {
-        Self::from_items(RecordingReader::with_limit(bytes, record_limit(bytes.len() as u64)))
+        Self::from_items(RecordingReader::with_limit(bytes, bytes.len()))
     }
 
     fn from_items<R: Read>(mut reader: RecordingReader<R>) -> Result<Self, RecordingError> {
