@@ -299,7 +299,6 @@ struct Chan {
 /// holds more than one batch of messages, the JSON bodies of the contract's channels are decoded
 /// on a second thread, a batch behind, so the two overlap. Items, errors and their order are the
 /// same either way.
-
 pub struct RecordingReader<R> {
     framer: Framer<R>,
     /// Items ready to hand out, in file order.
