@@ -134,12 +134,14 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
         let (da, db) = ((a1 - a0) as f64 * 1e-9, (b1 - b0) as f64 * 1e-9);
         report += &format!("{k:<40} {da:9.2} s {db:9.2} s");
         let soak = k.contains("soak") || k.contains("settle 40C");
+        // Command steps last a few wire round trips: at 60× real time 1.5 s of bench time is
+        // 25 ms of wall time, what a loaded 2-core machine may add (0.77 s seen under load).
         let tol = if soak {
             5.0
         } else if k.contains("ramp") {
             2.0
         } else {
-            0.5
+            1.5
         };
         if (da - db).abs() > tol {
             broken.push(format!("{k}: lasted {da:.2} s vs {db:.2} s (tolerance {tol} s)"));
