@@ -18,6 +18,8 @@
 //! | `warm_up` | `A·e^{−(t − t_on)/τ}` | A | τ |
 //! | `bias_step` | `b·H(t − t_s)` | b | t_s |
 //! | `rate_squared` | `c·Ω_in²` | c | — |
+//! | `periodic_bias` | `a·sin(2π·t/P + φ)` | a·cos φ, a·sin φ | P |
+//! | `rate_ripple` | `ε·Ω_t·sin(N·θ + φ)`, Ω_t the table's rate along the sensing axis | ε·cos φ, ε·sin φ | N |
 //!
 //! `Ω_in` is the input rate the gyro sees (table plus Earth along the sensing axis), `T` the
 //! temperature that drives the bias (°C), `t` seconds since power-on (the start of the run; in
@@ -52,11 +54,15 @@ pub enum EffectId {
     BiasStep,
     /// Output proportional to the square of the input rate.
     RateSquared,
+    /// Bias oscillating in time with a period of its own.
+    PeriodicBias,
+    /// Table rate rippling N times per revolution, below the table's readout resolution.
+    RateRipple,
 }
 
 impl EffectId {
     /// Every effect, in library order.
-    pub const ALL: [EffectId; 10] = [
+    pub const ALL: [EffectId; 12] = [
         EffectId::EarthRate,
         EffectId::ThermalLag,
         EffectId::TemperatureQuadratic,
@@ -67,6 +73,8 @@ impl EffectId {
         EffectId::WarmUp,
         EffectId::BiasStep,
         EffectId::RateSquared,
+        EffectId::PeriodicBias,
+        EffectId::RateRipple,
     ];
 
     /// The stable id (snake case).
@@ -82,6 +90,8 @@ impl EffectId {
             EffectId::WarmUp => "warm_up",
             EffectId::BiasStep => "bias_step",
             EffectId::RateSquared => "rate_squared",
+            EffectId::PeriodicBias => "periodic_bias",
+            EffectId::RateRipple => "rate_ripple",
         }
     }
 
@@ -126,6 +136,16 @@ impl EffectId {
             EffectId::RateSquared => {
                 "output error ∝ rate² (scale-factor asymmetry / nonlinearity), the same for \
                  both directions"
+            }
+            EffectId::PeriodicBias => {
+                "bias oscillating in time with a period unrelated to the table or the test \
+                 profile: environment cycling (lab air conditioning, the chamber's compressor, \
+                 nearby equipment) reaching the gyro or its electronics"
+            }
+            EffectId::RateRipple => {
+                "the table's rate ripples N times per revolution (torque-motor cogging, encoder \
+                 errors) by less than its angle readout resolves: the gyro sees ε·Ω·sin(Nθ + φ) \
+                 that the recorded table motion does not show"
             }
         }
     }
@@ -215,6 +235,30 @@ pub struct RateSquared {
     pub coeff_s_per_rad: f64,
 }
 
+/// Bias oscillating in time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PeriodicBias {
+    /// `a`, rad/s.
+    pub amplitude_rad_s: f64,
+    /// `P`, s (> 0).
+    pub period_s: f64,
+    /// `φ` in `a·sin(2π·t/P + φ)`, rad (t from power-on).
+    pub phase_rad: f64,
+}
+
+/// Rate ripple of the table at N cycles per revolution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RateRipple {
+    /// `ε`: the ripple's amplitude relative to the table's rate (dimensionless).
+    pub relative_amplitude: f64,
+    /// `N`, cycles per revolution (> 0; an integer for a table).
+    pub cycles_per_rev: f64,
+    /// `φ` in `ε·Ω_t·sin(N·θ + φ)`, rad.
+    pub phase_rad: f64,
+}
+
 /// The effects switched on (truth of a simulator, or found by a diagnosis); all off by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -239,6 +283,10 @@ pub struct Effects {
     pub bias_step: Option<BiasStep>,
     /// See [`RateSquared`].
     pub rate_squared: Option<RateSquared>,
+    /// See [`PeriodicBias`].
+    pub periodic_bias: Option<PeriodicBias>,
+    /// See [`RateRipple`].
+    pub rate_ripple: Option<RateRipple>,
 }
 
 /// What the additive effects depend on, for one sample.
@@ -248,6 +296,8 @@ pub struct EffectSample {
     pub t_s: f64,
     /// Input rate along the sensing axis (table plus Earth), rad/s.
     pub input_rad_s: f64,
+    /// The table's rate along the sensing axis (no Earth), rad/s.
+    pub table_rate_rad_s: f64,
     /// `T − T0` of the temperature that drives the bias, °C.
     pub temp_minus_ref_c: f64,
     /// Table angle at the middle of the sample interval, rad.
@@ -263,13 +313,13 @@ impl EffectId {
     pub fn linear_count(self) -> usize {
         match self {
             EffectId::ThermalLag | EffectId::TimeOffset => 0,
-            EffectId::OncePerRevolution => 2,
+            EffectId::OncePerRevolution | EffectId::PeriodicBias | EffectId::RateRipple => 2,
             _ => 1,
         }
     }
 
     /// The effect's regressors for one sample, given its nonlinear parameter `p` (warm-up time
-    /// constant, bias-step time; ignored by the others); writes [`Self::linear_count`] values.
+    /// constant, bias-step time, period, cycles per revolution; ignored by the others); writes [`Self::linear_count`] values.
     /// Effects that transform the inputs (thermal lag, time offset) have none: they are applied
     /// to the inputs instead ([`lag_temperature`], the time-shifted table angle).
     pub fn regressors(self, s: &EffectSample, p: f64, out: &mut [f64]) {
@@ -286,6 +336,20 @@ impl EffectId {
             EffectId::WarmUp => out[0] = if p > 0.0 { (-s.t_s / p).exp() } else { 0.0 },
             EffectId::BiasStep => out[0] = if s.t_s >= p { 1.0 } else { 0.0 },
             EffectId::RateSquared => out[0] = s.input_rad_s * s.input_rad_s,
+            EffectId::PeriodicBias => {
+                let (sin, cos) = if p > 0.0 {
+                    (std::f64::consts::TAU * s.t_s / p).sin_cos()
+                } else {
+                    (0.0, 0.0)
+                };
+                out[0] = sin;
+                out[1] = cos;
+            }
+            EffectId::RateRipple => {
+                let (sin, cos) = (p * s.angle_mid_rad).sin_cos();
+                out[0] = s.table_rate_rad_s * sin;
+                out[1] = s.table_rate_rad_s * cos;
+            }
             EffectId::ThermalLag | EffectId::TimeOffset => {}
         }
     }
@@ -315,6 +379,8 @@ impl Effects {
             EffectId::WarmUp => self.warm_up.is_some(),
             EffectId::BiasStep => self.bias_step.is_some(),
             EffectId::RateSquared => self.rate_squared.is_some(),
+            EffectId::PeriodicBias => self.periodic_bias.is_some(),
+            EffectId::RateRipple => self.rate_ripple.is_some(),
         }
     }
 
@@ -352,6 +418,16 @@ impl Effects {
         }
         if let Some(c) = self.rate_squared {
             checks.push(("rate_squared.coeff_s_per_rad", c.coeff_s_per_rad, false));
+        }
+        if let Some(b) = self.periodic_bias {
+            checks.push(("periodic_bias.amplitude_rad_s", b.amplitude_rad_s, false));
+            checks.push(("periodic_bias.period_s", b.period_s, true));
+            checks.push(("periodic_bias.phase_rad", b.phase_rad, false));
+        }
+        if let Some(r) = self.rate_ripple {
+            checks.push(("rate_ripple.relative_amplitude", r.relative_amplitude, false));
+            checks.push(("rate_ripple.cycles_per_rev", r.cycles_per_rev, true));
+            checks.push(("rate_ripple.phase_rad", r.phase_rad, false));
         }
         for (name, v, positive) in checks {
             if !v.is_finite() {
@@ -416,6 +492,22 @@ impl Effects {
         }
         if let Some(c) = self.rate_squared {
             v += term(EffectId::RateSquared, 0.0, [c.coeff_s_per_rad, 0.0]);
+        }
+        if let Some(b) = self.periodic_bias {
+            let (sp, cp) = b.phase_rad.sin_cos();
+            v += term(
+                EffectId::PeriodicBias,
+                b.period_s,
+                [b.amplitude_rad_s * cp, b.amplitude_rad_s * sp],
+            );
+        }
+        if let Some(r) = self.rate_ripple {
+            let (sp, cp) = r.phase_rad.sin_cos();
+            v += term(
+                EffectId::RateRipple,
+                r.cycles_per_rev,
+                [r.relative_amplitude * cp, r.relative_amplitude * sp],
+            );
         }
         v
     }
@@ -486,6 +578,8 @@ impl EffectId {
             EffectId::WarmUp => &["amplitude_rad_s", "time_constant_s"],
             EffectId::BiasStep => &["time_s", "step_rad_s"],
             EffectId::RateSquared => &["coeff_s_per_rad"],
+            EffectId::PeriodicBias => &["amplitude_rad_s", "period_s", "phase_rad"],
+            EffectId::RateRipple => &["relative_amplitude", "cycles_per_rev", "phase_rad"],
         }
     }
 
@@ -496,6 +590,8 @@ impl EffectId {
             (EffectId::ThermalLag, "time_constant_s")
                 | (EffectId::WarmUp, "time_constant_s")
                 | (EffectId::ThermalHysteresis, "threshold_c_s")
+                | (EffectId::PeriodicBias, "period_s")
+                | (EffectId::RateRipple, "cycles_per_rev")
         )
     }
 }
@@ -523,6 +619,12 @@ impl Effects {
             EffectId::WarmUp => self.warm_up.map(|e| vec![e.amplitude_rad_s, e.time_constant_s]),
             EffectId::BiasStep => self.bias_step.map(|e| vec![e.time_s, e.step_rad_s]),
             EffectId::RateSquared => self.rate_squared.map(|e| vec![e.coeff_s_per_rad]),
+            EffectId::PeriodicBias => {
+                self.periodic_bias.map(|e| vec![e.amplitude_rad_s, e.period_s, e.phase_rad])
+            }
+            EffectId::RateRipple => {
+                self.rate_ripple.map(|e| vec![e.relative_amplitude, e.cycles_per_rev, e.phase_rad])
+            }
         }
     }
 
@@ -570,6 +672,17 @@ impl Effects {
             EffectId::RateSquared => {
                 self.rate_squared = Some(RateSquared { coeff_s_per_rad: v(0) });
             }
+            EffectId::PeriodicBias => {
+                self.periodic_bias =
+                    Some(PeriodicBias { amplitude_rad_s: v(0), period_s: v(1), phase_rad: v(2) });
+            }
+            EffectId::RateRipple => {
+                self.rate_ripple = Some(RateRipple {
+                    relative_amplitude: v(0),
+                    cycles_per_rev: v(1),
+                    phase_rad: v(2),
+                });
+            }
         }
         Ok(())
     }
@@ -587,6 +700,8 @@ impl Effects {
             EffectId::WarmUp => self.warm_up = None,
             EffectId::BiasStep => self.bias_step = None,
             EffectId::RateSquared => self.rate_squared = None,
+            EffectId::PeriodicBias => self.periodic_bias = None,
+            EffectId::RateRipple => self.rate_ripple = None,
         }
     }
 
@@ -689,6 +804,16 @@ mod metadata_tests {
             warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
             bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
             rate_squared: Some(RateSquared { coeff_s_per_rad: 1.0 / 3.0 }),
+            periodic_bias: Some(PeriodicBias {
+                amplitude_rad_s: 5e-8,
+                period_s: 1234.5,
+                phase_rad: -0.7,
+            }),
+            rate_ripple: Some(RateRipple {
+                relative_amplitude: 1e-5,
+                cycles_per_rev: 16.0,
+                phase_rad: 0.25,
+            }),
         }
     }
 
@@ -715,8 +840,8 @@ mod metadata_tests {
         );
         assert_eq!(m.get("effect.bias_step.time_s").map(String::as_str), Some("1e2"));
         assert_eq!(m.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
-        // 1 + every parameter of the nine parametrised effects.
-        assert_eq!(m.len(), 1 + 13);
+        // 1 + every parameter of the eleven parametrised effects.
+        assert_eq!(m.len(), 1 + 19);
         assert!(m.keys().all(|k| k.starts_with(METADATA_PREFIX)));
         assert!(Effects::default().to_metadata().is_empty());
     }
@@ -784,14 +909,14 @@ mod metadata_tests {
     proptest! {
         #[test]
         fn any_finite_effects_round_trip_exactly(
-            on in proptest::collection::vec(any::<bool>(), 10),
-            values in proptest::collection::vec(finite(), 2 * 10),
+            on in proptest::collection::vec(any::<bool>(), EffectId::ALL.len()),
+            values in proptest::collection::vec(finite(), 3 * EffectId::ALL.len()),
         ) {
             let mut e = Effects::default();
             for (k, id) in EffectId::ALL.into_iter().enumerate() {
                 if on[k] {
                     let n = id.params().len();
-                    e.set(id, &values[2 * k..2 * k + n]).expect("count fits");
+                    e.set(id, &values[3 * k..3 * k + n]).expect("count fits");
                 }
             }
             let back = Effects::from_metadata(&e.to_metadata()).expect("parses");
@@ -823,6 +948,7 @@ mod tests {
         let s = EffectSample {
             t_s: 100.0,
             input_rad_s: 0.003,
+            table_rate_rad_s: 0.0029,
             temp_minus_ref_c: -10.0,
             angle_mid_rad: 0.7,
             hysteresis: -1.0,
@@ -849,6 +975,15 @@ mod tests {
         assert_eq!(one(b(100.1)), 0.0);
         let c = RateSquared { coeff_s_per_rad: 1e-3 };
         assert!((one(Effects { rate_squared: Some(c), ..eff }) - 9e-9).abs() < 1e-22);
+        let pb = PeriodicBias { amplitude_rad_s: 4e-8, period_s: 800.0, phase_rad: -0.4 };
+        let got = one(Effects { periodic_bias: Some(pb), ..eff });
+        // 100 s of an 800 s period: a quarter of π on.
+        let want = 4e-8 * (std::f64::consts::FRAC_PI_4 - 0.4).sin();
+        assert!((got - want).abs() < 1e-22, "{got} vs {want}");
+        let rr = RateRipple { relative_amplitude: 1e-5, cycles_per_rev: 16.0, phase_rad: 0.2 };
+        let got = one(Effects { rate_ripple: Some(rr), ..eff });
+        let want = 1e-5 * 0.0029 * (16.0f64 * 0.7 + 0.2).sin();
+        assert!((got - want).abs() < 1e-22, "{got} vs {want}");
     }
 
     #[test]

@@ -231,6 +231,7 @@ impl GyroSampler {
             let s = EffectSample {
                 t_s: t_end_s - self.t_on_s,
                 input_rad_s: terms.input + earth,
+                table_rate_rad_s: terms.input,
                 temp_minus_ref_c: 0.5 * (temp_start_c + temp_end_c)
                     - self.model.reference_temperature,
                 angle_mid_rad: 0.5 * (table_angle_rad + self.prev_angle_rad),

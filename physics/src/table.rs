@@ -4,8 +4,8 @@
 //! The commanded motion is a chain of segments, each a constant-acceleration slew to the
 //! commanded rate followed by constant rate, so the *nominal* angle `θ_n(t)` and rate `ω_n(t)`
 //! are exact closed forms at any time. Rate ripple of relative amplitude `ε` at `N` cycles per
-//! revolution, `ω = ω_n·(1 + ε·sin(N·θ_n))`, integrates exactly to
-//! `θ = θ_n + (ε/N)·(1 − cos(N·θ_n))` for any motion profile. Evaluating the state is a pure
+//! revolution and phase `φ`, `ω = ω_n·(1 + ε·sin(N·θ_n + φ))`, integrates exactly to
+//! `θ = θ_n + (ε/N)·(cos φ − cos(N·θ_n + φ))` for any motion profile. Evaluating the state is a pure
 //! function of time and of the commands given so far, so the result does not depend on when
 //! or how often it is asked for. Angles are unwrapped, positive counter-clockwise seen from
 //! above.
@@ -30,6 +30,8 @@ pub struct TableParams {
     /// Ripple cycles per revolution N (default 16, e.g. torque-motor cogging; 0 = no ripple).
     /// The ripple's angle excursion is `2ε/N` peak to peak (default 1.25e-6 rad ≈ 0.26″).
     pub ripple_cycles_per_rev: u32,
+    /// Phase φ of the ripple, `ω = ω_n·(1 + ε·sin(N·θ_n + φ))`, rad (default 0).
+    pub ripple_phase_rad: f64,
     /// Standard deviation of the measured-rate readout noise, rad/s (default 1e-6 ≈ 0.2 °/h).
     pub rate_noise_rad_s: f64,
 }
@@ -42,6 +44,7 @@ impl Default for TableParams {
             position_resolution_rad: ARCSEC,
             ripple_rel: 1e-5,
             ripple_cycles_per_rev: 16,
+            ripple_phase_rad: 0.0,
             rate_noise_rad_s: 1e-6,
         }
     }
@@ -244,7 +247,8 @@ impl RateTableModel {
             return 0.0;
         }
         let n = f64::from(n);
-        self.params.ripple_rel / n * (1.0 - (n * theta_nominal).cos())
+        let phi = self.params.ripple_phase_rad;
+        self.params.ripple_rel / n * (phi.cos() - (n * theta_nominal + phi).cos())
     }
 
     /// True state at `t_s`.
@@ -257,9 +261,10 @@ impl RateTableModel {
             (th, om)
         } else {
             let nf = f64::from(n);
-            let (s, c) = (nf * th).sin_cos();
+            let phi = self.params.ripple_phase_rad;
+            let (s, c) = (nf * th + phi).sin_cos();
             let eps = self.params.ripple_rel;
-            (th + eps / nf * (1.0 - c), om * (1.0 + eps * s))
+            (th + eps / nf * (phi.cos() - c), om * (1.0 + eps * s))
         };
         TableState {
             time_s: t_s,
@@ -353,8 +358,12 @@ mod tests {
 
     #[test]
     fn ripple_integrates_exactly_and_averages_out_per_revolution() {
-        let p =
-            TableParams { ripple_rel: 1e-3, ripple_cycles_per_rev: 4, ..TableParams::default() };
+        let p = TableParams {
+            ripple_rel: 1e-3,
+            ripple_cycles_per_rev: 4,
+            ripple_phase_rad: 0.7,
+            ..TableParams::default()
+        };
         let w = 90.0 * DEG;
         let mut t = RateTableModel::new(p);
         t.command_rate(0.0, w, 1e6 * DEG / 1e3).expect("ok");
