@@ -37,15 +37,21 @@ fn procedure() -> Vec<Step> {
     ]
 }
 
-/// Simulate the procedure with `truth` + `effects`; the gyro's `seed`.
+/// Simulate the procedure with `truth` + `effects` on a table without rate ripple; the gyro's
+/// `seed`.
 fn simulate(truth: &GyroModel, effects: Effects, seed: u64) -> RunSeries {
+    simulate_on(TableParams { ripple_rel: 0.0, ..TableParams::default() }, truth, effects, seed)
+}
+
+/// [`simulate`] on a table with `table`'s parameters.
+fn simulate_on(table: TableParams, truth: &GyroModel, effects: Effects, seed: u64) -> RunSeries {
     let steps = procedure();
     let air0 = steps[0].2;
     let mount = Mounting { latitude_deg: LAT, axis_up: true };
     let mut gyro = GyroSampler::new(truth.clone(), DT, seed, 1, mount, air0).with_effects(effects);
     let mut lag = FirstOrderLag::new(truth.thermal_time_constant, air0);
-    let mut table = RateTableModel::new(TableParams::default());
-    let q = TableParams::default().position_resolution_rad;
+    let q = table.position_resolution_rad;
+    let mut table = RateTableModel::new(table);
     let mut run = RunSeries { latitude_deg: Some(LAT), axis_up: true, ..RunSeries::default() };
     let mut temps = Vec::new();
     let mut t = 0.0f64;
@@ -276,4 +282,31 @@ fn earth_rate_left_out_of_the_model_is_found() {
     assert_eq!(accepted(&d), vec![EffectId::EarthRate], "{}", check(&d));
     within_3_sigma(&d, EffectId::EarthRate, "latitude_deg", LAT);
     assert!(d.effects.earth_rate);
+}
+
+#[test]
+fn table_rate_ripple_below_the_readout_resolution_is_found() {
+    // The simulated table's default ripple: 1e-5 of the rate at 16 cycles per revolution, an
+    // angle excursion of 0.26″ that its 1″ readout does not show. The gyro sees it.
+    let table = TableParams::default();
+    assert_eq!((table.ripple_rel, table.ripple_cycles_per_rev), (1e-5, 16));
+    let run = simulate_on(table, &nominal(), Effects::default(), 1);
+    let d = diagnose(&run, &nominal(), &Effects::default(), &DiagnoseOptions::default())
+        .expect("diagnosis");
+    assert_eq!(accepted(&d), vec![EffectId::RateRipple], "{}", check(&d));
+    within_3_sigma(&d, EffectId::RateRipple, "relative_amplitude", 1e-5);
+    within_3_sigma(&d, EffectId::RateRipple, "phase_rad", 0.0);
+    assert_eq!(param(&d, EffectId::RateRipple, "cycles_per_rev").0, 16.0);
+}
+
+#[test]
+fn periodic_bias_is_found_not_mistaken_for_other_effects() {
+    // A 22 min oscillation (lab air conditioning) at four times the flicker floor: named alone
+    // (not a step, a once-per-revolution term or a temperature effect), its period and
+    // amplitude within 3σ.
+    let pb = PeriodicBias { amplitude_rad_s: 4e-8, period_s: 1320.0, phase_rad: 0.6 };
+    let e = Effects { periodic_bias: Some(pb), ..Effects::default() };
+    single(e, 13, EffectId::PeriodicBias, "amplitude_rad_s", 4e-8);
+    let d = run_with(e, 13);
+    within_3_sigma(&d, EffectId::PeriodicBias, "period_s", 1320.0);
 }

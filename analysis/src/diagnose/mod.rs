@@ -36,9 +36,9 @@ pub mod series;
 use bench_physics::allan::{chi2_quantile, normal_quantile, AdevPoint};
 use bench_physics::earth::vertical_rate_rad_s;
 use bench_physics::effects::{
-    lag_temperature, BiasStep, EffectId, EffectSample, Effects, OncePerRevolution, RateSquared,
-    ScaleFactorTemperature, TemperatureQuadratic, ThermalHysteresis, ThermalLag, TimeOffset,
-    WarmUp, HYSTERESIS_THRESHOLD_C_S,
+    lag_temperature, BiasStep, EffectId, EffectSample, Effects, OncePerRevolution, PeriodicBias,
+    RateRipple, RateSquared, ScaleFactorTemperature, TemperatureQuadratic, ThermalHysteresis,
+    ThermalLag, TimeOffset, WarmUp, HYSTERESIS_THRESHOLD_C_S,
 };
 use bench_physics::GyroModel;
 
@@ -272,6 +272,17 @@ const HOLDOUT_Z: f64 = 3.0;
 const HOLDOUT_MIN_SHARE: f64 = 0.2;
 /// Most positions tried for a bias step (then refined to the bin around the best).
 const STEP_POSITIONS: usize = 100;
+/// Shortest period tried for a periodic bias, s (and never under four bins).
+const PERIOD_MIN_S: f64 = 120.0;
+/// Fewest cycles of a periodic bias in the run: with fewer, a sinusoid is a drift, a step or a
+/// warm-up as much as an oscillation (a 1e-7 rad/s step mid-run was taken for 2.9 cycles).
+const PERIOD_MIN_CYCLES: f64 = 4.0;
+/// Most periods tried for a periodic bias (then refined between the best's neighbours).
+const PERIODS: usize = 300;
+/// Periods tried between a periodic bias's best grid period and each neighbour.
+const PERIOD_REFINE: usize = 8;
+/// Cycles per revolution tried for a table rate ripple (1 is `once_per_revolution`'s).
+const RIPPLE_CYCLES: std::ops::RangeInclusive<u32> = 2..=64;
 /// Seed of the scan-threshold draws ([`scan`]): fixed, so a diagnosis is reproducible.
 const SCAN_SEED: u64 = 0x5eed_d1a6;
 
@@ -356,6 +367,7 @@ fn prepare(
             let s = EffectSample {
                 t_s: native.t[k],
                 input_rad_s: axis * native.table_rate_rad_s[k] + earth_in,
+                table_rate_rad_s: axis * native.table_rate_rad_s[k],
                 temp_minus_ref_c: temp[k] - t0,
                 angle_mid_rad: native.angle_mid_rad[k],
                 hysteresis: hyst.0[k],
@@ -506,6 +518,18 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
             let c = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].cos());
             vec![s, c]
         }
+        EffectId::RateRipple => {
+            let (tr, th) = (&nat.table_rate_rad_s, &nat.angle_mid_rad);
+            let s = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).sin());
+            let c = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).cos());
+            vec![s, c]
+        }
+        EffectId::PeriodicBias => {
+            let w = std::f64::consts::TAU / p;
+            let s = bin_mean(bins, dt, |k| (w * nat.t[k]).sin());
+            let c = bin_mean(bins, dt, |k| (w * nat.t[k]).cos());
+            vec![s, c]
+        }
         // Grid positions are bin starts: the step is exactly 0 before and 1 from there on.
         EffectId::BiasStep => {
             vec![bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()]
@@ -520,6 +544,7 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
                 let s = EffectSample {
                     t_s: nat.t[k],
                     input_rad_s: axis * nat.table_rate_rad_s[k] + prep.earth_in,
+                    table_rate_rad_s: axis * nat.table_rate_rad_s[k],
                     temp_minus_ref_c: prep.temp[k] - t0,
                     angle_mid_rad: nat.angle_mid_rad[k],
                     hysteresis: 0.0,
@@ -529,6 +554,61 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
                 out[0]
             })]
         }
+    }
+}
+
+/// A periodic bias's period refined between its best grid period's neighbours (evenly in
+/// frequency), the best fit kept, the Wald profile extended.
+fn refine_period(
+    prep: &Prepared,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    model: &GyroModel,
+    fitted: &mut Fitted,
+    profile: &mut Vec<(f64, f64)>,
+) {
+    let g = grid(prep, EffectId::PeriodicBias);
+    let Some(k) = g.iter().position(|&v| v == fitted.p) else { return };
+    let f0 = 1.0 / fitted.p;
+    let mut freqs = Vec::new();
+    for nb in [k.checked_sub(1), Some(k + 1)].into_iter().flatten() {
+        let Some(&pn) = g.get(nb) else { continue };
+        let f1 = 1.0 / pn;
+        freqs.extend(
+            (1..=PERIOD_REFINE).map(|j| f0 + (f1 - f0) * j as f64 / (PERIOD_REFINE + 1) as f64),
+        );
+    }
+    for f in freqs {
+        let p = 1.0 / f;
+        let cols = candidate_columns(prep, EffectId::PeriodicBias, p, model);
+        if let Some(t) = proj.test(&cols, y, noise) {
+            profile.push((p, t.wald));
+            if t.delta_rss > fitted.test.delta_rss {
+                *fitted = Fitted { p, cols, test: t };
+            }
+        }
+    }
+    profile.sort_by(|a, b| a.0.total_cmp(&b.0));
+}
+
+/// A gridded effect's best grid value refined below the grid's spacing (bias step, periodic
+/// bias); nothing for the others.
+#[allow(clippy::too_many_arguments)]
+fn refine(
+    prep: &Prepared,
+    id: EffectId,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    model: &GyroModel,
+    fitted: &mut Fitted,
+    profile: &mut Vec<(f64, f64)>,
+) {
+    match id {
+        EffectId::BiasStep => refine_step(prep, proj, y, noise, fitted, profile),
+        EffectId::PeriodicBias => refine_period(prep, proj, y, noise, model, fitted, profile),
+        _ => {}
     }
 }
 
@@ -562,14 +642,15 @@ fn refine_step(
     profile.sort_by(|a, b| a.0.total_cmp(&b.0));
 }
 
-/// A gridded effect's best grid value (least squares) against `proj`, the bias step's refined
-/// to the bin; `None` for an effect without a grid or not yet tried.
+/// A gridded effect's best grid value (least squares) against `proj`, refined below the grid
+/// ([`refine`]); `None` for an effect without a grid or not yet tried.
 fn refit_grid(
     prep: &Prepared,
     id: EffectId,
     proj: &Projector,
     y: &[f64],
     noise: &BinNoise,
+    model: &GyroModel,
     cache: &std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>>,
 ) -> Option<Fitted> {
     let g = grid(prep, id);
@@ -588,9 +669,7 @@ fn refit_grid(
         }
     }
     let mut fitted = top?;
-    if id == EffectId::BiasStep {
-        refine_step(prep, proj, y, noise, &mut fitted, &mut profile);
-    }
+    refine(prep, id, proj, y, noise, model, &mut fitted, &mut profile);
     Some(fitted)
 }
 
@@ -606,8 +685,27 @@ fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
             let stride = ((hi - lo) / STEP_POSITIONS).max(1);
             (lo..hi).step_by(stride).map(|i| prep.bins[i].start_s).collect()
         }
+        EffectId::PeriodicBias => period_grid(&prep.bins),
+        EffectId::RateRipple => RIPPLE_CYCLES.map(f64::from).collect(),
         _ => vec![f64::NAN],
     }
+}
+
+/// Periods tried for a periodic bias: evenly in frequency, half a cycle over the run apart, from
+/// `PERIOD_MIN_CYCLES` cycles in the run up to the shortest period (`PERIOD_MIN_S`, four bins),
+/// at most `PERIODS` of them (the short-period end is dropped first). Longest first.
+fn period_grid(bins: &[Bin]) -> Vec<f64> {
+    let (Some(first), Some(last)) = (bins.first(), bins.last()) else { return Vec::new() };
+    let span_s = last.end_s - first.start_s;
+    let p_min = PERIOD_MIN_S.max(4.0 * first.span_s());
+    if span_s.is_nan() || span_s <= PERIOD_MIN_CYCLES * p_min {
+        return Vec::new();
+    }
+    let f_lo = PERIOD_MIN_CYCLES / span_s;
+    let df = 0.5 / span_s;
+    let f_hi = (1.0 / p_min).min(f_lo + df * (PERIODS - 1) as f64);
+    let n = ((f_hi - f_lo) / df).floor() as usize + 1;
+    (0..n).map(|j| 1.0 / (f_lo + df * j as f64)).collect()
 }
 
 /// The run's first-message-relative span where a contribution exceeds half its peak.
@@ -874,7 +972,7 @@ pub fn diagnose(
                         d3.extend(fitted2.cols.iter().cloned());
                         let p3 = Projector::new(&d3, &all)?;
                         if let Some(g1) =
-                            refit_grid(&prep, f.effect, &p3, &y, &noise, &column_cache)
+                            refit_grid(&prep, f.effect, &p3, &y, &noise, model, &column_cache)
                         {
                             top = g1;
                         }
@@ -882,7 +980,7 @@ pub fn diagnose(
                         d4.extend(top.cols.iter().cloned());
                         let p4 = Projector::new(&d4, &all)?;
                         if let Some(g2) =
-                            refit_grid(&prep, f2.effect, &p4, &y, &noise, &column_cache)
+                            refit_grid(&prep, f2.effect, &p4, &y, &noise, model, &column_cache)
                         {
                             fitted2 = g2;
                         }
@@ -956,7 +1054,9 @@ pub fn diagnose(
                     .collect();
                 let proj_o = Projector::new(&others, &all)?;
                 let id = accepted_cols[i].0;
-                if let Some(fitted) = refit_grid(&prep, id, &proj_o, &y, &noise, &column_cache) {
+                if let Some(fitted) =
+                    refit_grid(&prep, id, &proj_o, &y, &noise, model, &column_cache)
+                {
                     accepted_cols[i].1 = fitted.p;
                     accepted_cols[i].2 = fitted.cols;
                 }
@@ -1059,16 +1159,12 @@ pub fn diagnose(
                 delta_rss: 0.0,
             };
             let profile = vec![(*p, f.wald)];
-            let keep_profile_sigma = f
-                .parameters
-                .iter()
-                .find(|q| q.name == "time_constant_s" || q.name == "time_s")
-                .map(|q| q.sigma);
+            let keep_profile_sigma =
+                f.parameters.iter().find(|q| is_grid_parameter(q.name)).map(|q| q.sigma);
             f.parameters = effect_parameters(*id, *p, &t, &profile, &prep);
-            if let (Some(s), Some(q)) = (
-                keep_profile_sigma,
-                f.parameters.iter_mut().find(|q| q.name == "time_constant_s" || q.name == "time_s"),
-            ) {
+            if let (Some(s), Some(q)) =
+                (keep_profile_sigma, f.parameters.iter_mut().find(|q| is_grid_parameter(q.name)))
+            {
                 q.sigma = s;
             }
         }
@@ -1084,7 +1180,14 @@ pub fn diagnose(
     let q_total: usize = accepted_cols
         .iter()
         .map(|(id, ..)| {
-            usize::from(matches!(id, EffectId::ThermalLag | EffectId::WarmUp | EffectId::BiasStep))
+            usize::from(matches!(
+                id,
+                EffectId::ThermalLag
+                    | EffectId::WarmUp
+                    | EffectId::BiasStep
+                    | EffectId::PeriodicBias
+                    | EffectId::RateRipple
+            ))
         })
         .sum();
     let bic_after = r.iter().map(|x| x * x).sum::<f64>() / sig2
@@ -1189,9 +1292,7 @@ fn search(
         let Some(mut fitted) = top else { continue };
         // Judged at the grid (what the scan threshold is for), reported at the refined fit.
         let wald_grid = fitted.test.wald;
-        if id == EffectId::BiasStep {
-            refine_step(ctx.prep, proj, y, noise, &mut fitted, &mut profile);
-        }
+        refine(ctx.prep, id, proj, y, noise, ctx.model, &mut fitted, &mut profile);
         let Fitted { p, cols, test: t } = fitted;
         let k = cols.len() as f64;
         let q = if m_grid > 1.0 { 1.0 } else { 0.0 };
@@ -1335,36 +1436,23 @@ fn effect_parameters(
         EffectId::TemperatureQuadratic => vec![lin("coeff_rad_s_per_c2", "rad/s/°C²", 0)],
         EffectId::ScaleFactorTemperature => vec![lin("coeff_per_c", "1/°C", 0)],
         EffectId::ThermalHysteresis => vec![lin("half_width_rad_s", "rad/s", 0)],
-        EffectId::OncePerRevolution => {
-            let (a, b) = (t.theta[0], t.theta[1]);
-            let amp = a.hypot(b);
-            let phase = b.atan2(a);
-            // Delta method.
-            let (va, vb, cab) = (t.cov[(0, 0)], t.cov[(1, 1)], t.cov[(0, 1)]);
-            let amp_var = if amp > 0.0 {
-                (a * a * va + b * b * vb + 2.0 * a * b * cab) / (amp * amp)
-            } else {
-                va.max(vb)
-            };
-            let ph_var = if amp > 0.0 {
-                (b * b * va + a * a * vb - 2.0 * a * b * cab) / amp.powi(4)
-            } else {
-                f64::INFINITY
-            };
-            vec![
-                EffectParameter {
-                    name: "amplitude_rad_s",
-                    value: amp,
-                    sigma: amp_var.max(0.0).sqrt(),
-                    unit: "rad/s",
-                },
-                EffectParameter {
-                    name: "phase_rad",
-                    value: phase,
-                    sigma: ph_var.max(0.0).sqrt(),
-                    unit: "rad",
-                },
-            ]
+        EffectId::OncePerRevolution => amplitude_phase(t),
+        EffectId::RateRipple => {
+            let mut v = amplitude_phase(t);
+            v[0].name = "relative_amplitude";
+            v[0].unit = "1";
+            // An integer grid: exact unless the neighbours fit as well.
+            let sigma = if profile.len() > 1 { grid_sigma() } else { 0.0 };
+            v.insert(1, EffectParameter { name: "cycles_per_rev", value: p, sigma, unit: "1" });
+            v
+        }
+        EffectId::PeriodicBias => {
+            let mut v = amplitude_phase(t);
+            v.insert(
+                1,
+                EffectParameter { name: "period_s", value: p, sigma: grid_sigma(), unit: "s" },
+            );
+            v
         }
         EffectId::TimeOffset => vec![lin("offset_s", "s", 0)],
         EffectId::WarmUp => vec![
@@ -1377,6 +1465,45 @@ fn effect_parameters(
         ],
         EffectId::RateSquared => vec![lin("coeff_s_per_rad", "s/rad", 0)],
     }
+}
+
+/// Whether a reported parameter is a grid value (its σ from the Wald profile).
+fn is_grid_parameter(name: &str) -> bool {
+    matches!(name, "time_constant_s" | "time_s" | "period_s" | "cycles_per_rev")
+}
+
+/// Amplitude and phase of `a·sin(x + φ)` from the coefficients of `sin x` and `cos x`, with
+/// their σ by the delta method.
+fn amplitude_phase(t: &fit::TermTest) -> Vec<EffectParameter> {
+    let (a, b) = (t.theta[0], t.theta[1]);
+    let amp = a.hypot(b);
+    let phase = b.atan2(a);
+    // Delta method.
+    let (va, vb, cab) = (t.cov[(0, 0)], t.cov[(1, 1)], t.cov[(0, 1)]);
+    let amp_var = if amp > 0.0 {
+        (a * a * va + b * b * vb + 2.0 * a * b * cab) / (amp * amp)
+    } else {
+        va.max(vb)
+    };
+    let ph_var = if amp > 0.0 {
+        (b * b * va + a * a * vb - 2.0 * a * b * cab) / amp.powi(4)
+    } else {
+        f64::INFINITY
+    };
+    vec![
+        EffectParameter {
+            name: "amplitude_rad_s",
+            value: amp,
+            sigma: amp_var.max(0.0).sqrt(),
+            unit: "rad/s",
+        },
+        EffectParameter {
+            name: "phase_rad",
+            value: phase,
+            sigma: ph_var.max(0.0).sqrt(),
+            unit: "rad",
+        },
+    ]
 }
 
 /// Put an accepted effect with its fitted parameters into `e`.
@@ -1407,6 +1534,22 @@ fn apply_effect(e: &mut Effects, id: EffectId, p: f64, th: &[(f64, f64)], model:
         EffectId::WarmUp => e.warm_up = Some(WarmUp { amplitude_rad_s: v(0), time_constant_s: p }),
         EffectId::BiasStep => e.bias_step = Some(BiasStep { time_s: p, step_rad_s: v(0) }),
         EffectId::RateSquared => e.rate_squared = Some(RateSquared { coeff_s_per_rad: v(0) }),
+        EffectId::PeriodicBias => {
+            let (a, b) = (v(0), v(1));
+            e.periodic_bias = Some(PeriodicBias {
+                amplitude_rad_s: a.hypot(b),
+                period_s: p,
+                phase_rad: b.atan2(a),
+            })
+        }
+        EffectId::RateRipple => {
+            let (a, b) = (v(0), v(1));
+            e.rate_ripple = Some(RateRipple {
+                relative_amplitude: a.hypot(b),
+                cycles_per_rev: p,
+                phase_rad: b.atan2(a),
+            })
+        }
     }
 }
 
