@@ -1,7 +1,8 @@
 //! `bench diagnose` end to end through the binary: a scenario conceals a warm-up in
 //! `[simulation.truth.effects]`, `bench run` records it, `bench diagnose` names it (exit code 4,
-//! JSON per docs/diagnose.md) and writes a model file; the simulator loads that file, and the
-//! run it simulates diagnoses clean.
+//! JSON per docs/diagnose.md), with the simulated table's ripple beside it, and writes a model
+//! file; the simulator loads that file (the ripple going to its table), and the run it
+//! simulates diagnoses clean.
 
 use std::path::Path;
 use std::process::Command;
@@ -43,9 +44,11 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     assert_eq!(diag.status.code(), Some(4), "{}", String::from_utf8_lossy(&diag.stderr));
     let j = json(&d.join("d.json"));
     assert_eq!(j["verdict"], "missing_physics");
-    let findings = j["findings"].as_array().expect("findings");
-    assert_eq!(findings.len(), 1, "{findings:#?}");
-    assert_eq!(findings[0]["effect"], "warm_up");
+    let all = j["findings"].as_array().expect("findings");
+    let mut named: Vec<_> = all.iter().filter_map(|f| f["effect"].as_str()).collect();
+    named.sort_unstable();
+    assert_eq!(named, ["rate_ripple", "warm_up"], "{all:#?}");
+    let findings: Vec<_> = all.iter().filter(|f| f["effect"] == "warm_up").collect();
     let amp = &findings[0]["parameters"]["amplitude_rad_s"];
     let (v, s) = (amp["value"].as_f64().expect("value"), amp["sigma"].as_f64().expect("sigma"));
     assert!((v - 2e-7).abs() < 3.0 * s, "amplitude {v:e} ± {s:e}");
@@ -55,6 +58,7 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     assert!(j["unexplained"].as_array().is_some_and(Vec::is_empty), "{:#}", j["unexplained"]);
     let model = std::fs::read_to_string(d.join("out/model.toml")).expect("model.toml");
     assert!(model.contains("[effects.warm_up]"), "{model}");
+    assert!(model.contains("[effects.rate_ripple]"), "{model}");
 
     // The simulator loads the updated model (its [effects] included): the run it simulates
     // records the warm-up in bench.gyro_model, shows it, and diagnoses clean against it.
@@ -76,6 +80,7 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     assert!(rerun.status.success(), "{}", String::from_utf8_lossy(&rerun.stderr));
     let again = bench(&["diagnose", "again.mcap", "--json", "a.json", "--no-report"], d);
     let a = json(&d.join("a.json"));
+    // The table ripples as the model says, no more: nothing is left to find.
     assert_ne!(a["verdict"], "missing_physics", "{:#}", a["findings"]);
     assert_ne!(again.status.code(), Some(4));
 }

@@ -64,6 +64,43 @@ pub struct SimConfig {
     pub gyro: GyroParams,
 }
 
+impl SimConfig {
+    /// The simulated table and the gyro's effects as the simulator runs them: a `rate_ripple`
+    /// effect is the table's ripple (it replaces the table's own; the gyro sees it through the
+    /// table's true motion), so it leaves the gyro's effects and sets `table.ripple_*`.
+    pub fn table_and_gyro_effects(&self) -> (TableParams, Effects) {
+        let mut table = self.table.clone();
+        let mut effects = self.gyro_effects;
+        if let Some(r) = effects.rate_ripple.take() {
+            // ε·sin(x + φ) with ε < 0 is |ε|·sin(x + φ + π).
+            let (eps, phase) = if r.relative_amplitude < 0.0 {
+                (-r.relative_amplitude, r.phase_rad + std::f64::consts::PI)
+            } else {
+                (r.relative_amplitude, r.phase_rad)
+            };
+            table.ripple_rel = eps;
+            // Whole and in range: checked by `validate`.
+            table.ripple_cycles_per_rev = r.cycles_per_rev.round().clamp(0.0, 65_535.0) as u32;
+            table.ripple_phase_rad = phase;
+        }
+        (table, effects)
+    }
+
+    /// Every effect beyond the gyro model that the simulated gyro's output shows: the gyro's
+    /// effects, and the table's ripple as `rate_ripple` (what a diagnosis should find).
+    pub fn seen_effects(&self) -> Effects {
+        let (table, mut effects) = self.table_and_gyro_effects();
+        if table.ripple_rel > 0.0 && table.ripple_cycles_per_rev > 0 {
+            effects.rate_ripple = Some(bench_physics::effects::RateRipple {
+                relative_amplitude: table.ripple_rel,
+                cycles_per_rev: f64::from(table.ripple_cycles_per_rev),
+                phase_rad: table.ripple_phase_rad,
+            });
+        }
+        effects
+    }
+}
+
 impl Default for SimConfig {
     fn default() -> Self {
         Self {
@@ -161,6 +198,18 @@ impl SimConfig {
             ));
         }
         self.gyro_effects.validate().map_err(|e| err("gyro_effects", e))?;
+        if let Some(r) = self.gyro_effects.rate_ripple {
+            let n = r.cycles_per_rev;
+            if n.fract() != 0.0 || !(1.0..=f64::from(u16::MAX)).contains(&n) {
+                return Err(err(
+                    "gyro_effects",
+                    format!(
+                        "`rate_ripple.cycles_per_rev` must be a whole number of cycles per \
+                         revolution for the simulated table, got {n}"
+                    ),
+                ));
+            }
+        }
         positive("chamber.max_heat_rate_c_s", c.max_heat_rate_c_s)?;
         positive("chamber.max_cool_rate_c_s", c.max_cool_rate_c_s)?;
         positive("chamber.air_heat_slew_c_s", c.air_heat_slew_c_s)?;
@@ -228,5 +277,33 @@ impl SimConfig {
                 },
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bench_physics::effects::RateRipple;
+
+    #[test]
+    fn a_rate_ripple_effect_becomes_the_tables_ripple() {
+        let cfg = SimConfig::default();
+        // The default table ripples; the gyro adds nothing of its own.
+        let seen = cfg.seen_effects();
+        let r = seen.rate_ripple.expect("the table's ripple is seen");
+        assert_eq!((r.relative_amplitude, r.cycles_per_rev, r.phase_rad), (1e-5, 16.0, 0.0));
+
+        let mut cfg = SimConfig::default();
+        let ripple = RateRipple { relative_amplitude: -2e-5, cycles_per_rev: 8.0, phase_rad: 0.5 };
+        cfg.gyro_effects.rate_ripple = Some(ripple);
+        assert!(cfg.validate().is_ok());
+        let (table, effects) = cfg.table_and_gyro_effects();
+        assert_eq!(effects.rate_ripple, None, "not added a second time through the gyro");
+        assert_eq!((table.ripple_rel, table.ripple_cycles_per_rev), (2e-5, 8));
+        assert!((table.ripple_phase_rad - (0.5 + std::f64::consts::PI)).abs() < 1e-15);
+
+        cfg.gyro_effects.rate_ripple = Some(RateRipple { cycles_per_rev: 2.5, ..ripple });
+        let e = cfg.validate().expect_err("half a cycle");
+        assert!(e.to_string().contains("whole number"), "{e}");
     }
 }

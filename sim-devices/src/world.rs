@@ -45,8 +45,9 @@ impl World {
     pub(crate) fn new(cfg: &SimConfig) -> Self {
         let m = &cfg.gyro_model;
         let mounting = Mounting { latitude_deg: cfg.latitude_deg, axis_up: cfg.axis_up };
+        let (table, effects) = cfg.table_and_gyro_effects();
         Self {
-            table: RateTableModel::new(cfg.table.clone()),
+            table: RateTableModel::new(table),
             table_rng: rng(cfg.seed, STREAM_TABLE),
             chamber: ChamberModel::new(
                 cfg.chamber.clone(),
@@ -62,7 +63,7 @@ impl World {
                 mounting,
                 cfg.initial_temp_c,
             )
-            .with_effects(cfg.gyro_effects),
+            .with_effects(effects),
             gyro_recent: std::collections::VecDeque::with_capacity(GYRO_RECENT),
             last_t_s: 0.0,
         }

@@ -30,32 +30,42 @@ fn scenario(name: &str) -> String {
     std::fs::read_to_string(workspace().join("scenarios").join(name)).expect("scenario")
 }
 
+/// The gyro's truth is the nominal model; the simulated table ripples (1e-5 of the rate at 16
+/// cycles per revolution, below its 1″ readout). The ripple is all there is to find.
 #[test]
-fn a_run_whose_truth_is_the_nominal_model_has_no_finding() {
+fn a_run_whose_gyro_truth_is_the_nominal_model_names_only_the_table_ripple() {
     let rec = simulate_text(&scenario("thermal-short.toml"), 21);
     let started = std::time::Instant::now();
     let out = diagnose_recording(&rec, None, &DiagnoseOptions::default()).expect("diagnoses");
     eprintln!("diagnosed in {:.2} s", started.elapsed().as_secs_f64());
     let d = &out.diagnosis;
-    let found: Vec<_> = d.findings.iter().filter(|f| f.accepted).map(|f| f.effect.key()).collect();
-    assert!(found.is_empty(), "{found:?}");
+    let found: Vec<_> = d.findings.iter().filter(|f| f.accepted).collect();
+    let keys: Vec<_> = found.iter().map(|f| f.effect.key()).collect();
+    assert_eq!(keys, ["rate_ripple"]);
+    let p = |name: &str| {
+        let q = found[0].parameters.iter().find(|q| q.name == name).expect("parameter");
+        (q.value, q.sigma)
+    };
+    assert_eq!(p("cycles_per_rev").0, 16.0);
+    let (eps, s) = p("relative_amplitude");
+    assert!((eps - 1e-5).abs() < 3.0 * s, "ε {eps} ± {s}");
     assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
-    assert_ne!(d.verdict, Verdict::MissingPhysics);
     // The JSON carries the contract's fields.
     let j = json::to_json(&out, "null.mcap");
     assert_eq!(j["version"], 1);
-    assert!(j["verdict"] == "consistent" || j["verdict"] == "parameters_only");
+    assert_eq!(j["verdict"], "missing_physics");
     assert!(j["parameter_updates"]["bias"]["sigma"].as_f64().is_some_and(|s| s > 0.0));
-    assert_eq!(j["findings"].as_array().map(Vec::len), Some(0));
+    assert_eq!(j["findings"].as_array().map(Vec::len), Some(1));
 }
 
 /// The shipped demo recordings say what recordings/README.md says they say.
 #[test]
 fn the_demo_recordings_diagnose_as_documented() {
+    // Every demo's simulated table ripples at 16 cycles per revolution (found as rate_ripple).
     let cases: [(&str, &[&str]); 3] = [
-        ("demo-null.mcap", &[]),
-        ("demo-once-per-revolution.mcap", &["once_per_revolution"]),
-        ("demo-warm-up-and-step.mcap", &["bias_step", "warm_up"]),
+        ("demo-null.mcap", &["rate_ripple"]),
+        ("demo-once-per-revolution.mcap", &["once_per_revolution", "rate_ripple"]),
+        ("demo-warm-up-and-step.mcap", &["bias_step", "rate_ripple", "warm_up"]),
     ];
     for (file, want) in cases {
         let bytes = std::fs::read(workspace().join("recordings").join(file)).expect("demo file");
@@ -66,7 +76,6 @@ fn the_demo_recordings_diagnose_as_documented() {
             d.findings.iter().filter(|f| f.accepted).map(|f| f.effect.key()).collect();
         found.sort_unstable();
         assert_eq!(found, want, "{file}");
-        let verdict = if want.is_empty() { Verdict::Consistent } else { Verdict::MissingPhysics };
-        assert_eq!(d.verdict, verdict, "{file}");
+        assert_eq!(d.verdict, Verdict::MissingPhysics, "{file}");
     }
 }

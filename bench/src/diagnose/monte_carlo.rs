@@ -117,7 +117,8 @@ pub fn run(
     on_seed: impl FnMut(&SeedDiagnosis) + Send,
 ) -> anyhow::Result<DiagnoseStudy> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
-    let truth = sim_config(&plan, first).gyro_effects;
+    // The simulated table's ripple is truth too: the gyro sees it.
+    let truth = sim_config(&plan, first).seen_effects();
     let seeds = parallel_seeds(
         first,
         count,

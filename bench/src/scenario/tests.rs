@@ -799,6 +799,8 @@ once_per_revolution = { amplitude_rad_s = 2e-8, phase_rad = 0.5 }
 time_offset = { offset_s = 0.01 }
 warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900 }
 bias_step = { time_s = 100, step_rad_s = 1e-6 }
+periodic_bias = { amplitude_rad_s = 3e-8, period_s = 1200, phase_rad = -1 }
+rate_ripple = { relative_amplitude = 1e-5, cycles_per_rev = 16, phase_rad = 0 }
 [simulation.truth.effects.rate_squared]
 coeff_s_per_rad = 2e-3
 [[step]]
@@ -824,6 +826,16 @@ wait = "1 s"
         warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
         bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
         rate_squared: Some(RateSquared { coeff_s_per_rad: 2e-3 }),
+        periodic_bias: Some(PeriodicBias {
+            amplitude_rad_s: 3e-8,
+            period_s: 1200.0,
+            phase_rad: -1.0,
+        }),
+        rate_ripple: Some(RateRipple {
+            relative_amplitude: 1e-5,
+            cycles_per_rev: 16.0,
+            phase_rad: 0.0,
+        }),
     };
     assert_eq!(p.sim.truth_effects, truth);
     assert_eq!(p.sim.truth_effects.ids().len(), EffectId::ALL.len());
@@ -866,7 +878,7 @@ fn effect_errors_are_located() {
         ),
         "{e}"
     );
-    assert!(e.ends_with("`rate_squared`"), "{e}");
+    assert!(e.ends_with("`rate_squared`, `periodic_bias`, `rate_ripple`"), "{e}");
     // An unknown parameter and the missing one are both reported.
     let e = errs(&with_head(&format!(
         "{head}warm_up = {{ amplitude_rad_s = 1e-7, tau_s = 9 }}\n{step}"
