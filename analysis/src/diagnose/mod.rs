@@ -579,9 +579,24 @@ fn refine_period(
             (1..=PERIOD_REFINE).map(|j| f0 + (f1 - f0) * j as f64 / (PERIOD_REFINE + 1) as f64),
         );
     }
-    for f in freqs {
+    let tries = freqs.into_iter().map(|f| {
         let p = 1.0 / f;
-        let cols = candidate_columns(prep, EffectId::PeriodicBias, p, model);
+        (p, candidate_columns(prep, EffectId::PeriodicBias, p, model))
+    });
+    keep_best(proj, y, noise, tries, fitted, profile);
+}
+
+/// Test each `(value, columns)` of `tries`: its Wald statistic joins the profile, and the best
+/// fit (least squares) replaces `fitted`.
+fn keep_best(
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    tries: impl Iterator<Item = (f64, Vec<Vec<f64>>)>,
+    fitted: &mut Fitted,
+    profile: &mut Vec<(f64, f64)>,
+) {
+    for (p, cols) in tries {
         if let Some(t) = proj.test(&cols, y, noise) {
             profile.push((p, t.wald));
             if t.delta_rss > fitted.test.delta_rss {
@@ -626,20 +641,12 @@ fn refine_step(
     let Some(k) = g.iter().position(|&v| v == fitted.p) else { return };
     let lo = if k == 0 { fitted.p } else { g[k - 1] };
     let hi = if k + 1 == g.len() { fitted.p } else { g[k + 1] };
-    for b in &prep.bins {
-        let p = b.start_s;
-        if p <= lo || p >= hi || p == fitted.p {
-            continue;
-        }
-        let cols = vec![prep.bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()];
-        if let Some(t) = proj.test(&cols, y, noise) {
-            profile.push((p, t.wald));
-            if t.delta_rss > fitted.test.delta_rss {
-                *fitted = Fitted { p, cols, test: t };
-            }
-        }
-    }
-    profile.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let best = fitted.p;
+    let tries =
+        prep.bins.iter().map(|b| b.start_s).filter(|&p| p > lo && p < hi && p != best).map(|p| {
+            (p, vec![prep.bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()])
+        });
+    keep_best(proj, y, noise, tries, fitted, profile);
 }
 
 /// A gridded effect's best grid value (least squares) against `proj`, refined below the grid
