@@ -476,13 +476,13 @@ impl Effects {
         if let Some(h) = self.thermal_hysteresis {
             v += term(EffectId::ThermalHysteresis, 0.0, [h.half_width_rad_s, 0.0]);
         }
+        // `A·sin(x + φ)` = `A cos φ·sin x + A sin φ·cos x`.
+        let wave = |amp: f64, phase: f64| {
+            let (sp, cp) = phase.sin_cos();
+            [amp * cp, amp * sp]
+        };
         if let Some(o) = self.once_per_revolution {
-            let (sp, cp) = o.phase_rad.sin_cos();
-            v += term(
-                EffectId::OncePerRevolution,
-                0.0,
-                [o.amplitude_rad_s * cp, o.amplitude_rad_s * sp],
-            );
+            v += term(EffectId::OncePerRevolution, 0.0, wave(o.amplitude_rad_s, o.phase_rad));
         }
         if let Some(w) = self.warm_up {
             v += term(EffectId::WarmUp, w.time_constant_s, [w.amplitude_rad_s, 0.0]);
@@ -494,20 +494,11 @@ impl Effects {
             v += term(EffectId::RateSquared, 0.0, [c.coeff_s_per_rad, 0.0]);
         }
         if let Some(b) = self.periodic_bias {
-            let (sp, cp) = b.phase_rad.sin_cos();
-            v += term(
-                EffectId::PeriodicBias,
-                b.period_s,
-                [b.amplitude_rad_s * cp, b.amplitude_rad_s * sp],
-            );
+            v += term(EffectId::PeriodicBias, b.period_s, wave(b.amplitude_rad_s, b.phase_rad));
         }
         if let Some(r) = self.rate_ripple {
-            let (sp, cp) = r.phase_rad.sin_cos();
-            v += term(
-                EffectId::RateRipple,
-                r.cycles_per_rev,
-                [r.relative_amplitude * cp, r.relative_amplitude * sp],
-            );
+            let coeffs = wave(r.relative_amplitude, r.phase_rad);
+            v += term(EffectId::RateRipple, r.cycles_per_rev, coeffs);
         }
         v
     }

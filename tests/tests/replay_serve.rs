@@ -101,25 +101,13 @@ async fn a_replayed_gyro_over_slcan_reads_back_as_recorded() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_served_replay_waits_for_its_first_client() {
     use bench::bench_config::for_served_bench;
-    use bench::replay::StartOnRequest;
     use bench_drivers::HeldClock;
-    use bench_sim::serve::bench::serve_devices;
 
     const SPEED: f64 = 2.0;
     let rec = recording();
     let data = Arc::new(ReplayData::from_recording(&rec, "gyro.mcap").expect("replayable"));
     let held = HeldClock::new(SPEED);
-    let clock: Arc<dyn Clock> = Arc::new(held.clone());
-    let devices = data.devices(clock.clone(), ReplayOptions { at_end: AtEnd::Hold });
-    let served = serve_devices(
-        StartOnRequest::new(devices.table, held.clone()),
-        StartOnRequest::new(devices.chamber, held.clone()),
-        devices.gyro,
-        data.gyro_rate_hz(),
-        clock.clone(),
-    )
-    .await
-    .expect("served");
+    let served = data.serve(&held).await.expect("served");
 
     tokio::time::sleep(Duration::from_secs(3)).await;
     assert!(!held.is_started(), "nobody asked yet");

@@ -1186,16 +1186,8 @@ pub fn diagnose(
         r_base.iter().map(|x| x * x).sum::<f64>() / sig2 + base_proj.kept.len() as f64 * n_eff.ln();
     let q_total: usize = accepted_cols
         .iter()
-        .map(|(id, ..)| {
-            usize::from(matches!(
-                id,
-                EffectId::ThermalLag
-                    | EffectId::WarmUp
-                    | EffectId::BiasStep
-                    | EffectId::PeriodicBias
-                    | EffectId::RateRipple
-            ))
-        })
+        // One nonlinear parameter per effect searched over a grid (the search's `q`).
+        .map(|(id, ..)| usize::from(grid(&prep, *id).len() > 1))
         .sum();
     let bic_after = r.iter().map(|x| x * x).sum::<f64>() / sig2
         + (proj.kept.len() + q_total) as f64 * n_eff.ln();
@@ -1516,6 +1508,8 @@ fn amplitude_phase(t: &fit::TermTest) -> Vec<EffectParameter> {
 /// Put an accepted effect with its fitted parameters into `e`.
 fn apply_effect(e: &mut Effects, id: EffectId, p: f64, th: &[(f64, f64)], model: &GyroModel) {
     let v = |a: usize| th.get(a).map_or(0.0, |x| x.0);
+    // `a·sin x + b·cos x` as amplitude and phase of `A·sin(x + φ)`.
+    let (amp, phase) = (v(0).hypot(v(1)), v(1).atan2(v(0)));
     match id {
         EffectId::EarthRate => e.earth_rate = true,
         EffectId::ThermalLag => {
@@ -1533,29 +1527,20 @@ fn apply_effect(e: &mut Effects, id: EffectId, p: f64, th: &[(f64, f64)], model:
                 Some(ThermalHysteresis { half_width_rad_s: v(0), threshold_c_s: HYST_C_S })
         }
         EffectId::OncePerRevolution => {
-            let (a, b) = (v(0), v(1));
             e.once_per_revolution =
-                Some(OncePerRevolution { amplitude_rad_s: a.hypot(b), phase_rad: b.atan2(a) })
+                Some(OncePerRevolution { amplitude_rad_s: amp, phase_rad: phase })
         }
         EffectId::TimeOffset => e.time_offset = Some(TimeOffset { offset_s: v(0) }),
         EffectId::WarmUp => e.warm_up = Some(WarmUp { amplitude_rad_s: v(0), time_constant_s: p }),
         EffectId::BiasStep => e.bias_step = Some(BiasStep { time_s: p, step_rad_s: v(0) }),
         EffectId::RateSquared => e.rate_squared = Some(RateSquared { coeff_s_per_rad: v(0) }),
         EffectId::PeriodicBias => {
-            let (a, b) = (v(0), v(1));
-            e.periodic_bias = Some(PeriodicBias {
-                amplitude_rad_s: a.hypot(b),
-                period_s: p,
-                phase_rad: b.atan2(a),
-            })
+            e.periodic_bias =
+                Some(PeriodicBias { amplitude_rad_s: amp, period_s: p, phase_rad: phase })
         }
         EffectId::RateRipple => {
-            let (a, b) = (v(0), v(1));
-            e.rate_ripple = Some(RateRipple {
-                relative_amplitude: a.hypot(b),
-                cycles_per_rev: p,
-                phase_rad: b.atan2(a),
-            })
+            e.rate_ripple =
+                Some(RateRipple { relative_amplitude: amp, cycles_per_rev: p, phase_rad: phase })
         }
     }
 }

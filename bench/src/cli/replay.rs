@@ -11,9 +11,8 @@ use std::time::Duration;
 use bench::bench_config::for_served_bench;
 use bench::live_view::LiveView;
 use bench::recording::{Item, RecordingReader};
-use bench::replay::{AtEnd, ReplayData, ReplayOptions, StartOnRequest};
+use bench::replay::ReplayData;
 use bench_drivers::{Clock, HeldClock};
-use bench_sim::serve::bench::serve_devices;
 
 /// Arguments of `bench replay`.
 #[derive(clap::Args, Debug)]
@@ -68,15 +67,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
         let mut data = None;
         if args.serve {
             let d = Arc::new(ReplayData::load(&args.recording)?);
-            let bench = d.devices(shared.clone(), ReplayOptions { at_end: AtEnd::Hold });
-            let s = serve_devices(
-                StartOnRequest::new(bench.table, clock.clone()),
-                StartOnRequest::new(bench.chamber, clock.clone()),
-                bench.gyro,
-                d.gyro_rate_hz(),
-                shared.clone(),
-            )
-            .await?;
+            let s = d.serve(&clock).await?;
             let site = d.site();
             let (lat, up) = site.map_or((0.0, true), |s| (s.latitude_deg, s.axis_up));
             let cfg = for_served_bench(&s.endpoints, args.speed, lat, up);

@@ -300,6 +300,27 @@ impl ReplayData {
     }
 }
 
+impl ReplayData {
+    /// Serve this replay's devices over the simulators' wire protocols (`bench replay
+    /// --serve`), on `clock`: held at the last reading past the end, and the table and chamber
+    /// start `clock` at their first request ([`StartOnRequest`]).
+    pub async fn serve(
+        self: &Arc<Self>,
+        clock: &HeldClock,
+    ) -> Result<bench_sim::serve::bench::ServedBench, bench_sim::serve::bench::ServeError> {
+        let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+        let bench = self.devices(shared.clone(), ReplayOptions { at_end: AtEnd::Hold });
+        bench_sim::serve::bench::serve_devices(
+            StartOnRequest::new(bench.table, clock.clone()),
+            StartOnRequest::new(bench.chamber, clock.clone()),
+            bench.gyro,
+            self.gyro_rate_hz(),
+            shared,
+        )
+        .await
+    }
+}
+
 /// A table or chamber that starts a [`HeldClock`] at its first request (a read or a command):
 /// a served replay (`bench replay --serve`) then begins when a client first asks for something,
 /// not when the server started, so a bench that connects late misses nothing.
