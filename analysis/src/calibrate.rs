@@ -55,32 +55,9 @@ impl TemperatureSeries {
         TemperatureSeries { time_s: self.time_s.clone(), temp_c: out }
     }
 
-    /// Linear interpolation at increasing times `at` (held at the ends).
+    /// Linear interpolation at times `at` (held at the ends; [`crate::interp`]).
     pub fn sample(&self, at: &[f64]) -> Vec<f64> {
-        let (xs, ys) = (&self.time_s, &self.temp_c);
-        let n = xs.len();
-        let mut i = 0;
-        at.iter()
-            .map(|&x| {
-                if n == 0 {
-                    return f64::NAN;
-                }
-                if x <= xs[0] {
-                    return ys[0];
-                }
-                if x >= xs[n - 1] {
-                    return ys[n - 1];
-                }
-                if xs[i] > x {
-                    i = 0;
-                }
-                while i + 2 < n && xs[i + 1] < x {
-                    i += 1;
-                }
-                let (x0, x1) = (xs[i], xs[i + 1]);
-                ys[i] + (ys[i + 1] - ys[i]) * (x - x0) / (x1 - x0)
-            })
-            .collect()
+        crate::interp::interp_at(&self.time_s, &self.temp_c, at)
     }
 }
 

@@ -1,9 +1,11 @@
 //! Calibration analysis of bench recordings: pure functions over arrays, no I/O.
 //!
-//! - [`windows`]: the input type, one record window (a `record …` step of a recording) as
+//! - [`run`]: a whole run as arrays ([`run::RunSeries`]), the input of both analyses;
+//!   [`interp`]: the one linear interpolator.
+//! - [`windows`]: the calibration's input, one record window (a `record …` step of a recording) as
 //!   arrays of time, gyro rate, table rate and temperatures.
 //! - [`temperature_rate`]: dT/dt from quantised temperature readings (local linear regression).
-//! - [`seed_method`]: the seed's plateau method reproduced (`shared/seed/README.md`):
+//! - [`seed_method`]: the seed's plateau method reproduced (`docs/seed-method.md`):
 //!   K = (k1 + k2)/2 per plateau, a two-point line for the temperature coefficient and a slope
 //!   through the origin for the temperature-rate coefficient.
 //! - [`joint_fit`]: one least-squares fit of bias, scale-factor error, temperature and
@@ -19,15 +21,17 @@
 //! - [`allan_fit`]: IEEE Std 952 noise terms (N, B, K) with confidence intervals from an
 //!   overlapping Allan deviation.
 //!
-//! Coefficients use the `bench.gyro_model` keys and units of the recording contract
-//! (`shared/spec/recording.md`).
+//! Coefficients use the `bench.gyro_model` keys and units of the recording format
+//! (`recording/FORMAT.md`).
 
 pub mod allan_fit;
 pub mod calibrate;
 pub mod diagnose;
 pub mod error;
 pub mod gls;
+pub mod interp;
 pub mod joint_fit;
+pub mod run;
 pub mod seed_method;
 pub mod temperature_rate;
 pub mod windows;

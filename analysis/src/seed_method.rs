@@ -1,4 +1,4 @@
-//! The seed's calibration method reproduced (`shared/seed/README.md`, stage 3).
+//! The seed's calibration method reproduced (`docs/seed-method.md`, stage 3).
 //!
 //! # Plateaus: K = (k1 + k2)/2
 //!

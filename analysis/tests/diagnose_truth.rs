@@ -5,8 +5,8 @@
 //! bias instability). Each effect is switched on at a few times the noise floor and concealed
 //! from the nominal model.
 
-use bench_analysis::diagnose::series::{RunSeries, StepSpan};
 use bench_analysis::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Verdict};
+use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
 use bench_physics::effects::*;
 use bench_physics::gyro::{GyroSampler, Mounting};
 use bench_physics::lag::FirstOrderLag;
@@ -83,6 +83,7 @@ fn simulate_on(table: TableParams, truth: &GyroModel, effects: Effects, seed: u6
             label: if label.starts_with("record") { label.into() } else { String::new() },
             start_s: start,
             end_s: t,
+            ended: StepEnd::End,
         });
     }
     run.gyro_temp_c = Some(temps);

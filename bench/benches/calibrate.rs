@@ -12,9 +12,9 @@
 
 use std::{hint::black_box, io::Cursor, path::Path, time::Duration};
 
-use bench::calibrate::{calibrate_recording, CalibrateSettings};
-use bench::recording::Recording;
 use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench_recording::Recording;
+use bench_report::calibrate::{calibrate_recording, CalibrateSettings};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn recording() -> Vec<u8> {

@@ -12,10 +12,10 @@
 
 use std::{hint::black_box, io::Cursor, path::Path, time::Duration};
 
-use bench::diagnose::diagnose_recording;
-use bench::recording::Recording;
 use bench::simulate::{capabilities, run_plan, SimOptions};
 use bench_analysis::diagnose::DiagnoseOptions;
+use bench_recording::Recording;
+use bench_report::diagnose::diagnose_recording;
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn recording() -> Vec<u8> {

@@ -8,10 +8,10 @@ use std::io::Cursor;
 use std::sync::Arc;
 
 use bench::bench_config::for_served_bench;
-use bench::realtime::{run_plan_realtime, RealtimeOptions};
-use bench::recording::Recording;
-use bench::simulate::{capabilities, run_info, sim_config, SIM_EPOCH_NS};
+use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::Recording;
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
@@ -34,16 +34,16 @@ fn main() -> anyhow::Result<()> {
         let config = for_served_bench(&served.endpoints, 1.0, 48.0, true);
         let clock = SystemClock::new(1.0);
         let (devices, _) = config.connect(Arc::new(clock.clone())).await?;
-        let (report, cur) = run_plan_realtime(
+        let (report, cur) = run_realtime(
             &plan,
             devices,
             clock,
-            Cursor::new(Vec::new()),
             run_info(&plan, SIM_EPOCH_NS),
-            RealtimeOptions::default(),
+            Cursor::new(Vec::new()),
+            RunOptions::default(),
         )
         .await?;
-        anyhow::ensure!(report.outcome == "completed", "run {}", report.outcome);
+        anyhow::ensure!(report.completed(), "run {}", report.outcome);
         Ok::<_, anyhow::Error>(Recording::from_bytes(cur.get_ref())?)
     })?;
     println!("20 Hz sampling jitter through virtual ports, {seconds} s at 1× real time");

@@ -28,21 +28,21 @@ fn main() -> anyhow::Result<()> {
     let bytes = std::fs::read(&path)?;
 
     let ours = best(repeats, || {
-        bench::recording::RecordingReader::new(&bytes[..])
+        bench_recording::RecordingReader::new(&bytes[..])
             .filter(|i| {
                 matches!(
                     i,
-                    Ok(bench::recording::Item::Gyro(_)
-                        | bench::recording::Item::Table(_)
-                        | bench::recording::Item::Chamber(_)
-                        | bench::recording::Item::Step(_)
-                        | bench::recording::Item::Other(_))
+                    Ok(bench_recording::Item::Gyro(_)
+                        | bench_recording::Item::Table(_)
+                        | bench_recording::Item::Chamber(_)
+                        | bench_recording::Item::Step(_)
+                        | bench_recording::Item::Other(_))
                 )
             })
             .count() as u64
     });
     let replay = best(repeats, || {
-        let rec = bench::recording::Recording::from_bytes(&bytes).expect("readable");
+        let rec = bench_recording::Recording::from_bytes(&bytes).expect("readable");
         let n = (rec.gyro.len() + rec.table.len() + rec.chamber.len() + rec.steps.len()) as u64
             + rec.other_counts.values().sum::<u64>();
         let data = bench::replay::ReplayData::from_recording(&rec, "x").expect("replayable");

@@ -237,13 +237,17 @@ impl BenchConfig {
             )));
         }
         if let Some(sim) = &cfg.simulation {
-            crate::effects_toml::check_located(&sim.effects, text, &["simulation", "effects"])
-                .map_err(|(line, column, message)| ConfigError::Invalid {
-                    file: file.to_string(),
-                    line,
-                    column,
-                    message,
-                })?;
+            bench_recording::effects_toml::check_located(
+                &sim.effects,
+                text,
+                &["simulation", "effects"],
+            )
+            .map_err(|(line, column, message)| ConfigError::Invalid {
+                file: file.to_string(),
+                line,
+                column,
+                message,
+            })?;
         }
         if let Some(site) = &cfg.site {
             if !(-90.0..=90.0).contains(&site.latitude_deg) {
@@ -398,7 +402,7 @@ impl BenchSource {
             let (line, column) = text
                 .find(&format!("{key} "))
                 .or_else(|| text.find(key))
-                .map_or((1, 1), |at| crate::scenario::line_col(text, at));
+                .map_or((1, 1), |at| bench_recording::toml_doc::line_col(text, at));
             (line, column)
         };
         if let Some(speed) = cfg.replay.speed {
@@ -452,8 +456,8 @@ pub fn for_served_bench(
     latitude_deg: f64,
     axis_up: bool,
 ) -> BenchConfig {
+    use bench_drivers::protocol::Dialect;
     use bench_drivers::real::chamber::MapChoice;
-    use bench_drivers::real::table::Dialect;
     let mut gyro = CanGyroConfig::slcan(endpoints.gyro_slcan.path.clone());
     gyro.sample_rate_hz = endpoints.gyro_rate_hz;
     BenchConfig {
@@ -483,7 +487,7 @@ impl BenchConfig {
 
 /// A TOML parse or shape error of `file`, at its line and column.
 fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ConfigError {
-    let (line, column) = crate::scenario::line_col(text, e.span().map_or(0, |s| s.start));
+    let (line, column) = bench_recording::toml_doc::line_col(text, e.span().map_or(0, |s| s.start));
     ConfigError::Invalid {
         file: file.to_string(),
         line,

@@ -1,9 +1,9 @@
 //! bench: orchestrator of the FOG thermal-calibration bench.
 //!
 //! Scenario TOML → validated [`plan::RunPlan`] ([`scenario`]) → run on devices behind the
-//! `bench-drivers` traits ([`run`]) → MCAP per the recording contract ([`record`]), read back by
-//! [`recording`]. [`simulate`] is the embedded default bench: the in-process simulators in
-//! virtual time.
+//! `bench-drivers` traits ([`run`]) → MCAP per the recording format (`bench-recording`),
+//! analysed by `bench-report`. [`simulate`] is the embedded default bench: the in-process
+//! simulators in virtual time.
 //!
 //! ```no_run
 //! use bench::simulate::{run_scenario_file, SimOptions};
@@ -17,19 +17,12 @@
 //! ```
 
 pub mod bench_config;
-pub mod calibrate;
-pub mod diagnose;
-mod effects_toml;
-pub mod export;
 pub mod live_view;
 pub mod plan;
 pub mod progress;
-pub mod realtime;
-pub mod record;
-pub mod recording;
-pub mod recover;
 pub mod replay;
-pub(crate) mod report;
 pub mod run;
+pub mod runner;
 pub mod scenario;
 pub mod simulate;
+pub mod study;

@@ -18,12 +18,12 @@ use std::sync::{Arc, Mutex};
 use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
 use serde_json::json;
 
-use crate::record::schema::{
+use crate::run::{Event, EventSink};
+use bench_recording::schema::{
     CHAMBER_SCHEMA_JSON, GYRO_SCHEMA_JSON, LOG_SCHEMA_JSON, MESSAGE_ENCODING, SCHEMA_CHAMBER,
     SCHEMA_ENCODING, SCHEMA_GYRO, SCHEMA_LOG, SCHEMA_STEP, SCHEMA_TABLE, STEP_SCHEMA_JSON,
     TABLE_SCHEMA_JSON, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_LOG, TOPIC_STEP, TOPIC_TABLE,
 };
-use crate::run::{Event, EventSink};
 
 /// Default port of Foxglove's WebSocket connection.
 pub const DEFAULT_PORT: u16 = 8765;

@@ -65,7 +65,7 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(1)
+            cli::exit::Exit::Error.into()
         }
     }
 }

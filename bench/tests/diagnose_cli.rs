@@ -1,5 +1,5 @@
 //! `bench diagnose` end to end through the binary: a scenario conceals a warm-up in
-//! `[simulation.truth.effects]`, `bench run` records it, `bench diagnose` names it (exit code 4,
+//! `[simulation.truth.effects]`, `bench run` records it, `bench diagnose` names it (exit code 7,
 //! JSON per docs/diagnose.md), with the simulated table's ripple beside it, and writes a model
 //! file; the simulator loads that file (the ripple going to its table), and the run it
 //! simulates diagnoses clean.
@@ -41,7 +41,7 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
 
     let diag =
         bench(&["diagnose", "rec.mcap", "--out", "out", "--json", "d.json", "--no-report"], d);
-    assert_eq!(diag.status.code(), Some(4), "{}", String::from_utf8_lossy(&diag.stderr));
+    assert_eq!(diag.status.code(), Some(7), "{}", String::from_utf8_lossy(&diag.stderr));
     let j = json(&d.join("d.json"));
     assert_eq!(j["verdict"], "missing_physics");
     let all = j["findings"].as_array().expect("findings");
@@ -82,5 +82,5 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     let a = json(&d.join("a.json"));
     // The table ripples as the model says, no more: nothing is left to find.
     assert_ne!(a["verdict"], "missing_physics", "{:#}", a["findings"]);
-    assert_ne!(again.status.code(), Some(4));
+    assert_ne!(again.status.code(), Some(7));
 }

@@ -29,7 +29,7 @@ pub struct ChamberReading {
     pub setpoint_c: f64,
     /// The target set point the working set point ramps to, °C.
     pub target_c: f64,
-    /// Status word, 0 = ok; bits in [`crate::status::chamber`].
+    /// Status word, 0 = ok; bits in [`bench_recording::status::chamber`].
     pub status: u32,
     /// The controller's own time stamp, if it has one.
     pub device_time: Option<std::time::Duration>,

@@ -27,7 +27,7 @@ pub struct GyroSample {
     pub temperature_c: Option<f64>,
     /// The device's own sample counter (wraps at the device's width).
     pub seq: u64,
-    /// Status word, 0 = valid; bits in [`crate::status::gyro`].
+    /// Status word, 0 = valid; bits in [`bench_recording::status::gyro`].
     pub status: u32,
     /// The device's own time stamp, if it has one.
     pub device_time: Option<std::time::Duration>,

@@ -17,7 +17,6 @@ pub mod error;
 pub mod gyro;
 pub mod protocol;
 pub mod real;
-pub mod status;
 pub mod table;
 pub mod transport;
 

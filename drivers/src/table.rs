@@ -41,7 +41,7 @@ pub struct TableReading {
     pub rate_command_rad_s: f64,
     /// Axis mode.
     pub mode: TableMode,
-    /// Status word, 0 = ok; bits in [`crate::status::table`].
+    /// Status word, 0 = ok; bits in [`bench_recording::status::table`].
     pub status: u32,
     /// The controller's own time stamp of the reading, if it has one (bench-time scale).
     pub device_time: Option<std::time::Duration>,

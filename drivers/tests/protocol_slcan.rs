@@ -281,7 +281,7 @@ fn assembler_pairs_by_sequence_in_either_order() {
         .unwrap()
         .unwrap();
     assert_eq!(s.seq, 302);
-    assert_eq!(s.to_gyro_sample().status, bench_drivers::status::gyro::INVALID);
+    assert_eq!(s.to_gyro_sample().status, bench_recording::status::gyro::INVALID);
     // Foreign ids are ignored; a short frame with our id is an error at its length.
     assert!(asm.push(&CanFrame::new_data(std_id(0x7), &[1]).unwrap()).is_none());
     let short = CanFrame::new_data(CanId::extended(0x1800_0001).unwrap(), &[1, 2, 3]).unwrap();

@@ -5,9 +5,11 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use bench_drivers::real::table::{Dialect, RateTableDriver, TableDriverConfig};
+use bench_drivers::protocol::Dialect;
+use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
 use bench_drivers::transport::{Endpoint, SerialSettings};
-use bench_drivers::{status, Clock, ErrorKind, RateTable, SystemClock, TableMode};
+use bench_drivers::{Clock, ErrorKind, RateTable, SystemClock, TableMode};
+use bench_recording::status;
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpListener;
 

@@ -3,7 +3,7 @@
 //! that parses gives a model with non-negative noise and lag that writes and parses back equal.
 #![no_main]
 
-use bench::calibrate::model_file::{CalibrationFile, ModelFileError};
+use bench_recording::model_file::{CalibrationFile, ModelFileError};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

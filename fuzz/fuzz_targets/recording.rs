@@ -2,7 +2,7 @@
 //! or a cut names where reading stopped, inside the input.
 #![no_main]
 
-use bench::recording::Recording;
+use bench_recording::Recording;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
@@ -12,5 +12,5 @@ fuzz_target!(|data: &[u8]| {
         }
         let _ = rec.outcome();
     }
-    let _ = bench::recording::info_from_reader(bench::recording::RecordingReader::new(data));
+    let _ = bench_recording::info_from_reader(bench_recording::RecordingReader::new(data));
 });

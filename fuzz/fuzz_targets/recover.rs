@@ -4,11 +4,11 @@
 
 use std::io::Cursor;
 
-use bench::recording::RecordingReader;
+use bench_recording::RecordingReader;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok((report, out)) = bench::recover::recover(data, Cursor::new(Vec::new())) {
+    if let Ok((report, out)) = bench_recording::recover::recover(data, Cursor::new(Vec::new())) {
         if let Some(b) = &report.break_at {
             assert!(b.at_byte <= data.len() as u64);
         }
@@ -16,6 +16,6 @@ fuzz_target!(|data: &[u8]| {
         let mut reader = RecordingReader::new(&bytes[..]).raw();
         let n = reader.by_ref().filter(|i| i.is_ok()).count();
         assert!(n as u64 >= report.total_messages());
-        assert_eq!(reader.end(), &bench::recording::End::Complete);
+        assert_eq!(reader.end(), &bench_recording::End::Complete);
     }
 });

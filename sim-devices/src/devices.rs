@@ -4,7 +4,6 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use async_trait::async_trait;
-use bench_drivers::status;
 use bench_drivers::{
     Chamber, ChamberCapabilities, ChamberReading, Clock, DeviceError, DeviceInfo, DeviceResult,
     ErrorKind, Gyro, GyroCapabilities, GyroSample, RateTable, TableCapabilities, TableMode,
@@ -12,6 +11,7 @@ use bench_drivers::{
 };
 use bench_physics::gyro::GyroSampler;
 use bench_physics::table::AxisMode;
+use bench_recording::status;
 
 use crate::world::{lock, SharedWorld};
 

@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use bench_drivers::protocol::modbus_map::Preset;
 use bench_drivers::real::chamber::{MapChoice, ModbusChamber, ModbusChamberConfig, ModelCheck};
-use bench_drivers::{status, Chamber, Clock, ErrorKind, SystemClock};
+use bench_drivers::{Chamber, Clock, ErrorKind, SystemClock};
+use bench_recording::status;
 use bench_sim::faults::{Fault, FaultSwitch};
 use bench_sim::serve::chamber::{
     serve_chamber_rtu, serve_chamber_tcp, ChamberServeOptions, ServedChamber, WriteRecord,

@@ -4,10 +4,11 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bench_drivers::clock::{run_virtual, timeout, VirtualClock};
-use bench_drivers::{status, Chamber, Clock, ErrorKind, Gyro, GyroSample, RateTable, TableMode};
+use bench_drivers::{Chamber, Clock, ErrorKind, Gyro, GyroSample, RateTable, TableMode};
 use bench_physics::earth::EARTH_RATE_RAD_S;
 use bench_physics::noise::bias_instability_stationary_std;
 use bench_physics::units::{ARCSEC, DEG, DEG_PER_MIN};
+use bench_recording::status;
 use bench_sim::{default_infos, SimBench, SimConfig};
 
 fn bench(cfg: SimConfig) -> (VirtualClock, SimBench) {

@@ -2,8 +2,9 @@
 
 use std::io::Cursor;
 
-use bench::recording::Recording;
+use bench::run::FaultCause;
 use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench_recording::Recording;
 
 /// The chamber heats from 20 °C at 1 °C/min, so the air cannot be within 0.1 °C of 60 °C after
 /// 10 minutes: the wait times out and the run must abort.
@@ -43,15 +44,13 @@ fn timed_out_wait_aborts_to_safe_state_and_keeps_the_data() {
         .expect("valid scenario");
     let (report, cursor) =
         run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
-    assert!(
-        report.outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"),
-        "{}",
-        report.outcome
-    );
-    assert!(report.outcome.contains("not within 60 ± 0.1 °C"), "{}", report.outcome);
+    let outcome = report.outcome.to_string();
+    assert!(outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"), "{outcome}");
+    assert!(outcome.contains("not within 60 ± 0.1 °C"), "{outcome}");
+    assert_eq!(report.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
 
     let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
-    assert_eq!(rec.outcome(), Some(report.outcome.as_str()));
+    assert_eq!(rec.outcome(), Some(report.outcome));
 
     // Step 2 started and aborted at its timeout; the record step never started.
     let events: Vec<(u64, String)> =
@@ -122,9 +121,9 @@ fn a_hanging_stream_is_caught_by_the_watchdog() {
         chamber: Box::new(chamber),
         gyro: Box::new(HangingGyro(gyro_info)),
     };
-    let recorder = bench::record::Recorder::new(
+    let recorder = bench_recording::Recorder::new(
         Cursor::new(Vec::new()),
-        bench::simulate::run_info(&plan, bench::simulate::SIM_EPOCH_NS),
+        bench::runner::run_info(&plan, bench::simulate::SIM_EPOCH_NS),
     )
     .expect("recorder");
     let live = Arc::new(bench::run::Live::default());
@@ -140,13 +139,15 @@ fn a_hanging_stream_is_caught_by_the_watchdog() {
         )
     })
     .expect("no deadlock");
-    let outcome = result.outcome.to_string();
+    let outcome = result.outcome().to_string();
     assert!(outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"), "{outcome}");
     assert!(
         outcome.contains("gyro data stale: no good reading for 31.0 s (limit 30.0 s)"),
         "{outcome}"
     );
-    let bytes = result.sink.finish(&result.outcome).expect("finished").into_inner();
+    assert_eq!(result.fault.as_ref().map(|f| f.cause), Some(FaultCause::Stale { device: "gyro" }));
+    let outcome = result.outcome();
+    let bytes = result.sink.finish(&outcome).expect("finished").into_inner();
     let rec = Recording::from_bytes(&bytes).expect("readable");
     assert!(rec.gyro.is_empty() && !rec.table.is_empty());
     assert_eq!(rec.steps.last().map(|s| s.msg.event.as_str()), Some("abort"));

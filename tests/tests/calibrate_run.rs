@@ -5,10 +5,10 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench::calibrate::{calibrate_recording, json, CalibrateError, CalibrateSettings};
-use bench::recording::Recording;
 use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench_recording::Recording;
+use bench_report::calibrate::{calibrate_recording, json, CalibrateError, CalibrateSettings};
 
 fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -23,7 +23,7 @@ fn simulate(scenario: &str, seed: u64) -> Recording {
         None,
     )
     .expect("runs");
-    assert_eq!(report.outcome, "completed");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     Recording::from_bytes(cursor.get_ref()).expect("reads back")
 }
 

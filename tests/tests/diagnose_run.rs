@@ -4,10 +4,10 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use bench::diagnose::{diagnose_recording, json};
-use bench::recording::Recording;
 use bench::simulate::{capabilities, run_plan, SimOptions};
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
+use bench_recording::Recording;
+use bench_report::diagnose::{diagnose_recording, json};
 
 fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -22,7 +22,7 @@ fn simulate_text(text: &str, seed: u64) -> Recording {
         None,
     )
     .expect("runs");
-    assert_eq!(report.outcome, "completed");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     Recording::from_bytes(cursor.get_ref()).expect("reads back")
 }
 

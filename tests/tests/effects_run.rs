@@ -4,9 +4,9 @@
 
 use std::io::Cursor;
 
-use bench::recording::Recording;
 use bench::simulate::{capabilities, run_plan, SimOptions};
 use bench_physics::effects::{BiasStep, Effects, OncePerRevolution};
+use bench_recording::Recording;
 
 /// Table at rest, chamber held at 20 °C, 200 s.
 fn scenario(effects: &str) -> String {
@@ -32,7 +32,7 @@ fn run(effects: &str) -> Recording {
         .expect("valid scenario");
     let (report, cursor) =
         run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
-    assert_eq!(report.outcome, "completed");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     Recording::from_bytes(cursor.get_ref()).expect("readable")
 }
 

@@ -8,11 +8,11 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bench::bench_config::for_served_bench;
-use bench::realtime::{run_plan_realtime, RealtimeOptions};
-use bench::recording::Recording;
-use bench::simulate::{capabilities, run_info, sim_config, SIM_EPOCH_NS};
-use bench_drivers::status;
+use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::status;
+use bench_recording::Recording;
 use bench_sim::faults::Fault;
 use bench_sim::serve::bench::{serve_bench, BenchFaults};
 
@@ -73,13 +73,13 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
             inject(&faults);
         }))
     };
-    let (report, cur) = run_plan_realtime(
+    let (report, cur) = run_realtime(
         &plan,
         devices,
         clock,
-        Cursor::new(Vec::new()),
         run_info(&plan, SIM_EPOCH_NS),
-        RealtimeOptions::default(),
+        Cursor::new(Vec::new()),
+        RunOptions::default(),
     )
     .await
     .expect("run ends (completed or aborted)");
@@ -88,7 +88,7 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
     }
     drop(served);
     let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
-    assert_eq!(rec.outcome().map(str::to_string), Some(report.outcome));
+    assert_eq!(rec.outcome(), Some(report.outcome.clone()));
     rec
 }
 
@@ -106,7 +106,7 @@ async fn corrupt_and_dropped_gyro_frames_are_flagged_and_the_run_completes() {
         f.gyro.inject(Fault::Drop { every: 113 });
     })
     .await;
-    assert_eq!(rec.outcome(), Some("completed"));
+    assert_eq!(rec.outcome(), Some(bench_recording::Outcome::Completed));
     let flagged = |bit: u32| rec.gyro.iter().filter(|g| g.msg.status & bit != 0).count();
     let (gaps, after_corrupt) =
         (flagged(status::gyro::SEQ_GAP), flagged(status::gyro::AFTER_CORRUPT));
@@ -126,7 +126,7 @@ async fn a_silent_table_aborts_to_the_safe_state_keeping_the_data() {
     // orchestrator's watchdog (no good reading for 30 s of bench time = 0.5 s of wall time)
     // trips before the poller's budget of 5 consecutive errors (≈ 0.75 s of wall time).
     let rec = run_with(Duration::from_secs(30), |f| f.table.inject(Fault::Silence)).await;
-    let outcome = rec.outcome().unwrap_or_default().to_string();
+    let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
     assert!(outcome.contains("rate table data stale: no good reading for"), "{outcome}");
     assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
@@ -143,7 +143,7 @@ async fn a_chamber_device_failure_aborts_at_once() {
     let rec =
         run_with(Duration::from_secs(60), |f| f.chamber.inject(Fault::ModbusException { code: 4 }))
             .await;
-    let outcome = rec.outcome().unwrap_or_default().to_string();
+    let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(
         outcome.contains("chamber failed after 1 consecutive error(s): device fault"),
         "{outcome}"
@@ -157,7 +157,7 @@ async fn a_stuck_table_fails_to_settle_and_the_run_aborts() {
     // The controller acknowledges the rate command but the axis does not follow. The fault is
     // on before the run starts (`at = 0`), so step 0's command is the one ignored.
     let rec = run_with(Duration::ZERO, |f| f.table.inject(Fault::StuckTable)).await;
-    let outcome = rec.outcome().unwrap_or_default().to_string();
+    let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 0 (table spin cw)"), "{outcome}");
     assert!(outcome.contains("did not settle on -2.908882e-3 rad/s"), "{outcome}");
     assert!(rec.table.iter().all(|t| t.msg.rate_rad_s.abs() < 1e-4), "the axis never moved");
@@ -170,7 +170,7 @@ async fn a_short_table_line_outage_is_ridden_out() {
     let rec =
         run_with(Duration::from_secs(60), |f| f.table.inject(Fault::Disconnect { seconds: 3.0 }))
             .await;
-    assert_eq!(rec.outcome(), Some("completed"));
+    assert_eq!(rec.outcome(), Some(bench_recording::Outcome::Completed));
     // The outage shows as a hole in the table's stream, shorter than the watchdog's limit.
     let longest = rec
         .table

@@ -14,8 +14,8 @@ use bench_drivers::real::gyro_kvh::{
     Dsp3000Config, Dsp3000Format, Dsp3000Gyro, Kvh1750Config, Kvh1750Gyro,
 };
 use bench_drivers::real::socketcan::{is_af_can_missing, SocketCanBus};
-use bench_drivers::status::gyro::{AFTER_CORRUPT, SEQ_GAP};
 use bench_drivers::{Clock, ErrorKind, Gyro, GyroSample, SystemClock};
+use bench_recording::status::gyro::{AFTER_CORRUPT, SEQ_GAP};
 use bench_sim::faults::{Fault, FaultSwitch};
 use bench_sim::ports::Pty;
 use bench_sim::serve::gyro::{

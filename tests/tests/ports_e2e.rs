@@ -25,10 +25,10 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use bench::bench_config::for_served_bench;
-use bench::realtime::{run_plan_realtime, RealtimeOptions};
-use bench::recording::Recording;
-use bench::simulate::{capabilities, run_info, run_plan_with, sim_config, SimOptions};
+use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::simulate::{capabilities, run_plan_with, sim_config, SimOptions};
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::Recording;
 
 const SCALE: f64 = 60.0;
 const SEED: u64 = 3;
@@ -91,7 +91,7 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
         None,
     )
     .expect("in-process run");
-    assert_eq!(virt.outcome, "completed");
+    assert_eq!(virt.outcome, bench_recording::Outcome::Completed);
     let a = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     // The simulators on virtual ports, and the bench config that reaches them.
@@ -109,18 +109,18 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     let clock = SystemClock::new(SCALE);
     let (devices, caps) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");
     let wire_plan = bench::scenario::load(&scenario, &caps).expect("valid on the wired bench");
-    let (real, cur) = run_plan_realtime(
+    let (real, cur) = run_realtime(
         &wire_plan,
         devices,
         clock,
-        Cursor::new(Vec::new()),
         run_info(&wire_plan, bench::simulate::SIM_EPOCH_NS),
-        RealtimeOptions::default(),
+        Cursor::new(Vec::new()),
+        RunOptions::default(),
     )
     .await
     .expect("wired run");
     drop(served);
-    assert_eq!(real.outcome, "completed");
+    assert_eq!(real.outcome, bench_recording::Outcome::Completed);
     let b = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     let (wa, wb) = (windows(&a), windows(&b));

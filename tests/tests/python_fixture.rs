@@ -6,8 +6,8 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use bench::recording::Recording;
 use bench::replay::ReplayData;
+use bench_recording::Recording;
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
@@ -64,7 +64,7 @@ fn python_files_load_whatever_their_compression_and_chunking() {
         (1200, 300, 300, 10)
     );
     assert_eq!(zstd.other_counts.get("/log"), Some(&1));
-    assert_eq!(zstd.outcome(), Some("completed"));
+    assert_eq!(zstd.outcome(), Some(bench_recording::Outcome::Completed));
     // Unknown keys of bench.gyro_model are kept; the attachment is there.
     assert_eq!(
         zstd.metadata("bench.gyro_model").and_then(|m| m.get("vendor_key")).map(String::as_str),
@@ -84,7 +84,7 @@ fn python_files_load_whatever_their_compression_and_chunking() {
     assert_eq!(g.publish_time_ns, g.log_time_ns - 200_000);
     assert_eq!((g.msg.seq, g.sequence), (1, 0));
     assert_eq!(
-        bench::recording::summary_counts(&fixture("python_zstd.mcap"))
+        bench_recording::summary_counts(&fixture("python_zstd.mcap"))
             .ok()
             .flatten()
             .and_then(|c| c.get("/gyro/rate").copied()),
@@ -100,9 +100,9 @@ fn a_scenario_replays_on_the_python_file_and_re_records_its_gyro() {
     let plan = bench::scenario::parse(SCENARIO, "python_fixture.toml", &data.capabilities())
         .expect("valid on the replay");
     let (report, out) =
-        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), None, false, None)
+        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), Default::default())
             .expect("runs");
-    assert_eq!(report.run.outcome, "completed");
+    assert_eq!(report.run.outcome, bench_recording::Outcome::Completed);
     // The waits were satisfied by the recorded data, at the recorded times: ramp end at 20 s,
     // the record window 20 s long, the stop settled; then safe state and 1 s of tail.
     let end = report.run.bench_time.as_secs_f64();
@@ -140,9 +140,10 @@ fn a_python_file_cut_short_still_loads_replays_and_exports() {
     // No bench.run in a cut file: bench time zero is the earliest message (the step at 0).
     assert_eq!(data.epoch_ns, 1_750_000_000_000_000_000);
     let dir = tempfile::tempdir().expect("tempdir");
-    let reader = bench::recording::RecordingReader::new(cut);
+    let reader = bench_recording::RecordingReader::new(cut);
     let report =
-        bench::export::export(reader, dir.path(), bench::export::Format::Csv).expect("exports");
+        bench_recording::export::export(reader, dir.path(), bench_recording::export::Format::Csv)
+            .expect("exports");
     assert!(report.cut.is_some());
     let gyro = report.tables.iter().find(|t| t.topic == "/gyro/rate").expect("gyro table");
     assert_eq!(gyro.rows, rec.gyro.len());
@@ -152,10 +153,10 @@ fn a_python_file_cut_short_still_loads_replays_and_exports() {
 fn a_python_file_exports_to_parquet() {
     use parquet::file::reader::{FileReader, SerializedFileReader};
     let dir = tempfile::tempdir().expect("tempdir");
-    let report = bench::export::export_file(
+    let report = bench_recording::export::export_file(
         &fixture("python_zstd.mcap"),
         dir.path(),
-        bench::export::Format::Parquet,
+        bench_recording::export::Format::Parquet,
     )
     .expect("exports");
     let rows: Vec<(String, usize)> =

@@ -6,11 +6,11 @@ use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::sync::Arc;
 
-use bench::realtime::{run_plan_realtime, RealtimeOptions};
-use bench::recording::Recording;
 use bench::run::Devices;
-use bench::simulate::{capabilities, run_info, run_plan, sim_config, SimOptions, SIM_EPOCH_NS};
+use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::simulate::{capabilities, run_plan, sim_config, SimOptions, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::Recording;
 
 const MINI: &str = r#"
 [scenario]
@@ -65,7 +65,7 @@ async fn scaled_real_time_run_matches_the_virtual_run() {
     let (virt, cur) =
         run_plan(&plan, Cursor::new(Vec::new()), &SimOptions { seed, ..Default::default() }, None)
             .expect("virtual run");
-    assert_eq!(virt.outcome, "completed");
+    assert_eq!(virt.outcome, bench_recording::Outcome::Completed);
     let a = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     let scale = 50.0;
@@ -74,17 +74,17 @@ async fn scaled_real_time_run_matches_the_virtual_run() {
     let sim = bench_sim::SimBench::new(sim_config(&plan, seed), shared).expect("sim");
     let (t, c, g) = sim.into_parts();
     let devices = Devices { table: Box::new(t), chamber: Box::new(c), gyro: Box::new(g) };
-    let (real, cur) = run_plan_realtime(
+    let (real, cur) = run_realtime(
         &plan,
         devices,
         clock,
-        Cursor::new(Vec::new()),
         run_info(&plan, SIM_EPOCH_NS),
-        RealtimeOptions::default(),
+        Cursor::new(Vec::new()),
+        RunOptions::default(),
     )
     .await
     .expect("real-time run");
-    assert_eq!(real.outcome, "completed");
+    assert_eq!(real.outcome, bench_recording::Outcome::Completed);
     let b = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     // Same steps in the same order.

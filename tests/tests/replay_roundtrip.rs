@@ -7,8 +7,8 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use bench::recording::Recording;
 use bench::replay::ReplayData;
+use bench_recording::Recording;
 
 fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -20,7 +20,7 @@ fn record_seed() -> Vec<u8> {
     let opts = bench::simulate::SimOptions { seed: 3, ..Default::default() };
     let (report, cursor) =
         bench::simulate::run_plan(&plan, Cursor::new(Vec::new()), &opts, None).expect("runs");
-    assert_eq!(report.outcome, "completed");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     cursor.into_inner()
 }
 
@@ -35,9 +35,9 @@ fn a_replayed_run_re_records_the_original_device_streams() {
     let path = workspace().join("scenarios/seed.toml");
     let plan = bench::scenario::load(&path, &data.capabilities()).expect("valid on the replay");
     let (report, cursor) =
-        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), None, false, None)
+        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), Default::default())
             .expect("replay runs");
-    assert_eq!(report.run.outcome, "completed");
+    assert_eq!(report.run.outcome, bench_recording::Outcome::Completed);
     // Every command the scenario sent agrees with the recording.
     let (table_cmds, table_bad, chamber_cmds, chamber_bad) = report.checks.counts();
     assert!(table_cmds >= 4 && chamber_cmds >= 4, "{table_cmds} {chamber_cmds}");

@@ -7,12 +7,11 @@ use std::io::Cursor;
 use std::sync::Arc;
 use std::time::Duration;
 
-use bench::record::{Outcome, Recorder, RunInfo, Site};
-use bench::recording::Recording;
 use bench::replay::{AtEnd, ReplayData, ReplayOptions};
 use bench_drivers::protocol::gyro_can::ANGLE_LSB_RAD;
 use bench_drivers::real::gyro_can::{CanGyro, CanGyroConfig};
-use bench_drivers::{Clock, Gyro, GyroSample, SystemClock};
+use bench_drivers::{Clock, Gyro, SystemClock};
+use bench_recording::{ChamberMsg, GyroMsg, Outcome, Recorder, Recording, RunInfo, Site, TableMsg};
 use bench_sim::faults::FaultSwitch;
 use bench_sim::ports::Pty;
 use bench_sim::serve::gyro::{serve_slcan, SlcanAdapterOptions};
@@ -23,33 +22,19 @@ fn recording() -> Recording {
     let mut r = Recorder::new(Cursor::new(Vec::new()), info).expect("start");
     for i in 0..1_200u64 {
         let t = Duration::from_millis(50 * i);
-        let s = GyroSample {
+        let s = GyroMsg {
             rate_rad_s: 1e-3 * (i as f64 * 0.05).sin() + 5.2e-5,
             temperature_c: Some(20.0 + i as f64 * 0.013),
             seq: i,
             status: 0,
-            device_time: None,
         };
-        r.gyro(t, &s).expect("gyro");
+        r.gyro(t, None, &s).expect("gyro");
     }
     // Table and chamber streams are required for a replay.
-    let tr = bench_drivers::TableReading {
-        angle_rad: 0.0,
-        rate_rad_s: 0.0,
-        rate_command_rad_s: 0.0,
-        mode: bench_drivers::TableMode::Stopped,
-        status: 0,
-        device_time: None,
-    };
-    r.table(Duration::ZERO, &tr).expect("table");
-    let cr = bench_drivers::ChamberReading {
-        temperature_c: 20.0,
-        setpoint_c: 20.0,
-        target_c: 20.0,
-        status: 0,
-        device_time: None,
-    };
-    r.chamber(Duration::ZERO, &cr).expect("chamber");
+    let tr = TableMsg { angle_rad: 0.0, rate_rad_s: 0.0, rate_command_rad_s: 0.0, status: 0 };
+    r.table(Duration::ZERO, None, &tr).expect("table");
+    let cr = ChamberMsg { temperature_c: 20.0, setpoint_c: 20.0, status: 0 };
+    r.chamber(Duration::ZERO, None, &cr).expect("chamber");
     let bytes = r.finish(&Outcome::Completed).expect("finish").into_inner();
     Recording::from_bytes(&bytes).expect("readable")
 }

@@ -62,7 +62,7 @@ fn run_seed(seed: u64) -> Vec<u8> {
         &bench::simulate::SimOptions { seed, ..Default::default() },
     )
     .expect("seed scenario runs");
-    assert_eq!(report.outcome, "completed");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     std::fs::read(&out).expect("recording written")
 }
 

@@ -7,10 +7,12 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use std::time::Duration;
 
-use bench_drivers::real::table::{Dialect, RateTableDriver, TableDriverConfig};
+use bench_drivers::protocol::Dialect;
+use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
 use bench_drivers::transport::{Endpoint, SerialSettings};
-use bench_drivers::{status, Clock, ErrorKind, RateTable, SystemClock, TableMode, TableReading};
+use bench_drivers::{Clock, ErrorKind, RateTable, SystemClock, TableMode, TableReading};
 use bench_physics::units::DEG;
+use bench_recording::status;
 use bench_sim::faults::{Fault, FaultSwitch};
 use bench_sim::ports::{loopback_listener, Pty};
 use bench_sim::serve::table::{

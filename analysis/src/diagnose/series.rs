@@ -18,50 +18,9 @@
 use bench_physics::effects::{lag_temperature, HysteresisState};
 
 use crate::error::AnalysisError;
+use crate::interp::interp;
+pub use crate::run::{RunSeries, StepSpan};
 use crate::temperature_rate::local_linear_rate;
-
-/// A step of the run: a span of time with its label (for locating structure).
-#[derive(Debug, Clone, PartialEq)]
-pub struct StepSpan {
-    /// Step index in the scenario.
-    pub index: u64,
-    /// Step name (`record`, `wait_temperature`, …).
-    pub name: String,
-    /// Label (may be empty).
-    pub label: String,
-    /// Start, s from the first message.
-    pub start_s: f64,
-    /// End, s from the first message.
-    pub end_s: f64,
-}
-
-/// Everything diagnosis reads from a recording, as arrays (times in s from the recording's
-/// first message).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunSeries {
-    /// Gyro sample times (end of each sample interval), s; valid samples only, increasing.
-    pub gyro_time_s: Vec<f64>,
-    /// Gyro output, rad/s.
-    pub gyro_rate_rad_s: Vec<f64>,
-    /// The gyro's own temperature, °C, if it reports one.
-    pub gyro_temp_c: Option<Vec<f64>>,
-    /// Table sample times, s.
-    pub table_time_s: Vec<f64>,
-    /// Table angle, rad (unwrapped, positive counter-clockwise).
-    pub table_angle_rad: Vec<f64>,
-    /// Commanded table rate, rad/s.
-    pub table_rate_command_rad_s: Vec<f64>,
-    /// Chamber sample times, s.
-    pub chamber_time_s: Vec<f64>,
-    /// Chamber air temperature, °C.
-    pub chamber_temp_c: Vec<f64>,
-    /// The scenario's steps.
-    pub steps: Vec<StepSpan>,
-    /// Site latitude, degrees north, if the recording has one.
-    pub latitude_deg: Option<f64>,
-    /// Sensing axis up (along the table's counter-clockwise axis).
-    pub axis_up: bool,
-}
 
 /// A stretch of constant commanded table rate, fitted by a line over its settled part.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -271,26 +230,6 @@ fn fit_ripple(segments: &[TableSegment], t: &[f64], y: &[f64]) -> Vec<(u32, f64,
         }
     }
     out
-}
-
-/// Linear interpolation of `(xs, ys)` at `x` (clamped at the ends).
-pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
-    match xs.len() {
-        0 => f64::NAN,
-        1 => ys[0],
-        n => {
-            let k = xs.partition_point(|v| *v <= x);
-            if k == 0 {
-                ys[0]
-            } else if k >= n {
-                ys[n - 1]
-            } else {
-                let (x0, x1) = (xs[k - 1], xs[k]);
-                let f = if x1 > x0 { (x - x0) / (x1 - x0) } else { 0.0 };
-                ys[k - 1] + f * (ys[k] - ys[k - 1])
-            }
-        }
-    }
 }
 
 /// Per-sample quantities at the gyro's rate that the bins average.

@@ -3,11 +3,13 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::exit::Exit;
+
 use anyhow::Context as _;
-use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench::calibrate::{calibrate_file, json, report, CalibrateSettings};
 use bench_analysis::joint_fit::Estimator;
 use bench_physics::units::DEG_PER_H;
+use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench_report::calibrate::{calibrate_file, json, report, CalibrateSettings};
 
 /// Arguments of `bench calibrate`.
 #[derive(clap::Args, Debug)]
@@ -171,5 +173,5 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
     eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
-    Ok(if out.model.is_some() { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    Ok(if out.model.is_some() { Exit::Success } else { Exit::Incomplete }.into())
 }

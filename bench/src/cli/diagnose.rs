@@ -4,11 +4,13 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::exit::Exit;
+
 use anyhow::Context as _;
-use bench::calibrate::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench::diagnose::{diagnose_file, json, report};
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::units::DEG_PER_H;
+use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench_report::diagnose::{diagnose_file, json, report};
 
 /// Arguments of `bench diagnose`.
 #[derive(clap::Args, Debug)]
@@ -134,8 +136,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     }
     eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
     Ok(match d.verdict {
-        Verdict::Consistent => ExitCode::SUCCESS,
-        Verdict::ParametersOnly => ExitCode::from(3),
-        Verdict::MissingPhysics => ExitCode::from(4),
+        Verdict::Consistent => Exit::Success.into(),
+        Verdict::ParametersOnly => Exit::ParametersOnly.into(),
+        Verdict::MissingPhysics => Exit::MissingPhysics.into(),
     })
 }

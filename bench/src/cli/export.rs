@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use bench::export::Format;
+use bench_recording::export::Format;
 
 /// Table format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -35,7 +35,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         FormatArg::Csv => Format::Csv,
         FormatArg::Parquet => Format::Parquet,
     };
-    let report = bench::export::export_file(&args.recording, &out, format)
+    let report = bench_recording::export::export_file(&args.recording, &out, format)
         .with_context(|| format!("cannot export {}", args.recording.display()))?;
     for t in &report.tables {
         println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());

@@ -14,7 +14,7 @@ pub struct InfoArgs {
 
 /// Print duration, channels with counts and rates, gaps, steps, metadata and outcome.
 pub fn run(args: InfoArgs) -> anyhow::Result<ExitCode> {
-    let info = bench::recording::info(&args.recording)
+    let info = bench_recording::info(&args.recording)
         .with_context(|| format!("cannot read {}", args.recording.display()))?;
     print!("{info}");
     Ok(ExitCode::SUCCESS)

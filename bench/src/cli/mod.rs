@@ -1,7 +1,8 @@
-//! One file per subcommand.
+//! One file per subcommand; [`exit`] holds the exit codes of all of them.
 
 pub mod calibrate;
 pub mod diagnose;
+pub mod exit;
 pub mod export;
 pub mod info;
 pub mod monte_carlo;

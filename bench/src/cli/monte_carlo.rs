@@ -4,8 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use bench::calibrate::{monte_carlo, CalibrateSettings};
+use bench::study;
 use bench_physics::units::DEG_PER_H;
+use bench_report::calibrate::CalibrateSettings;
 
 /// Arguments of `bench monte-carlo`.
 #[derive(clap::Args, Debug)]
@@ -47,16 +48,15 @@ fn unit(key: &str) -> (&'static str, f64) {
 
 /// The diagnosis study (`--diagnose`).
 fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> {
-    use bench::diagnose::monte_carlo;
     let started = std::time::Instant::now();
     let nominal = match &args.model {
         Some(path) => {
-            let file = bench::calibrate::model_file::CalibrationFile::load(path)?;
+            let file = bench_recording::model_file::CalibrationFile::load(path)?;
             Some((file.model(), file.effects, path.display().to_string()))
         }
         None => None,
     };
-    let study = monte_carlo::run(
+    let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,
         args.seeds,
@@ -108,7 +108,7 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
         return run_diagnose(&args, jobs);
     }
     let started = std::time::Instant::now();
-    let mc = monte_carlo::run(
+    let mc = study::calibrate::run(
         &args.scenario,
         args.first_seed,
         args.seeds,

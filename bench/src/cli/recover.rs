@@ -21,7 +21,7 @@ pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
         args.input.canonicalize().ok() != args.output.canonicalize().ok() || !args.output.exists(),
         "the output must be a new file, not the input"
     );
-    let report = bench::recover::recover_file(&args.input, &args.output)
+    let report = bench_recording::recover::recover_file(&args.input, &args.output)
         .with_context(|| format!("cannot recover {}", args.input.display()))?;
     print!("{report}");
     println!("written to {}", args.output.display());

@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use bench::bench_config::for_served_bench;
 use bench::live_view::LiveView;
-use bench::recording::{Item, RecordingReader};
 use bench::replay::ReplayData;
 use bench_drivers::{Clock, HeldClock};
+use bench_recording::{Item, RecordingReader};
 
 /// Arguments of `bench replay`.
 #[derive(clap::Args, Debug)]
@@ -145,7 +145,7 @@ async fn play(path: &std::path::Path, live: &LiveView, clock: &dyn Clock) -> any
         live.publish(&c.topic, m.log_time_ns, &m.data);
         n += 1;
     }
-    if let bench::recording::End::Cut { at_byte, reason } = reader.end() {
+    if let bench_recording::End::Cut { at_byte, reason } = reader.end() {
         eprintln!("{}: cut at byte {at_byte}: {reason}", path.display());
     }
     Ok(n)

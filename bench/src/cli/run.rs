@@ -3,17 +3,18 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+use super::exit::Exit;
 use std::sync::Arc;
 
 use anyhow::Context as _;
 use bench::bench_config::{BenchConfig, BenchSource, ReplayBenchConfig};
 use bench::plan::RunPlan;
-use bench::realtime::{run_plan_realtime, RealtimeOptions};
-use bench::record::TomlAttachment;
-use bench::run::Stopper;
+use bench::runner::{run_info, stop_on_ctrl_c, wall_epoch_ns, RunOptions, RunReport};
 use bench::scenario::{Capabilities, LoadError};
-use bench::simulate::{RunReport, SimOptions, SIM_EPOCH_NS};
+use bench::simulate::{SimOptions, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::TomlAttachment;
 
 /// Arguments of `bench run`.
 #[derive(clap::Args, Debug)]
@@ -53,7 +54,7 @@ pub struct RunArgs {
 /// Apply `--gyro-model` to a loaded plan.
 fn apply_gyro_model(plan: &mut RunPlan, path: Option<&Path>) -> anyhow::Result<()> {
     if let Some(path) = path {
-        let file = bench::calibrate::model_file::CalibrationFile::load(path)?;
+        let file = bench_recording::model_file::CalibrationFile::load(path)?;
         let model = file.model();
         plan.gyro.model = model.clone();
         plan.gyro.effects = file.effects;
@@ -98,7 +99,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
         },
     };
     let Some(report) = report else {
-        return Ok(ExitCode::from(2));
+        return Ok(Exit::Invalid.into());
     };
     println!(
         "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, peak RSS {}",
@@ -110,7 +111,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
         report.gyro_samples,
         peak_rss_mb().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
     );
-    Ok(if report.outcome == "completed" { ExitCode::SUCCESS } else { ExitCode::from(3) })
+    Ok(if report.completed() { Exit::Success } else { Exit::Aborted }.into())
 }
 
 /// The embedded simulated bench in virtual time; with a bench config that names no drivers,
@@ -186,10 +187,7 @@ fn run_on_bench(
         let clock = SystemClock::new(config.bench.time_scale);
         // Bench time zero is now: log times are wall-clock times (scaled around this instant
         // for simulators behind virtual ports).
-        let epoch_ns = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos() as u64)
-            .unwrap_or(0);
+        let epoch_ns = wall_epoch_ns();
         let shared: Arc<dyn Clock> = Arc::new(clock.clone());
         let (devices, caps) = config.connect(shared).await?;
         let Some(mut plan) = load_plan(&args.scenario, &caps)? else {
@@ -206,30 +204,24 @@ fn run_on_bench(
             }
             plan.site = site;
         }
-        let mut info = bench::simulate::run_info(&plan, epoch_ns);
+        let mut info = run_info(&plan, epoch_ns);
         info.config = Some(TomlAttachment {
             name: config_path
                 .file_name()
                 .map_or("bench.toml".into(), |n| n.to_string_lossy().into_owned()),
             text: config_text,
         });
-        let (stopper, stop) = Stopper::new();
-        tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                stopper.stop("interrupted by the operator (Ctrl-C)");
-            }
-        });
         let file = std::fs::File::create(out)
             .with_context(|| format!("cannot create recording {}", out.display()))?;
-        let (report, writer) = run_plan_realtime(
+        let (report, writer) = bench::runner::run_realtime(
             &plan,
             devices,
             clock,
-            std::io::BufWriter::new(file),
             info,
-            RealtimeOptions {
+            std::io::BufWriter::new(file),
+            RunOptions {
                 progress,
-                stop: Some(stop),
+                stop: Some(stop_on_ctrl_c()),
                 console: Some(super::console_layer(verbose)),
                 policy: config.bench.policy(),
                 live,
@@ -260,25 +252,18 @@ fn run_on_replay(
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let writer = std::io::BufWriter::new(file);
-    let console = Some(super::console_layer(verbose));
     let rt = runtime()?;
-    let live = start_live(&rt, args)?;
+    let opts = RunOptions {
+        progress,
+        live: start_live(&rt, args)?,
+        console: Some(super::console_layer(verbose)),
+        stop: None,
+        policy: config.bench.policy(),
+    };
     let (report, writer) = match config.replay.speed {
-        None => bench::replay::run_virtual(&plan, &data, writer, console, progress, live)?,
+        None => bench::replay::run_virtual(&plan, &data, writer, opts)?,
         Some(speed) => rt.block_on(async {
-            let (stopper, stop) = Stopper::new();
-            tokio::spawn(async move {
-                if tokio::signal::ctrl_c().await.is_ok() {
-                    stopper.stop("interrupted by the operator (Ctrl-C)");
-                }
-            });
-            let opts = RealtimeOptions {
-                progress,
-                stop: Some(stop),
-                console,
-                policy: config.bench.policy(),
-                live,
-            };
+            let opts = RunOptions { stop: Some(stop_on_ctrl_c()), ..opts };
             bench::replay::run_realtime(&plan, &data, speed, writer, opts).await
         })?,
     };
@@ -319,9 +304,9 @@ fn peak_rss_mb() -> Option<f64> {
 
 #[cfg(test)]
 mod tests {
-    use bench::calibrate::model_file::{write_model_file, Source, Uncertainty};
     use bench_physics::effects::{Effects, RateSquared, WarmUp};
     use bench_physics::GyroModel;
+    use bench_recording::model_file::{write_model_file, Source, Uncertainty};
 
     use super::*;
 
@@ -350,7 +335,7 @@ mod tests {
         assert_eq!(p.gyro.effects, effects);
         assert_eq!(p.sim.truth_effects, effects);
         // Recorded as effect keys of bench.gyro_model.
-        let meta = bench::simulate::run_info(&p, 0).gyro_model;
+        let meta = bench::runner::run_info(&p, 0).gyro_model;
         assert_eq!(meta.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
     }
 
@@ -371,7 +356,7 @@ mod tests {
             Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 60.0 })
         );
         assert!(!p.gyro.effects.any(), "concealed: not the nominal model's");
-        let meta = bench::simulate::run_info(&p, 0).gyro_model;
+        let meta = bench::runner::run_info(&p, 0).gyro_model;
         assert!(meta.keys().all(|k| !k.starts_with("effect.")), "{meta:?}");
         let sim = bench::simulate::sim_config(&p, 1);
         assert_eq!(sim.gyro_effects, p.sim.truth_effects);

@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::exit::Exit;
+
 use bench::scenario::LoadError;
 
 /// Arguments of `bench validate`.
@@ -33,7 +35,7 @@ pub fn run(args: ValidateArgs) -> anyhow::Result<ExitCode> {
                 eprintln!("{e}");
             }
             eprintln!("{}: {} error(s)", args.scenario.display(), errors.len());
-            Ok(ExitCode::from(2))
+            Ok(Exit::Invalid.into())
         }
         Err(e) => Err(e.into()),
     }

@@ -45,10 +45,10 @@ use bench_drivers::{
     TableMode, TableReading,
 };
 
-use crate::record::schema::{META_GYRO_MODEL, META_RUN, META_SITE};
-use crate::recording::{ChamberMsg, GyroMsg, Recording, RecordingError, Stamped, TableMsg};
 use crate::run::Devices;
 use crate::scenario::Capabilities;
+use bench_recording::schema::{META_GYRO_MODEL, META_RUN, META_SITE};
+use bench_recording::{ChamberMsg, GyroMsg, Recording, RecordingError, Stamped, TableMsg};
 
 /// A recorded table command counts as agreeing within this fraction of the command…
 const COMMAND_REL: f64 = 1e-6;
@@ -181,7 +181,7 @@ impl ReplayData {
 
     /// Prepare a loaded recording; `source` names it in messages.
     pub fn from_recording(rec: &Recording, source: &str) -> Result<Self, ReplayError> {
-        use crate::record::schema::{TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE};
+        use bench_recording::schema::{TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE};
         for (empty, topic, device) in [
             (rec.gyro.is_empty(), TOPIC_GYRO, "gyro"),
             (rec.table.is_empty(), TOPIC_TABLE, "rate table"),

@@ -6,12 +6,11 @@ use std::sync::Arc;
 
 use bench_drivers::clock::VirtualClock;
 use bench_drivers::{Clock, SystemClock};
+use bench_recording::RunInfo;
 
 use super::{ReplayChecks, ReplayData, ReplayOptions};
 use crate::plan::RunPlan;
-use crate::record::RunInfo;
-use crate::run::ConsoleLayer;
-use crate::simulate::{RunReport, SimOptions};
+use crate::runner::{run_info, wall_epoch_ns, RunOptions, RunReport};
 
 /// Adjust `plan` to the recording: the site is where the data was taken (`bench.site`; a
 /// different scenario latitude is logged). Returns the run info: the recording's start epoch
@@ -27,7 +26,7 @@ pub fn prepare(plan: &mut RunPlan, data: &ReplayData, epoch_ns: u64) -> RunInfo 
         }
         plan.site = site;
     }
-    let mut info = crate::simulate::run_info(plan, epoch_ns);
+    let mut info = run_info(plan, epoch_ns);
     if let Some(model) = &data.gyro_model {
         info.gyro_model = model.clone();
     }
@@ -49,18 +48,14 @@ pub fn run_virtual<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     data: &Arc<ReplayData>,
     writer: W,
-    console: Option<ConsoleLayer>,
-    progress: bool,
-    live: Option<Arc<crate::live_view::LiveView>>,
+    opts: RunOptions,
 ) -> anyhow::Result<(ReplayReport, W)> {
     let mut plan = plan.clone();
     let info = prepare(&mut plan, data, data.epoch_ns);
     let clock = VirtualClock::new();
     let shared: Arc<dyn Clock> = Arc::new(clock.clone());
     let (devices, checks) = data.devices(shared, ReplayOptions::default()).into_devices();
-    let opts = SimOptions { seed: 0, epoch_ns: data.epoch_ns, progress, live };
-    let (run, writer) =
-        crate::simulate::run_devices_virtual(&plan, devices, &clock, info, writer, &opts, console)?;
+    let (run, writer) = crate::runner::run_virtual(&plan, devices, &clock, info, writer, opts)?;
     Ok((ReplayReport { run, checks }, writer))
 }
 
@@ -71,18 +66,14 @@ pub async fn run_realtime<W: Write + Seek + Send + 'static>(
     data: &Arc<ReplayData>,
     speed: f64,
     writer: W,
-    opts: crate::realtime::RealtimeOptions,
+    opts: RunOptions,
 ) -> anyhow::Result<(ReplayReport, W)> {
     let mut plan = plan.clone();
-    let epoch_ns = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(0);
-    let info = prepare(&mut plan, data, epoch_ns);
+    let info = prepare(&mut plan, data, wall_epoch_ns());
     let clock = SystemClock::new(speed);
     let shared: Arc<dyn Clock> = Arc::new(clock.clone());
     let (devices, checks) = data.devices(shared, ReplayOptions::default()).into_devices();
     let (run, writer) =
-        crate::realtime::run_plan_realtime(&plan, devices, clock, writer, info, opts).await?;
+        crate::runner::run_realtime(&plan, devices, clock, info, writer, opts).await?;
     Ok((ReplayReport { run, checks }, writer))
 }

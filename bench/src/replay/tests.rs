@@ -6,12 +6,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bench_drivers::clock::{run_virtual, VirtualClock};
-use bench_drivers::{
-    Chamber, ChamberReading, Clock, Gyro, GyroSample, RateTable, TableMode, TableReading,
-};
+use bench_drivers::{Chamber, Clock, Gyro, RateTable, TableMode};
+use bench_recording::{ChamberMsg, GyroMsg, Outcome, Recorder, RunInfo, Site, StepEvent, TableMsg};
 
 use super::*;
-use crate::record::{Outcome, Recorder, RunInfo, Site, StepEvent};
 
 const EPOCH: u64 = 1_700_000_000_000_000_000;
 
@@ -26,39 +24,19 @@ fn recording() -> Recording {
         let cmd = if i >= 20 { 0.1 } else { 0.0 };
         r.gyro(
             t,
-            &GyroSample {
-                rate_rad_s: i as f64 * 1e-3,
-                temperature_c: Some(20.0),
-                seq: i,
-                status: 0,
-                device_time: Some(t - Duration::from_millis(1)),
-            },
+            Some(t - Duration::from_millis(1)),
+            &GyroMsg { rate_rad_s: i as f64 * 1e-3, temperature_c: Some(20.0), seq: i, status: 0 },
         )
         .expect("gyro");
         r.table(
             t,
-            &TableReading {
-                angle_rad: i as f64,
-                rate_rad_s: cmd,
-                rate_command_rad_s: cmd,
-                mode: TableMode::Rate,
-                status: 0,
-                device_time: None,
-            },
+            None,
+            &TableMsg { angle_rad: i as f64, rate_rad_s: cmd, rate_command_rad_s: cmd, status: 0 },
         )
         .expect("table");
         let sp = if i >= 50 { 20.0 + (i - 50) as f64 * 0.2 } else { 20.0 };
-        r.chamber(
-            t,
-            &ChamberReading {
-                temperature_c: 19.0,
-                setpoint_c: sp,
-                target_c: 30.0,
-                status: 0,
-                device_time: None,
-            },
-        )
-        .expect("chamber");
+        r.chamber(t, None, &ChamberMsg { temperature_c: 19.0, setpoint_c: sp, status: 0 })
+            .expect("chamber");
     }
     r.step(Duration::from_secs(10), 0, "wait", StepEvent::End, "").expect("step");
     let bytes = r.finish(&Outcome::Completed).expect("finish").into_inner();

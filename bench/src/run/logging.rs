@@ -65,12 +65,22 @@ impl<S: Subscriber> Layer<S> for RecordingLayer {
         // message has nowhere to go and is dropped, which is the documented end of `/log`.
         let _ = self.tx.unbounded_send(Event::Log {
             t: self.clock.now(),
-            level: LogLevel::from(*meta.level()),
+            level: log_level(*meta.level()),
             message,
             name: meta.target().to_string(),
             file: meta.file().unwrap_or("").to_string(),
             line: meta.line().unwrap_or(0),
         });
+    }
+}
+
+/// The `foxglove.Log` level of a tracing level (trace counts as debug).
+fn log_level(l: tracing::Level) -> LogLevel {
+    match l {
+        tracing::Level::ERROR => LogLevel::Error,
+        tracing::Level::WARN => LogLevel::Warning,
+        tracing::Level::INFO => LogLevel::Info,
+        _ => LogLevel::Debug,
     }
 }
 

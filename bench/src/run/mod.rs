@@ -33,7 +33,8 @@ use tracing::instrument::WithSubscriber;
 use tracing_subscriber::layer::SubscriberExt;
 
 use crate::plan::RunPlan;
-pub use crate::record::{LogLevel, Outcome, StepEvent};
+use bench_recording::{ChamberMsg, GyroMsg, TableMsg};
+pub use bench_recording::{LogLevel, Outcome, StepEvent};
 pub use live::{Live, Snapshot, Stream};
 
 /// Everything a run records, in the order it happened per source.
@@ -94,14 +95,74 @@ pub struct Devices {
 
 /// Result of [`execute`].
 pub struct RunResult<S> {
-    /// How the run ended (`bench.run` `outcome`).
-    pub outcome: Outcome,
+    /// What stopped the run early; `None` when every step completed.
+    pub fault: Option<Fault>,
     /// The sink, with everything recorded, to be finished by the caller.
     pub sink: S,
     /// Bench time at the end.
     pub duration: Duration,
-    /// The recorder's error, if recording failed (the run then aborted).
-    pub record_error: Option<String>,
+}
+
+impl<S> RunResult<S> {
+    /// How the run ended (`bench.run` `outcome`).
+    pub fn outcome(&self) -> Outcome {
+        outcome_of(self.fault.as_ref())
+    }
+}
+
+/// `completed` without a fault, `aborted: <message>` with one.
+pub fn outcome_of(fault: Option<&Fault>) -> Outcome {
+    match fault {
+        None => Outcome::Completed,
+        Some(f) => Outcome::Aborted(f.message.clone()),
+    }
+}
+
+/// What kind of thing stopped a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultCause {
+    /// A device failed; its error's kind decides nothing more here (the run is over).
+    Device {
+        /// `table`, `chamber` or `gyro`.
+        device: &'static str,
+        /// The device error's kind.
+        kind: ErrorKind,
+    },
+    /// A device stream had no good reading for longer than the policy allows.
+    Stale {
+        /// `table`, `chamber` or `gyro`.
+        device: &'static str,
+    },
+    /// A step's condition was not met within its time (rate not settled, temperature or ramp
+    /// end not reached).
+    StepTimeout,
+    /// The operator (or a signal) asked the run to stop.
+    Operator,
+    /// The recording could not be written.
+    Recording,
+    /// The run's tasks could not be started.
+    Start,
+}
+
+/// Why a run stopped early: its cause and the message recorded in `outcome`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fault {
+    /// The cause.
+    pub cause: FaultCause,
+    /// What happened, for people (becomes `aborted: <message>`).
+    pub message: String,
+}
+
+impl Fault {
+    /// A fault of `cause` with `message`.
+    pub fn new(cause: FaultCause, message: impl Into<String>) -> Self {
+        Self { cause, message: message.into() }
+    }
+
+    /// The same fault with `context` before its message (`context: message`).
+    pub fn context(self, context: impl std::fmt::Display) -> Self {
+        Self { message: format!("{context}: {}", self.message), ..self }
+    }
 }
 
 /// Limits of the fault handling.
@@ -130,7 +191,7 @@ pub type ConsoleLayer =
     Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>;
 
 /// Asks a running [`execute`] to abort (e.g. on Ctrl-C): the current step ends with an `abort`
-/// event and the bench goes to its safe state.
+/// event, the bench goes to its safe state and the fault is [`FaultCause::Operator`].
 #[derive(Clone, Debug)]
 pub struct Stopper(mpsc::UnboundedSender<String>);
 
@@ -172,8 +233,8 @@ pub(crate) struct Ctx {
     pub live: Arc<Live>,
     pub table: AsyncMutex<Box<dyn RateTable>>,
     pub chamber: AsyncMutex<Box<dyn Chamber>>,
-    /// First fatal fault reported by a poller or the recorder.
-    pub fault: Mutex<Option<String>>,
+    /// First fatal fault reported by a poller, the watchdog, the stop signal or the recorder.
+    pub fault: Mutex<Option<Fault>>,
     pub fault_notify: mpsc::UnboundedSender<()>,
     pub policy: FaultPolicy,
 }
@@ -184,16 +245,16 @@ impl Ctx {
         let _ = self.tx.unbounded_send(e);
     }
 
-    pub fn raise_fault(&self, reason: String) {
+    pub fn raise_fault(&self, fault: Fault) {
         let mut f = self.fault.lock().unwrap_or_else(|p| p.into_inner());
         if f.is_none() {
-            tracing::error!("{reason}");
-            *f = Some(reason);
+            tracing::error!("{}", fault.message);
+            *f = Some(fault);
             let _ = self.fault_notify.unbounded_send(());
         }
     }
 
-    pub fn fault(&self) -> Option<String> {
+    pub fn fault(&self) -> Option<Fault> {
         self.fault.lock().unwrap_or_else(|p| p.into_inner()).clone()
     }
 }
@@ -212,9 +273,12 @@ impl ErrorBudget {
     fn err(&mut self, ctx: &Ctx, e: &DeviceError) -> bool {
         self.consecutive += 1;
         if !e.kind().is_transient() || self.consecutive >= ctx.policy.max_consecutive_errors {
-            ctx.raise_fault(format!(
-                "{} failed after {} consecutive error(s): {e}",
-                self.device, self.consecutive
+            ctx.raise_fault(Fault::new(
+                FaultCause::Device { device: self.device, kind: e.kind() },
+                format!(
+                    "{} failed after {} consecutive error(s): {e}",
+                    self.device, self.consecutive
+                ),
             ));
             true
         } else {
@@ -310,11 +374,14 @@ async fn watchdog_task(ctx: Arc<Ctx>) {
         for s in Stream::ALL {
             let last = ctx.live.fresh(s).max(start);
             if now.saturating_sub(last) > limit {
-                ctx.raise_fault(format!(
-                    "{} data stale: no good reading for {:.1} s (limit {:.1} s)",
-                    s.device(),
-                    (now - last).as_secs_f64(),
-                    limit.as_secs_f64()
+                ctx.raise_fault(Fault::new(
+                    FaultCause::Stale { device: s.device() },
+                    format!(
+                        "{} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                        s.device(),
+                        (now - last).as_secs_f64(),
+                        limit.as_secs_f64()
+                    ),
                 ));
                 return;
             }
@@ -326,14 +393,11 @@ async fn watchdog_task(ctx: Arc<Ctx>) {
 async fn recorder_task<S: EventSink>(
     mut rx: mpsc::UnboundedReceiver<Event>,
     mut sink: S,
-    fault: mpsc::UnboundedSender<()>,
-    error: Arc<Mutex<Option<String>>>,
+    ctx: Arc<Ctx>,
 ) -> S {
     while let Some(ev) = rx.next().await {
         if let Err(e) = sink.record(&ev) {
-            let msg = format!("recording failed: {e:#}");
-            *error.lock().unwrap_or_else(|p| p.into_inner()) = Some(msg);
-            let _ = fault.unbounded_send(());
+            ctx.raise_fault(Fault::new(FaultCause::Recording, format!("recording failed: {e:#}")));
             // Keep draining so senders never block; nothing more can be written.
             while rx.next().await.is_some() {}
             break;
@@ -359,7 +423,6 @@ pub async fn execute<S: EventSink>(
     let ExecOptions { console, stop, policy } = options;
     let (tx, rx) = mpsc::unbounded();
     let (fault_tx, fault_rx) = mpsc::unbounded();
-    let record_error: Arc<Mutex<Option<String>>> = Default::default();
 
     let dispatch = tracing::Dispatch::new(
         tracing_subscriber::Registry::default()
@@ -374,11 +437,11 @@ pub async fn execute<S: EventSink>(
         table: AsyncMutex::new(devices.table),
         chamber: AsyncMutex::new(devices.chamber),
         fault: Mutex::new(None),
-        fault_notify: fault_tx.clone(),
+        fault_notify: fault_tx,
         policy,
     });
 
-    let recording = recorder_task(rx, sink, fault_tx, record_error.clone());
+    let recording = recorder_task(rx, sink, ctx.clone());
 
     let mut aborts: Vec<AbortHandle> = Vec::new();
     let mut spawn_errors = Vec::new();
@@ -393,7 +456,7 @@ pub async fn execute<S: EventSink>(
         let c = ctx.clone();
         device_tasks.push(Box::pin(async move {
             if let Some(reason) = rx.next().await {
-                c.raise_fault(reason);
+                c.raise_fault(Fault::new(FaultCause::Operator, reason));
             }
         }));
     }
@@ -411,17 +474,19 @@ pub async fn execute<S: EventSink>(
     // The recorder runs beside the sequencer in this task. It ends when `main` closes the
     // channel, after the safe state, and hands the sink back.
     let main_ctx = ctx.clone();
-    let main_record_error = record_error.clone();
     let main = async move {
         let ctx = main_ctx;
-        let outcome = if spawn_errors.is_empty() {
-            sequencer::run_steps(plan, &ctx, fault_rx, &main_record_error).await
+        let fault = if spawn_errors.is_empty() {
+            sequencer::run_steps(plan, &ctx, fault_rx).await
         } else {
-            Outcome::Aborted(format!("cannot start device tasks: {}", spawn_errors.join("; ")))
+            Some(Fault::new(
+                FaultCause::Start,
+                format!("cannot start device tasks: {}", spawn_errors.join("; ")),
+            ))
         };
-        match &outcome {
-            Outcome::Aborted(r) => tracing::error!("run aborted: {r}"),
-            Outcome::Completed => tracing::info!("run completed"),
+        match &fault {
+            Some(f) => tracing::error!("run aborted: {}", f.message),
+            None => tracing::info!("run completed"),
         }
         sequencer::safe_state(plan, &ctx).await;
         // Keep recording briefly so the safe-state commands show in the streams.
@@ -429,20 +494,21 @@ pub async fn execute<S: EventSink>(
         let duration = ctx.clock.now();
         aborts.iter().for_each(AbortHandle::abort);
         ctx.tx.close_channel();
-        (outcome, duration)
+        (fault, duration)
     }
     .with_subscriber(dispatch);
-    let (sink, (outcome, duration)) = futures::join!(recording, main);
-    let record_error = record_error.lock().unwrap_or_else(|p| p.into_inner()).clone();
-    RunResult { outcome, sink, duration, record_error }
+    let (sink, (fault, duration)) = futures::join!(recording, main);
+    RunResult { fault, sink, duration }
 }
 
-impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink for crate::record::Recorder<W> {
+impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink
+    for bench_recording::Recorder<W>
+{
     fn record(&mut self, event: &Event) -> anyhow::Result<()> {
         match event {
-            Event::Gyro(t, s) => self.gyro(*t, s)?,
-            Event::Table(t, r) => self.table(*t, r)?,
-            Event::Chamber(t, r) => self.chamber(*t, r)?,
+            Event::Gyro(t, s) => self.gyro(*t, s.device_time, &gyro_msg(s))?,
+            Event::Table(t, r) => self.table(*t, r.device_time, &table_msg(r))?,
+            Event::Chamber(t, r) => self.chamber(*t, r.device_time, &chamber_msg(r))?,
             Event::Step { t, index, name, event, label } => {
                 self.step(*t, *index as u64, name, *event, label)?
             }
@@ -452,4 +518,29 @@ impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink for crate::re
         }
         Ok(())
     }
+}
+
+/// A gyro sample as recorded (`/gyro/rate`).
+pub fn gyro_msg(s: &GyroSample) -> GyroMsg {
+    GyroMsg {
+        rate_rad_s: s.rate_rad_s,
+        temperature_c: s.temperature_c,
+        seq: s.seq,
+        status: s.status,
+    }
+}
+
+/// A table reading as recorded (`/table/state`).
+pub fn table_msg(r: &TableReading) -> TableMsg {
+    TableMsg {
+        angle_rad: r.angle_rad,
+        rate_rad_s: r.rate_rad_s,
+        rate_command_rad_s: r.rate_command_rad_s,
+        status: r.status,
+    }
+}
+
+/// A chamber reading as recorded (`/chamber/state`).
+pub fn chamber_msg(r: &ChamberReading) -> ChamberMsg {
+    ChamberMsg { temperature_c: r.temperature_c, setpoint_c: r.setpoint_c, status: r.status }
 }

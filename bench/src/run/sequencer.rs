@@ -1,13 +1,12 @@
 //! The step sequencer: runs the plan's steps in order, brackets each with step events, and
 //! puts the bench into its safe state at the end.
 
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use futures::channel::mpsc;
 use futures::StreamExt;
 
-use super::{Ctx, Event, Outcome, StepEvent};
+use super::{Ctx, Event, Fault, FaultCause, StepEvent};
 use crate::plan::{Action, PlannedStep, RunPlan, TempSource};
 
 /// Measured table rate counts as settled within this fraction of the command…
@@ -29,13 +28,13 @@ fn step_event(ctx: &Ctx, step: &PlannedStep, event: StepEvent) {
     });
 }
 
-/// Run every step; the first failure (or a fault from a device task or the recorder) aborts.
+/// Run every step; the first failure (or a fault from a device task, the stop signal or the
+/// recorder) aborts, and is returned.
 pub(super) async fn run_steps(
     plan: &RunPlan,
     ctx: &Ctx,
     mut fault_rx: mpsc::UnboundedReceiver<()>,
-    record_error: &Arc<Mutex<Option<String>>>,
-) -> Outcome {
+) -> Option<Fault> {
     let poll = Duration::from_secs_f64(1.0 / plan.chamber_poll_hz.max(plan.table_poll_hz));
     for step in &plan.steps {
         ctx.live.set_step(step.index);
@@ -50,34 +49,33 @@ pub(super) async fn run_steps(
         futures::pin_mut!(action);
         let result = match futures::future::select(action, fault_rx.next()).await {
             futures::future::Either::Left((r, _)) => r,
-            futures::future::Either::Right(_) => {
-                let reason = record_error
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .clone()
-                    .or_else(|| ctx.fault())
-                    .unwrap_or_else(|| "device fault".to_string());
-                Err(reason)
-            }
+            futures::future::Either::Right(_) => Err(ctx.fault().unwrap_or_else(|| {
+                Fault::new(FaultCause::Start, "fault signalled without a cause")
+            })),
         };
         match result {
             Ok(()) => step_event(ctx, step, StepEvent::End),
-            Err(reason) => {
+            Err(fault) => {
                 step_event(ctx, step, StepEvent::Abort);
-                return Outcome::Aborted(format!(
-                    "step {} ({}{}) at {}: {reason}",
+                return Some(fault.context(format!(
+                    "step {} ({}{}) at {}",
                     step.index,
                     step.name,
                     if step.label.is_empty() { String::new() } else { format!(" {}", step.label) },
                     step.origin
-                ));
+                )));
             }
         }
     }
-    Outcome::Completed
+    None
 }
 
-async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), String> {
+/// A device's refusal of a command as a fault.
+fn refused(device: &'static str, what: String) -> impl FnOnce(bench_drivers::DeviceError) -> Fault {
+    move |e| Fault::new(FaultCause::Device { device, kind: e.kind() }, format!("{what}: {e}"))
+}
+
+async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), Fault> {
     let clock = &ctx.clock;
     match *action {
         Action::Chamber { target_c, ramp_c_s } => {
@@ -86,7 +84,7 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
                 .await
                 .set_target(target_c, ramp_c_s)
                 .await
-                .map_err(|e| format!("chamber refused set point {target_c} °C: {e}"))?;
+                .map_err(refused("chamber", format!("chamber refused set point {target_c} °C")))?;
             ctx.live.set_commanded_target(target_c);
         }
         Action::Table { rate_rad_s, accel_rad_s2, settle } => {
@@ -95,7 +93,7 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
                 .await
                 .set_rate(rate_rad_s, accel_rad_s2)
                 .await
-                .map_err(|e| format!("table refused rate {rate_rad_s} rad/s: {e}"))?;
+                .map_err(refused("table", format!("table refused rate {rate_rad_s} rad/s")))?;
             if settle {
                 wait_table_rate(ctx, rate_rad_s, accel_rad_s2, poll).await?;
             }
@@ -106,7 +104,7 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
                 .await
                 .stop(decel_rad_s2)
                 .await
-                .map_err(|e| format!("table refused stop: {e}"))?;
+                .map_err(refused("table", "table refused stop".to_string()))?;
             wait_table_rate(ctx, 0.0, decel_rad_s2, poll).await?;
         }
         Action::Wait { duration } => clock.sleep(duration).await,
@@ -133,11 +131,14 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
                     in_band_since = None;
                 }
                 if now - start >= timeout {
-                    return Err(format!(
-                        "temperature {temp:.2} °C not within {target_c} ± {band_c} °C for {} s \
-                         after {} s",
-                        hold.as_secs_f64(),
-                        timeout.as_secs_f64()
+                    return Err(Fault::new(
+                        FaultCause::StepTimeout,
+                        format!(
+                            "temperature {temp:.2} °C not within {target_c} ± {band_c} °C for {} \
+                             s after {} s",
+                            hold.as_secs_f64(),
+                            timeout.as_secs_f64()
+                        ),
                     ));
                 }
                 clock.sleep(poll).await;
@@ -155,7 +156,7 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), St
     Ok(())
 }
 
-async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(), String> {
+async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(), Fault> {
     let start = ctx.clock.now();
     loop {
         let s = ctx.live.snapshot();
@@ -167,11 +168,15 @@ async fn wait_ramp_end(ctx: &Ctx, timeout: Duration, poll: Duration) -> Result<(
             return Ok(());
         }
         if ctx.clock.now() - start >= timeout {
-            return Err(format!(
-                "chamber ramp not finished after {} s (working set point {:.2} °C, target {:.2} °C)",
-                timeout.as_secs_f64(),
-                s.setpoint_c,
-                target
+            return Err(Fault::new(
+                FaultCause::StepTimeout,
+                format!(
+                    "chamber ramp not finished after {} s (working set point {:.2} °C, target \
+                     {:.2} °C)",
+                    timeout.as_secs_f64(),
+                    s.setpoint_c,
+                    target
+                ),
             ));
         }
         ctx.clock.sleep(poll).await;
@@ -183,7 +188,7 @@ async fn wait_table_rate(
     rate_rad_s: f64,
     accel_rad_s2: f64,
     poll: Duration,
-) -> Result<(), String> {
+) -> Result<(), Fault> {
     let start = ctx.clock.now();
     let tol = (rate_rad_s.abs() * SETTLE_REL).max(SETTLE_ABS_RAD_S);
     let span = (rate_rad_s - ctx.live.snapshot().table_rate_rad_s).abs();
@@ -197,10 +202,13 @@ async fn wait_table_rate(
             return Ok(());
         }
         if ctx.clock.now() - start >= timeout {
-            return Err(format!(
-                "table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
-                s.table_rate_rad_s,
-                timeout.as_secs_f64()
+            return Err(Fault::new(
+                FaultCause::StepTimeout,
+                format!(
+                    "table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
+                    s.table_rate_rad_s,
+                    timeout.as_secs_f64()
+                ),
             ));
         }
         ctx.clock.sleep(poll).await;

@@ -8,10 +8,10 @@ use std::time::Duration;
 use bench_physics::effects::{EffectId, Effects};
 use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel};
 
-use super::doc::{line_col, Entry, Node, Value};
 use super::quantity::{self, fmt_num, Dim, Quantity};
 use super::Capabilities;
 use crate::plan::{Action, GyroSetup, PlannedStep, RunPlan, SimSetup, Site, TempSource};
+use bench_recording::toml_doc::{line_col, Entry, Node, Value};
 
 /// Largest number of steps a scenario may expand to.
 pub(crate) const MAX_STEPS: usize = 100_000;

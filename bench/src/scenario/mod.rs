@@ -22,10 +22,9 @@
 //! ```
 
 mod build;
-mod doc;
 pub mod quantity;
 
-pub(crate) use doc::{line_col, value_span};
+use bench_recording::toml_doc as doc;
 #[cfg(test)]
 mod tests;
 

@@ -694,3 +694,35 @@ impl CommandDecoder {
         self.lines.next_parsed(parse_command_line)
     }
 }
+/// Error codes of Actidyn `ERR` replies. **bench's own convention** (the controller's codes are
+/// unknown): the simulator answers with them and the driver maps them to an [`crate::ErrorKind`] with
+/// [`error_kind`]; codes not listed here are device faults.
+pub mod errors {
+    /// The command was not understood (→ [`crate::ErrorKind::Other`]: retrying will not help).
+    pub const SYNTAX: u16 = 1;
+    /// Not in remote control (→ `NotReady`).
+    pub const NOT_REMOTE: u16 = 10;
+    /// An argument is outside the table's limits (→ `OutOfRange`).
+    pub const OUT_OF_RANGE: u16 = 11;
+    /// The axis is not in the mode the command needs (→ `NotReady`).
+    pub const WRONG_MODE: u16 = 12;
+    /// The command or mode is not available (→ `Unsupported`).
+    pub const UNSUPPORTED: u16 = 13;
+    /// Drive alarm, e.g. the drive was switched off because no `ALC` arrived within 30 s
+    /// (→ `DeviceFault`).
+    pub const DRIVE_ALARM: u16 = 20;
+    /// A safety interlock is open (→ `InterlockTripped`).
+    pub const INTERLOCK: u16 = 30;
+}
+
+/// The [`crate::ErrorKind`] of an Actidyn error code ([`errors`]).
+pub fn error_kind(code: u16) -> crate::ErrorKind {
+    match code {
+        errors::SYNTAX => crate::ErrorKind::Other,
+        errors::NOT_REMOTE | errors::WRONG_MODE => crate::ErrorKind::NotReady,
+        errors::OUT_OF_RANGE => crate::ErrorKind::OutOfRange,
+        errors::UNSUPPORTED => crate::ErrorKind::Unsupported,
+        errors::INTERLOCK => crate::ErrorKind::InterlockTripped,
+        _ => crate::ErrorKind::DeviceFault,
+    }
+}

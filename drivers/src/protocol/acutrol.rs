@@ -382,3 +382,19 @@ impl CommandDecoder {
         self.lines.next_parsed(parse_command)
     }
 }
+/// The [`crate::ErrorKind`] of an ACUTROL `ERR <text>` reply, by keyword (the controller's error
+/// format is unknown; this reading is inferred): `interlock` → `InterlockTripped`, `range` or
+/// `limit` → `OutOfRange`, `remote`, `lockout` or `mode` → `NotReady`, anything else →
+/// `DeviceFault`.
+pub fn error_kind(text: &str) -> crate::ErrorKind {
+    let t = text.to_ascii_lowercase();
+    if t.contains("interlock") {
+        crate::ErrorKind::InterlockTripped
+    } else if t.contains("range") || t.contains("limit") {
+        crate::ErrorKind::OutOfRange
+    } else if t.contains("remote") || t.contains("lockout") || t.contains("mode") {
+        crate::ErrorKind::NotReady
+    } else {
+        crate::ErrorKind::DeviceFault
+    }
+}

@@ -282,14 +282,14 @@ pub struct GyroCanSample {
 }
 
 impl GyroCanSample {
-    /// As a [`crate::GyroSample`] (status mapped onto [`crate::status::gyro`]).
+    /// As a [`crate::GyroSample`] (status mapped onto [`bench_recording::status::gyro`]).
     pub fn to_gyro_sample(&self) -> crate::GyroSample {
         let mut st = 0;
         if self.status & (status::INVALID | status::OVER_RANGE) != 0 {
-            st |= crate::status::gyro::INVALID;
+            st |= bench_recording::status::gyro::INVALID;
         }
         if self.status & status::BIT_FAIL != 0 {
-            st |= crate::status::gyro::BIT_FAIL;
+            st |= bench_recording::status::gyro::BIT_FAIL;
         }
         crate::GyroSample {
             rate_rad_s: self.rate_rad_s,

@@ -38,6 +38,8 @@ pub mod slcan;
 
 use std::fmt;
 
+use serde::{Deserialize, Serialize};
+
 use crate::{DeviceError, ErrorKind};
 
 /// How many received bytes an error keeps (the rest is elided).
@@ -136,4 +138,24 @@ pub(crate) fn parse_f64(s: &str) -> Option<f64> {
         return None;
     }
     t.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+/// Which controller language a rate table speaks (`dialect` of a bench config's `[table]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dialect {
+    /// Actidyn controller (ST1300 class): `RMT`, `MOD`, `RAT`, `PRV`, `ALC` keep-alive.
+    #[default]
+    Actidyn,
+    /// Acutronic ACUTROL, SCPI-like (`:mode:rate 1`, `:demand:rate 1, 010.000`).
+    Acutrol,
+}
+
+impl std::fmt::Display for Dialect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Dialect::Actidyn => "actidyn",
+            Dialect::Acutrol => "acutrol",
+        })
+    }
 }

@@ -296,3 +296,26 @@ impl RegisterMap {
         Ok((self.set_point, self.encoding.encode(temp_c, decimals)?))
     }
 }
+/// Units of the controller's set-point rate-limit register.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum RateUnits {
+    /// °C per second.
+    PerSecond,
+    /// °C per minute (the default; Eurotherm 3216 as commonly configured).
+    #[default]
+    PerMinute,
+    /// °C per hour.
+    PerHour,
+}
+
+impl RateUnits {
+    /// Seconds in one unit of time.
+    pub fn seconds(self) -> f64 {
+        match self {
+            RateUnits::PerSecond => 1.0,
+            RateUnits::PerMinute => 60.0,
+            RateUnits::PerHour => 3600.0,
+        }
+    }
+}

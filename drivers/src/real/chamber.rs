@@ -56,12 +56,13 @@ use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio_modbus::client::{Context, Reader, Writer};
 use tokio_modbus::{ExceptionCode, Slave};
 
-use crate::protocol::modbus_map::{Preset, RegisterMap, RegisterWrite};
+use crate::protocol::modbus_map::{Preset, RateUnits, RegisterMap, RegisterWrite};
 use crate::transport::{BoxStream, Endpoint};
 use crate::{
-    status, BenchTime, Chamber, ChamberCapabilities, ChamberReading, Clock, DeviceError,
-    DeviceInfo, DeviceResult, ErrorKind,
+    BenchTime, Chamber, ChamberCapabilities, ChamberReading, Clock, DeviceError, DeviceInfo,
+    DeviceResult, ErrorKind,
 };
+use bench_recording::status;
 
 /// A built-in map by name, or a map spelled out in the config.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -102,30 +103,6 @@ impl MapChoice {
         match self {
             MapChoice::Preset(p) => RegisterMap::preset(*p),
             MapChoice::Custom(m) => m.clone(),
-        }
-    }
-}
-
-/// Units of the controller's set-point rate-limit register.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum RateUnits {
-    /// °C per second.
-    PerSecond,
-    /// °C per minute (the default; Eurotherm 3216 as commonly configured).
-    #[default]
-    PerMinute,
-    /// °C per hour.
-    PerHour,
-}
-
-impl RateUnits {
-    /// Seconds in one unit of time.
-    pub fn seconds(self) -> f64 {
-        match self {
-            RateUnits::PerSecond => 1.0,
-            RateUnits::PerMinute => 60.0,
-            RateUnits::PerHour => 3600.0,
         }
     }
 }

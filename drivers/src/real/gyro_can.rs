@@ -32,9 +32,9 @@ use crate::protocol::gyro_can::{GyroCanIds, SampleAssembler};
 use crate::protocol::slcan::Bitrate;
 use crate::transport::SerialSettings;
 use crate::{
-    status, Clock, DeviceError, DeviceInfo, DeviceResult, ErrorKind, Gyro, GyroCapabilities,
-    GyroSample,
+    Clock, DeviceError, DeviceInfo, DeviceResult, ErrorKind, Gyro, GyroCapabilities, GyroSample,
 };
+use bench_recording::status;
 
 /// Which CAN transport the gyro is on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -24,9 +24,9 @@ use crate::protocol::kvh_dsp3000::{AsciiDecoder, BinaryDecoder, DataType};
 use crate::protocol::DecodeError;
 use crate::transport::{open_serial, BoxStream, SerialSettings};
 use crate::{
-    status, Clock, DeviceError, DeviceInfo, DeviceResult, ErrorKind, Gyro, GyroCapabilities,
-    GyroSample,
+    Clock, DeviceError, DeviceInfo, DeviceResult, ErrorKind, Gyro, GyroCapabilities, GyroSample,
 };
+use bench_recording::status;
 
 /// A sensing axis of a multi-axis unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -27,7 +27,8 @@
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), bench_drivers::DeviceError> {
-//! use bench_drivers::real::table::{Dialect, RateTableDriver, TableDriverConfig};
+//! use bench_drivers::protocol::Dialect;
+//! use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
 //! use bench_drivers::transport::Endpoint;
 //! use bench_drivers::RateTable;
 //! let cfg = TableDriverConfig::new(Endpoint::Tcp { addr: "192.168.0.20:62000".into() }, Dialect::Actidyn);
@@ -46,82 +47,14 @@ use serde::{Deserialize, Serialize};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
 use crate::clock::{Clock, SystemClock};
+use crate::protocol::Dialect;
 use crate::protocol::{actidyn, acutrol};
 use crate::transport::{BoxStream, Endpoint};
 use crate::{
-    status, DeviceError, DeviceInfo, DeviceResult, ErrorKind, RateTable, TableCapabilities,
-    TableMode, TableReading,
+    DeviceError, DeviceInfo, DeviceResult, ErrorKind, RateTable, TableCapabilities, TableMode,
+    TableReading,
 };
-
-/// Which controller language the table speaks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Dialect {
-    /// Actidyn controller (ST1300 class): `RMT`, `MOD`, `RAT`, `PRV`, `ALC` keep-alive.
-    #[default]
-    Actidyn,
-    /// Acutronic ACUTROL, SCPI-like (`:mode:rate 1`, `:demand:rate 1, 010.000`).
-    Acutrol,
-}
-
-impl std::fmt::Display for Dialect {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Dialect::Actidyn => "actidyn",
-            Dialect::Acutrol => "acutrol",
-        })
-    }
-}
-
-/// Error codes of Actidyn `ERR` replies. **bench's own convention** (the controller's codes are
-/// unknown): the simulator answers with them and the driver maps them to an [`ErrorKind`] with
-/// [`actidyn_error_kind`]; codes not listed here are device faults.
-pub mod actidyn_errors {
-    /// The command was not understood (→ [`crate::ErrorKind::Other`]: retrying will not help).
-    pub const SYNTAX: u16 = 1;
-    /// Not in remote control (→ `NotReady`).
-    pub const NOT_REMOTE: u16 = 10;
-    /// An argument is outside the table's limits (→ `OutOfRange`).
-    pub const OUT_OF_RANGE: u16 = 11;
-    /// The axis is not in the mode the command needs (→ `NotReady`).
-    pub const WRONG_MODE: u16 = 12;
-    /// The command or mode is not available (→ `Unsupported`).
-    pub const UNSUPPORTED: u16 = 13;
-    /// Drive alarm, e.g. the drive was switched off because no `ALC` arrived within 30 s
-    /// (→ `DeviceFault`).
-    pub const DRIVE_ALARM: u16 = 20;
-    /// A safety interlock is open (→ `InterlockTripped`).
-    pub const INTERLOCK: u16 = 30;
-}
-
-/// The [`ErrorKind`] of an Actidyn error code ([`actidyn_errors`]).
-pub fn actidyn_error_kind(code: u16) -> ErrorKind {
-    match code {
-        actidyn_errors::SYNTAX => ErrorKind::Other,
-        actidyn_errors::NOT_REMOTE | actidyn_errors::WRONG_MODE => ErrorKind::NotReady,
-        actidyn_errors::OUT_OF_RANGE => ErrorKind::OutOfRange,
-        actidyn_errors::UNSUPPORTED => ErrorKind::Unsupported,
-        actidyn_errors::INTERLOCK => ErrorKind::InterlockTripped,
-        _ => ErrorKind::DeviceFault,
-    }
-}
-
-/// The [`ErrorKind`] of an ACUTROL `ERR <text>` reply, by keyword (the controller's error
-/// format is unknown; this reading is inferred): `interlock` → `InterlockTripped`, `range` or
-/// `limit` → `OutOfRange`, `remote`, `lockout` or `mode` → `NotReady`, anything else →
-/// `DeviceFault`.
-pub fn acutrol_error_kind(text: &str) -> ErrorKind {
-    let t = text.to_ascii_lowercase();
-    if t.contains("interlock") {
-        ErrorKind::InterlockTripped
-    } else if t.contains("range") || t.contains("limit") {
-        ErrorKind::OutOfRange
-    } else if t.contains("remote") || t.contains("lockout") || t.contains("mode") {
-        ErrorKind::NotReady
-    } else {
-        ErrorKind::DeviceFault
-    }
-}
+use bench_recording::status;
 
 /// Configuration of a real rate table (a `[table]` section of a bench config).
 ///
@@ -682,8 +615,8 @@ impl RateTableDriver {
                     }
                     for r in &replies {
                         if let actidyn::ReplyBody::Error { code, message } = &r.body {
-                            let kind = actidyn_error_kind(*code);
-                            if *code == actidyn_errors::DRIVE_ALARM {
+                            let kind = crate::protocol::actidyn::error_kind(*code);
+                            if *code == crate::protocol::actidyn::errors::DRIVE_ALARM {
                                 self.alarm = true;
                             }
                             return Err(DeviceError::new(
@@ -724,7 +657,7 @@ impl RateTableDriver {
             };
             return match (&reply, cmd.is_query()) {
                 (acutrol::Reply::Error(text), _) => Err(DeviceError::new(
-                    acutrol_error_kind(text),
+                    crate::protocol::acutrol::error_kind(text),
                     format!(
                         "sent `{}` on {}, the controller refused it: ERR {text}",
                         shown(&line),
@@ -1025,15 +958,33 @@ mod tests {
 
     #[test]
     fn error_codes_map_to_kinds() {
-        assert_eq!(actidyn_error_kind(actidyn_errors::DRIVE_ALARM), ErrorKind::DeviceFault);
-        assert_eq!(actidyn_error_kind(actidyn_errors::INTERLOCK), ErrorKind::InterlockTripped);
-        assert_eq!(actidyn_error_kind(actidyn_errors::OUT_OF_RANGE), ErrorKind::OutOfRange);
-        assert_eq!(actidyn_error_kind(actidyn_errors::NOT_REMOTE), ErrorKind::NotReady);
-        assert_eq!(actidyn_error_kind(999), ErrorKind::DeviceFault);
-        assert_eq!(acutrol_error_kind("interlock open"), ErrorKind::InterlockTripped);
-        assert_eq!(acutrol_error_kind("rate out of range"), ErrorKind::OutOfRange);
-        assert_eq!(acutrol_error_kind("not in rate mode"), ErrorKind::NotReady);
-        assert_eq!(acutrol_error_kind("amplifier fault"), ErrorKind::DeviceFault);
+        assert_eq!(
+            crate::protocol::actidyn::error_kind(crate::protocol::actidyn::errors::DRIVE_ALARM),
+            ErrorKind::DeviceFault
+        );
+        assert_eq!(
+            crate::protocol::actidyn::error_kind(crate::protocol::actidyn::errors::INTERLOCK),
+            ErrorKind::InterlockTripped
+        );
+        assert_eq!(
+            crate::protocol::actidyn::error_kind(crate::protocol::actidyn::errors::OUT_OF_RANGE),
+            ErrorKind::OutOfRange
+        );
+        assert_eq!(
+            crate::protocol::actidyn::error_kind(crate::protocol::actidyn::errors::NOT_REMOTE),
+            ErrorKind::NotReady
+        );
+        assert_eq!(crate::protocol::actidyn::error_kind(999), ErrorKind::DeviceFault);
+        assert_eq!(
+            crate::protocol::acutrol::error_kind("interlock open"),
+            ErrorKind::InterlockTripped
+        );
+        assert_eq!(
+            crate::protocol::acutrol::error_kind("rate out of range"),
+            ErrorKind::OutOfRange
+        );
+        assert_eq!(crate::protocol::acutrol::error_kind("not in rate mode"), ErrorKind::NotReady);
+        assert_eq!(crate::protocol::acutrol::error_kind("amplifier fault"), ErrorKind::DeviceFault);
     }
 
     #[test]

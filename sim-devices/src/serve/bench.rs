@@ -5,7 +5,7 @@ use std::io;
 use std::sync::Arc;
 
 use bench_drivers::protocol::modbus_map::Preset;
-use bench_drivers::real::table::Dialect;
+use bench_drivers::protocol::Dialect;
 use bench_drivers::transport::{Endpoint, SerialSettings};
 use bench_drivers::{Chamber, Clock, Gyro, RateTable};
 use tokio::task::JoinHandle;

@@ -47,8 +47,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::{Context, Poll};
 use std::time::Duration;
 
+use bench_drivers::protocol::modbus_map::RateUnits;
 use bench_drivers::protocol::modbus_map::{Preset, RegisterMap};
-use bench_drivers::real::chamber::RateUnits;
 use bench_drivers::transport::{Endpoint, Parity, SerialSettings};
 use bench_drivers::{BenchTime, Chamber, Clock, ErrorKind};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};

@@ -33,7 +33,8 @@ use bench_drivers::protocol::gyro_can::{
 use bench_drivers::protocol::kvh1750;
 use bench_drivers::protocol::kvh_dsp3000::{AsciiSample, BinaryWord};
 use bench_drivers::protocol::slcan::{AdapterDecoder, AdapterMessage, CanFrame, HostCommand};
-use bench_drivers::{status, Clock, DeviceError, Gyro, GyroSample};
+use bench_drivers::{Clock, DeviceError, Gyro, GyroSample};
+use bench_recording::status;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
 use crate::faults::{Fault, FaultCounter, FaultSwitch};

@@ -19,7 +19,7 @@
 //!   the interlock closed, `:demand:rate` needs rate mode (reached at
 //!   [`TableServeOptions::acutrol_accel_deg_s2`]; the wire has no acceleration),
 //!   `:interlock:open` and `:mode:off` stop the table. Refusals are `ERR <text>` with the
-//!   keywords [`bench_drivers::real::table::acutrol_error_kind`] reads. Position and position
+//!   keywords [`bench_drivers::protocol::acutrol::error_kind`] reads. Position and position
 //!   demands are not simulated (refused).
 //!
 //! Faults ([`FaultSwitch`], consulted for every request line): [`Fault::Silence`] — requests are
@@ -34,8 +34,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use bench_drivers::protocol::actidyn::errors as actidyn_errors;
+use bench_drivers::protocol::Dialect;
 use bench_drivers::protocol::{actidyn, acutrol};
-use bench_drivers::real::table::{actidyn_errors, Dialect};
 use bench_drivers::{Clock, DeviceError, ErrorKind, RateTable, TableReading};
 use bench_physics::units::DEG;
 use futures::future::BoxFuture;
@@ -371,7 +372,7 @@ impl<T: RateTable> TableController<T> {
             }
             C::QueryPrv { .. } => {
                 let r = self.reading().await?;
-                let slewing = r.status & bench_drivers::status::table::SLEWING != 0;
+                let slewing = r.status & bench_recording::status::table::SLEWING != 0;
                 let accel = if slewing {
                     (r.rate_command_rad_s - r.rate_rad_s).signum() * self.last_accel_deg_s2
                 } else {

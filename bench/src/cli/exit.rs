@@ -1,0 +1,34 @@
+//! The exit codes of every `bench` command: one table, documented in the README.
+
+use std::process::ExitCode;
+
+/// What a `bench` command's exit code says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Exit {
+    /// The command did what was asked (a diagnosis found the recording consistent with the
+    /// model).
+    Success = 0,
+    /// An error stopped the command: a file could not be read or written, a device could not
+    /// be reached, or something failed inside bench.
+    Error = 1,
+    /// The command line was wrong (clap's own code).
+    Usage = 2,
+    /// A scenario, bench config or model file failed validation; every problem was listed and
+    /// nothing was run.
+    Invalid = 3,
+    /// The run was aborted; the recording keeps everything up to the abort and names its cause.
+    Aborted = 4,
+    /// The calibration is incomplete: the joint fit could not run on these data.
+    Incomplete = 5,
+    /// A diagnosis found the model's parameters off, but no missing physics.
+    ParametersOnly = 6,
+    /// A diagnosis found physics the model leaves out.
+    MissingPhysics = 7,
+}
+
+impl From<Exit> for ExitCode {
+    fn from(e: Exit) -> Self {
+        ExitCode::from(e as u8)
+    }
+}

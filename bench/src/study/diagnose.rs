@@ -1,0 +1,161 @@
+//! The diagnosis over many simulated seeds: how often it claims physics that is not there
+//! (false discoveries on runs whose truth is the nominal model, or differs from it only in
+//! parameter values), and how often it names, and recovers, an effect that is there.
+//!
+//! The scenario's `[simulation.truth.effects]` are the concealed truth: the recording's
+//! `bench.gyro_model` holds only the nominal model, and the diagnosis runs against that.
+
+use std::io::Cursor;
+use std::path::Path;
+use std::time::Instant;
+
+use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
+use bench_physics::effects::{EffectId, Effects};
+use bench_physics::GyroModel;
+
+use crate::simulate::{capabilities, run_plan, sim_config, SimOptions};
+use crate::study::calibrate::parallel_seeds;
+use bench_recording::Recording;
+
+/// One seed's diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SeedDiagnosis {
+    /// Seed.
+    pub seed: u64,
+    /// Verdict.
+    pub verdict: Verdict,
+    /// Effects accepted.
+    pub found: Vec<EffectId>,
+    /// Whether structure was reported as unexplained.
+    pub unexplained: bool,
+    /// Per truth effect: each fitted parameter's |error|/σ (NaN when not found).
+    pub z: Vec<(EffectId, &'static str, f64)>,
+    /// Residual RMS after the refit and after the effects, rad/s.
+    pub rms: (f64, f64),
+    /// Wall time of the diagnosis alone, s.
+    pub seconds: f64,
+}
+
+/// The study's summary.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseStudy {
+    /// The concealed truth.
+    pub truth: Effects,
+    /// Per seed.
+    pub seeds: Vec<SeedDiagnosis>,
+}
+
+impl DiagnoseStudy {
+    /// Seeds naming an effect that is not in the truth, or reporting unexplained structure
+    /// when the truth has no effect: the false-discovery rate.
+    pub fn false_discovery_rate(&self) -> f64 {
+        let truth = self.truth.ids();
+        let bad = self
+            .seeds
+            .iter()
+            .filter(|s| {
+                s.found.iter().any(|e| !truth.contains(e)) || (truth.is_empty() && s.unexplained)
+            })
+            .count();
+        bad as f64 / self.seeds.len().max(1) as f64
+    }
+
+    /// Seeds naming exactly the truth's effects.
+    pub fn exact_rate(&self) -> f64 {
+        let mut truth = self.truth.ids();
+        truth.sort();
+        let ok = self
+            .seeds
+            .iter()
+            .filter(|s| {
+                let mut f = s.found.clone();
+                f.sort();
+                f == truth
+            })
+            .count();
+        ok as f64 / self.seeds.len().max(1) as f64
+    }
+
+    /// Fraction of seeds with each verdict: consistent, parameters only, missing physics.
+    pub fn verdict_rates(&self) -> [f64; 3] {
+        let n = self.seeds.len().max(1) as f64;
+        let rate = |v: Verdict| self.seeds.iter().filter(|s| s.verdict == v).count() as f64 / n;
+        [rate(Verdict::Consistent), rate(Verdict::ParametersOnly), rate(Verdict::MissingPhysics)]
+    }
+
+    /// Fraction of fitted truth parameters within 3σ, over seeds that found their effect.
+    pub fn within_3_sigma(&self) -> f64 {
+        let z: Vec<f64> = self
+            .seeds
+            .iter()
+            .flat_map(|s| s.z.iter().map(|x| x.2))
+            .filter(|z| z.is_finite())
+            .collect();
+        z.iter().filter(|z| **z <= 3.0).count() as f64 / z.len().max(1) as f64
+    }
+
+    /// Median wall time of one diagnosis, s.
+    pub fn median_seconds(&self) -> f64 {
+        let mut t: Vec<f64> = self.seeds.iter().map(|s| s.seconds).collect();
+        t.sort_by(f64::total_cmp);
+        t.get(t.len() / 2).copied().unwrap_or(f64::NAN)
+    }
+}
+
+/// Simulate `scenario` with seeds `first..first + count` on `jobs` threads and diagnose each
+/// recording in memory against `nominal`, or else its own `bench.gyro_model` (a nominal model
+/// that differs from the scenario's truth only in parameter values makes a parameters-only
+/// study).
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    scenario: &Path,
+    first: u64,
+    count: u64,
+    jobs: usize,
+    opts: &DiagnoseOptions,
+    nominal: Option<(GyroModel, Effects, String)>,
+    on_seed: impl FnMut(&SeedDiagnosis) + Send,
+) -> anyhow::Result<DiagnoseStudy> {
+    let plan = crate::scenario::load(scenario, &capabilities())?;
+    // The simulated table's ripple is truth too: the gyro sees it.
+    let truth = sim_config(&plan, first).seen_effects();
+    let seeds = parallel_seeds(
+        first,
+        count,
+        jobs,
+        |seed| {
+            let sim = SimOptions { seed, ..SimOptions::default() };
+            let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
+            anyhow::ensure!(report.completed(), "run {}", report.outcome);
+            let rec = Recording::from_bytes(cursor.get_ref())?;
+            let started = Instant::now();
+            let out = bench_report::diagnose::diagnose_recording(&rec, nominal.clone(), opts)?;
+            let seconds = started.elapsed().as_secs_f64();
+            let d = &out.diagnosis;
+            let mut z = Vec::new();
+            for id in truth.ids() {
+                let want = truth.param_values(id).unwrap_or_default();
+                for (name, value) in id.params().iter().zip(want) {
+                    let got = d
+                        .findings
+                        .iter()
+                        .find(|f| f.accepted && f.effect == id)
+                        .and_then(|f| f.parameters.iter().find(|p| p.name == *name));
+                    let zz = got.map_or(f64::NAN, |p| (p.value - value).abs() / p.sigma);
+                    z.push((id, *name, zz));
+                }
+            }
+            Ok(SeedDiagnosis {
+                seed,
+                verdict: d.verdict,
+                found: d.findings.iter().filter(|f| f.accepted).map(|f| f.effect).collect(),
+                unexplained: !d.unexplained.is_empty(),
+                z,
+                rms: (d.rms.1, d.rms.2),
+                seconds,
+            })
+        },
+        on_seed,
+    )?;
+    Ok(DiagnoseStudy { truth, seeds })
+}

@@ -1,0 +1,447 @@
+//! `bench export REC.mcap --format csv|parquet`: one table per channel, for pandas and Polars.
+//!
+//! Columns: `log_time_ns`, `publish_time_ns`, `sequence`, then the message's JSON fields in the
+//! order they first appear, nested objects flattened with dots (`timestamp.sec`). A column whose
+//! values are all integers is an integer column (i64; u64 above `i64::MAX` make it a float
+//! column), all numbers a float column (f64), all booleans a boolean column; anything else is
+//! text (arrays and mixed values as JSON text). A missing field or `null` is an empty CSV cell
+//! or a Parquet NULL. Channels whose message encoding is not `json` are skipped and reported.
+//! Any readable recording exports, a cut one up to its cut.
+//!
+//! ```no_run
+//! use bench_recording::export::{export_file, Format};
+//! let report = export_file("run.mcap".as_ref(), "out".as_ref(), Format::Csv)?;
+//! for t in &report.tables { println!("{} → {} ({} rows)", t.topic, t.path.display(), t.rows); }
+//! # Ok::<(), bench_recording::export::ExportError>(())
+//! ```
+
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde_json::Value;
+
+use crate::reader::{End, Item, RecordingError, RecordingReader};
+
+/// Output format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Comma-separated text, one header line.
+    Csv,
+    /// Apache Parquet, one row group, zstd-compressed columns.
+    Parquet,
+}
+
+impl Format {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Csv => "csv",
+            Format::Parquet => "parquet",
+        }
+    }
+}
+
+/// Why an export failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The recording could not be read.
+    #[error(transparent)]
+    Read(#[from] RecordingError),
+    /// An output file could not be written.
+    #[error("{}: {source}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The Parquet writer failed.
+    #[error("{}: {source}", path.display())]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// The writer's error.
+        #[source]
+        source: parquet::errors::ParquetError,
+    },
+    /// A message body is not a JSON object.
+    #[error("{topic} message sequence {sequence} (log_time {log_time_ns} ns): body is not a JSON object: {detail}")]
+    NotJson {
+        /// Channel.
+        topic: String,
+        /// Sequence.
+        sequence: u32,
+        /// Log time.
+        log_time_ns: u64,
+        /// What the decoder said.
+        detail: String,
+    },
+}
+
+/// One written table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// Channel.
+    pub topic: String,
+    /// File written.
+    pub path: PathBuf,
+    /// Rows (messages).
+    pub rows: usize,
+    /// Column names.
+    pub columns: Vec<String>,
+}
+
+/// What an export wrote.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ExportReport {
+    /// One per exported channel, by topic.
+    pub tables: Vec<Table>,
+    /// Channels skipped (not JSON), with their encoding.
+    pub skipped: Vec<(String, String)>,
+    /// Where the recording was cut, if it was.
+    pub cut: Option<(u64, String)>,
+}
+
+/// A column's type, the narrowest that holds every value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColumnType {
+    /// Every value null.
+    Null,
+    /// Booleans.
+    Bool,
+    /// Integers within i64.
+    Int,
+    /// Numbers.
+    Float,
+    /// Anything else, as text.
+    Text,
+}
+
+impl ColumnType {
+    fn widen(self, v: &Value) -> Self {
+        use ColumnType::*;
+        let this = match v {
+            Value::Null => return self,
+            Value::Bool(_) => Bool,
+            Value::Number(n) if n.is_i64() => Int,
+            Value::Number(_) => Float,
+            _ => Text,
+        };
+        match (self, this) {
+            (Null, t) => t,
+            (a, b) if a == b => a,
+            (Int, Float) | (Float, Int) => Float,
+            _ => Text,
+        }
+    }
+}
+
+/// One channel's messages in memory.
+struct Channel {
+    encoding: String,
+    columns: Vec<String>,
+    index: HashMap<String, usize>,
+    log: Vec<i64>,
+    publish: Vec<i64>,
+    sequence: Vec<i64>,
+    /// Row-major cells: per row, (column, value).
+    rows: Vec<Vec<(usize, Value)>>,
+}
+
+/// A JSON object's members in the order the body has them (`serde_json::Map` sorts them).
+struct Ordered(Vec<(String, Value)>);
+
+impl<'de> serde::Deserialize<'de> for Ordered {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Members;
+        impl<'de> serde::de::Visitor<'de> for Members {
+            type Value = Ordered;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a JSON object")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<Ordered, A::Error> {
+                let mut members = Vec::new();
+                while let Some(member) = a.next_entry::<String, Value>()? {
+                    members.push(member);
+                }
+                Ok(Ordered(members))
+            }
+        }
+        d.deserialize_map(Members)
+    }
+}
+
+fn flatten(
+    prefix: &str,
+    members: impl IntoIterator<Item = (String, Value)>,
+    out: &mut Vec<(String, Value)>,
+) {
+    for (k, v) in members {
+        let name = if prefix.is_empty() { k } else { format!("{prefix}.{k}") };
+        match v {
+            Value::Object(inner) => flatten(&name, inner, out),
+            other => out.push((name, other)),
+        }
+    }
+}
+
+fn ns(v: u64) -> i64 {
+    i64::try_from(v).unwrap_or(i64::MAX)
+}
+
+/// Every channel's messages by topic, and where the recording was cut.
+type Collected = (BTreeMap<String, Channel>, Option<(u64, String)>);
+
+/// Read every channel of a recording from any byte source into tables.
+fn collect<R: std::io::Read>(reader: RecordingReader<R>) -> Result<Collected, ExportError> {
+    let mut reader = reader.raw();
+    let mut channels: BTreeMap<String, Channel> = BTreeMap::new();
+    for item in reader.by_ref() {
+        let Item::Other(m) = item? else { continue };
+        let ch = channels.entry(m.channel.topic.clone()).or_insert_with(|| Channel {
+            encoding: m.channel.message_encoding.clone(),
+            columns: Vec::new(),
+            index: HashMap::new(),
+            log: Vec::new(),
+            publish: Vec::new(),
+            sequence: Vec::new(),
+            rows: Vec::new(),
+        });
+        if ch.encoding != "json" {
+            ch.log.push(0);
+            continue;
+        }
+        let Ordered(body) = serde_json::from_slice(&m.data).map_err(|e| ExportError::NotJson {
+            topic: m.channel.topic.clone(),
+            sequence: m.sequence,
+            log_time_ns: m.log_time_ns,
+            detail: e.to_string(),
+        })?;
+        let mut fields = Vec::new();
+        flatten("", body, &mut fields);
+        let mut row = Vec::with_capacity(fields.len());
+        for (name, v) in fields {
+            let col = match ch.index.get(&name) {
+                Some(&c) => c,
+                None => {
+                    ch.columns.push(name.clone());
+                    ch.index.insert(name, ch.columns.len() - 1);
+                    ch.columns.len() - 1
+                }
+            };
+            row.push((col, v));
+        }
+        ch.log.push(ns(m.log_time_ns));
+        ch.publish.push(ns(m.publish_time_ns));
+        ch.sequence.push(i64::from(m.sequence));
+        ch.rows.push(row);
+    }
+    let cut = match reader.end() {
+        End::Cut { at_byte, reason } => Some((*at_byte, reason.clone())),
+        _ => None,
+    };
+    Ok((channels, cut))
+}
+
+/// File name of a topic's table: the topic without its leading slash, `/` → `_`.
+pub fn table_name(topic: &str) -> String {
+    let name: String = topic
+        .trim_start_matches('/')
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' })
+        .collect();
+    if name.is_empty() {
+        "root".to_string()
+    } else {
+        name
+    }
+}
+
+/// Export the recording at `input` into `out_dir` (created if needed), one file per channel.
+pub fn export_file(
+    input: &Path,
+    out_dir: &Path,
+    format: Format,
+) -> Result<ExportReport, ExportError> {
+    export(RecordingReader::open(input)?, out_dir, format)
+}
+
+/// Export a recording from any reader (e.g. `RecordingReader::new(&bytes[..])`) into
+/// `out_dir`.
+pub fn export<R: std::io::Read>(
+    reader: RecordingReader<R>,
+    out_dir: &Path,
+    format: Format,
+) -> Result<ExportReport, ExportError> {
+    let (channels, cut) = collect(reader)?;
+    std::fs::create_dir_all(out_dir)
+        .map_err(|source| ExportError::Write { path: out_dir.to_path_buf(), source })?;
+    let mut report = ExportReport { cut, ..ExportReport::default() };
+    for (topic, ch) in channels {
+        if ch.encoding != "json" {
+            report.skipped.push((topic, ch.encoding));
+            continue;
+        }
+        let path = out_dir.join(format!("{}.{}", table_name(&topic), format.extension()));
+        let types: Vec<ColumnType> = (0..ch.columns.len())
+            .map(|c| {
+                ch.rows
+                    .iter()
+                    .flatten()
+                    .filter(|(i, _)| *i == c)
+                    .fold(ColumnType::Null, |t, (_, v)| t.widen(v))
+            })
+            .collect();
+        match format {
+            Format::Csv => write_csv(&path, &ch, &types)?,
+            Format::Parquet => write_parquet(&path, &ch, &types)?,
+        }
+        let mut columns: Vec<String> =
+            ["log_time_ns", "publish_time_ns", "sequence"].map(String::from).to_vec();
+        columns.extend(ch.columns.iter().cloned());
+        report.tables.push(Table { topic, path, rows: ch.rows.len(), columns });
+    }
+    Ok(report)
+}
+
+/// A cell's text: integers as integers, floats in the shortest form that reads back the same,
+/// null as empty, strings as they are, anything else as JSON.
+fn cell(v: &Value) -> String {
+    match v {
+        Value::Null => String::new(),
+        Value::String(s) => s.clone(),
+        Value::Number(n) => match (n.as_i64(), n.as_u64(), n.as_f64()) {
+            (Some(i), _, _) => i.to_string(),
+            (_, Some(u), _) => u.to_string(),
+            (_, _, Some(f)) => format!("{f:?}"),
+            _ => n.to_string(),
+        },
+        other => other.to_string(),
+    }
+}
+
+fn write_csv(path: &Path, ch: &Channel, _types: &[ColumnType]) -> Result<(), ExportError> {
+    let io = |source| ExportError::Write { path: path.to_path_buf(), source };
+    let file = File::create(path).map_err(io)?;
+    let mut w = csv::Writer::from_writer(BufWriter::new(file));
+    let csv_err = |e: csv::Error| ExportError::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    };
+    let mut header: Vec<&str> = vec!["log_time_ns", "publish_time_ns", "sequence"];
+    header.extend(ch.columns.iter().map(String::as_str));
+    w.write_record(&header).map_err(csv_err)?;
+    let mut cells = vec![String::new(); ch.columns.len()];
+    for (r, row) in ch.rows.iter().enumerate() {
+        cells.iter_mut().for_each(String::clear);
+        for (c, v) in row {
+            if let Some(slot) = cells.get_mut(*c) {
+                *slot = cell(v);
+            }
+        }
+        let fixed = [
+            ch.log.get(r).copied().unwrap_or_default().to_string(),
+            ch.publish.get(r).copied().unwrap_or_default().to_string(),
+            ch.sequence.get(r).copied().unwrap_or_default().to_string(),
+        ];
+        w.write_record(fixed.iter().chain(cells.iter())).map_err(csv_err)?;
+    }
+    let inner = w.into_inner().map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    inner.into_inner().map_err(|e| io(e.into_error()))?.sync_all().map_err(io)
+}
+
+fn write_parquet(path: &Path, ch: &Channel, types: &[ColumnType]) -> Result<(), ExportError> {
+    use parquet::basic::{Compression, LogicalType, Repetition, Type as Physical, ZstdLevel};
+    use parquet::data_type::{BoolType, ByteArray, ByteArrayType, DoubleType, Int64Type};
+    use parquet::file::properties::WriterProperties;
+    use parquet::file::writer::SerializedFileWriter;
+    use parquet::schema::types::Type;
+
+    let pq = |source| ExportError::Parquet { path: path.to_path_buf(), source };
+    let io = |source| ExportError::Write { path: path.to_path_buf(), source };
+    let required = |name: &str| {
+        Type::primitive_type_builder(name, Physical::INT64)
+            .with_repetition(Repetition::REQUIRED)
+            .build()
+    };
+    let mut fields = vec![
+        Arc::new(required("log_time_ns").map_err(pq)?),
+        Arc::new(required("publish_time_ns").map_err(pq)?),
+        Arc::new(required("sequence").map_err(pq)?),
+    ];
+    for (name, t) in ch.columns.iter().zip(types) {
+        let b = match t {
+            ColumnType::Bool => Type::primitive_type_builder(name, Physical::BOOLEAN),
+            ColumnType::Int => Type::primitive_type_builder(name, Physical::INT64),
+            ColumnType::Float => Type::primitive_type_builder(name, Physical::DOUBLE),
+            ColumnType::Null | ColumnType::Text => {
+                Type::primitive_type_builder(name, Physical::BYTE_ARRAY)
+                    .with_logical_type(Some(LogicalType::String))
+            }
+        };
+        fields.push(Arc::new(b.with_repetition(Repetition::OPTIONAL).build().map_err(pq)?));
+    }
+    let schema =
+        Arc::new(Type::group_type_builder("schema").with_fields(fields).build().map_err(pq)?);
+    let props = Arc::new(
+        WriterProperties::builder()
+            .set_compression(Compression::ZSTD(ZstdLevel::try_new(1).map_err(pq)?))
+            .build(),
+    );
+    let file = File::create(path).map_err(io)?;
+    let mut writer = SerializedFileWriter::new(file, schema, props).map_err(pq)?;
+    let mut group = writer.next_row_group().map_err(pq)?;
+    for fixed in [&ch.log, &ch.publish, &ch.sequence] {
+        if let Some(mut col) = group.next_column().map_err(pq)? {
+            col.typed::<Int64Type>().write_batch(fixed, None, None).map_err(pq)?;
+            col.close().map_err(pq)?;
+        }
+    }
+    for (c, t) in types.iter().enumerate() {
+        // One column: the values present and the definition levels (1 present, 0 null).
+        let mut present: Vec<Option<&Value>> = vec![None; ch.rows.len()];
+        for (r, row) in ch.rows.iter().enumerate() {
+            if let (Some(slot), Some((_, v))) =
+                (present.get_mut(r), row.iter().find(|(i, _)| *i == c))
+            {
+                *slot = (!v.is_null()).then_some(v);
+            }
+        }
+        let def: Vec<i16> = present.iter().map(|v| i16::from(v.is_some())).collect();
+        let Some(mut col) = group.next_column().map_err(pq)? else { break };
+        let values = present.iter().flatten();
+        match t {
+            ColumnType::Bool => {
+                let v: Vec<bool> = values.map(|v| v.as_bool().unwrap_or_default()).collect();
+                col.typed::<BoolType>().write_batch(&v, Some(&def), None)
+            }
+            ColumnType::Int => {
+                let v: Vec<i64> = values.map(|v| v.as_i64().unwrap_or_default()).collect();
+                col.typed::<Int64Type>().write_batch(&v, Some(&def), None)
+            }
+            ColumnType::Float => {
+                let v: Vec<f64> = values.map(|v| v.as_f64().unwrap_or(f64::NAN)).collect();
+                col.typed::<DoubleType>().write_batch(&v, Some(&def), None)
+            }
+            ColumnType::Null | ColumnType::Text => {
+                let v: Vec<ByteArray> = values.map(|v| ByteArray::from(cell(v).as_str())).collect();
+                col.typed::<ByteArrayType>().write_batch(&v, Some(&def), None)
+            }
+        }
+        .map_err(pq)?;
+        col.close().map_err(pq)?;
+    }
+    group.close().map_err(pq)?;
+    writer.close().map_err(pq)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,128 @@
+//! Export a recorder file to CSV and Parquet and read both back.
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::time::Duration;
+
+use super::*;
+use crate::message::{ChamberMsg, GyroMsg, LogLevel, Outcome, StepEvent};
+use crate::site::Site;
+use crate::writer::{Recorder, RunInfo};
+
+const EPOCH: u64 = 1_800_000_000_000_000_000;
+
+fn file() -> Vec<u8> {
+    let info = RunInfo::new(EPOCH, "t", "", Site::at_latitude(1.0), BTreeMap::new());
+    let mut r = Recorder::new(Cursor::new(Vec::new()), info).expect("start");
+    r.step(Duration::ZERO, 0, "wait", StepEvent::Start, "record, \"quoted\"").expect("step");
+    for i in 0..50u64 {
+        let t = Duration::from_millis(50 * i);
+        let g = GyroMsg {
+            rate_rad_s: 0.5 + i as f64 / 1024.0,
+            temperature_c: (i % 3 != 0).then_some(-12.5),
+            seq: 1_000 + i,
+            status: (i == 7) as u32,
+        };
+        r.gyro(t, Some(t + Duration::from_nanos(3)), &g).expect("gyro");
+        let c = ChamberMsg { temperature_c: 20.0, setpoint_c: 21.25, status: 0 };
+        r.chamber(t, None, &c).expect("chamber");
+    }
+    r.log(Duration::from_secs(1), LogLevel::Warning, "hot", "bench::x", "x.rs", 9).expect("log");
+    r.finish(&Outcome::Completed).expect("finish").into_inner()
+}
+
+fn export_to(format: Format) -> (tempfile::TempDir, ExportReport) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bytes = file();
+    let report = export(RecordingReader::new(&bytes[..]), dir.path(), format).expect("exports");
+    (dir, report)
+}
+
+#[test]
+fn csv_tables_read_back() {
+    let (dir, report) = export_to(Format::Csv);
+    let topics: Vec<&str> = report.tables.iter().map(|t| t.topic.as_str()).collect();
+    assert_eq!(topics, ["/bench/step", "/chamber/state", "/gyro/rate", "/log"]);
+    let gyro = report.tables.iter().find(|t| t.topic == "/gyro/rate").expect("gyro");
+    assert_eq!(gyro.path, dir.path().join("gyro_rate.csv"));
+    assert_eq!(gyro.rows, 50);
+    let mut rd = csv::Reader::from_path(&gyro.path).expect("csv");
+    let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
+    assert_eq!(
+        header,
+        ["log_time_ns", "publish_time_ns", "sequence", "rate", "temperature", "seq", "status"]
+    );
+    let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.expect("row")).collect();
+    assert_eq!(rows.len(), 50);
+    let r7 = &rows[7];
+    assert_eq!(r7[0].parse::<u64>().ok(), Some(EPOCH + 350_000_000));
+    assert_eq!(r7[1].parse::<u64>().ok(), Some(EPOCH + 350_000_003));
+    assert_eq!(&r7[2], "7");
+    assert_eq!(r7[3].parse::<f64>().ok(), Some(0.5 + 7.0 / 1024.0));
+    assert_eq!(&r7[4], "-12.5");
+    assert_eq!((&r7[5], &r7[6]), ("1007", "1"));
+    // A gyro without a temperature reading: an empty cell.
+    assert_eq!(&rows[6][4], "");
+    // Nested fields are flattened; text with commas and quotes survives.
+    let mut rd = csv::Reader::from_path(dir.path().join("log.csv")).expect("csv");
+    let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
+    assert!(header.contains(&"timestamp.sec".to_string()), "{header:?}");
+    let mut rd = csv::Reader::from_path(dir.path().join("bench_step.csv")).expect("csv");
+    let row = rd.records().next().expect("a row").expect("row");
+    assert_eq!(row.iter().next_back(), Some("record, \"quoted\""));
+}
+
+#[test]
+fn parquet_tables_read_back_with_types_and_nulls() {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::Field;
+    let (dir, report) = export_to(Format::Parquet);
+    let gyro = report.tables.iter().find(|t| t.topic == "/gyro/rate").expect("gyro");
+    assert_eq!(gyro.path, dir.path().join("gyro_rate.parquet"));
+    let file = std::fs::File::open(&gyro.path).expect("file");
+    let reader = SerializedFileReader::new(file).expect("parquet");
+    assert_eq!(reader.metadata().file_metadata().num_rows(), 50);
+    let rows: Vec<Vec<(String, Field)>> =
+        reader.get_row_iter(None).expect("rows").map(|r| r.expect("row").into_columns()).collect();
+    let r7 = &rows[7];
+    let names: Vec<&str> = r7.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        ["log_time_ns", "publish_time_ns", "sequence", "rate", "temperature", "seq", "status"]
+    );
+    assert_eq!(r7[0].1, Field::Long((EPOCH + 350_000_000) as i64));
+    assert_eq!(r7[1].1, Field::Long((EPOCH + 350_000_003) as i64));
+    assert_eq!(r7[2].1, Field::Long(7));
+    assert_eq!(r7[3].1, Field::Double(0.5 + 7.0 / 1024.0));
+    assert_eq!(r7[4].1, Field::Double(-12.5));
+    assert_eq!(r7[5].1, Field::Long(1007));
+    assert_eq!(r7[6].1, Field::Long(1));
+    assert_eq!(rows[6][4].1, Field::Null);
+    let chamber = report.tables.iter().find(|t| t.topic == "/chamber/state").expect("chamber");
+    let reader =
+        SerializedFileReader::new(std::fs::File::open(&chamber.path).expect("file")).expect("pq");
+    let first = reader.get_row_iter(None).expect("rows").next().expect("row").expect("row");
+    let cols = first.into_columns();
+    assert_eq!(cols[4], ("setpoint".to_string(), Field::Double(21.25)));
+    let log = report.tables.iter().find(|t| t.topic == "/log").expect("log");
+    let reader =
+        SerializedFileReader::new(std::fs::File::open(&log.path).expect("file")).expect("pq");
+    let first = reader.get_row_iter(None).expect("rows").next().expect("row").expect("row");
+    let cols: BTreeMap<String, Field> = first.into_columns().into_iter().collect();
+    assert_eq!(cols.get("message"), Some(&Field::Str("hot".into())));
+    assert_eq!(cols.get("level"), Some(&Field::Long(3)));
+    assert_eq!(cols.get("timestamp.sec"), Some(&Field::Long(1_800_000_001)));
+}
+
+#[test]
+fn column_types_widen() {
+    use serde_json::json;
+    let t = |vs: &[serde_json::Value]| vs.iter().fold(ColumnType::Null, |t, v| t.widen(v));
+    assert_eq!(t(&[json!(1), json!(null), json!(2)]), ColumnType::Int);
+    assert_eq!(t(&[json!(1), json!(2.5)]), ColumnType::Float);
+    assert_eq!(t(&[json!(u64::MAX)]), ColumnType::Float);
+    assert_eq!(t(&[json!(true), json!(1)]), ColumnType::Text);
+    assert_eq!(t(&[json!([1, 2])]), ColumnType::Text);
+    assert_eq!(t(&[json!(null)]), ColumnType::Null);
+    assert_eq!(table_name("/gyro/rate"), "gyro_rate");
+}

@@ -1,0 +1,517 @@
+//! The calibration file: a gyro model in TOML with units in its key names, written by
+//! `bench calibrate` and loaded by `bench run --gyro-model` (and by scenarios' `[gyro]
+//! model_file`) as the gyro's model.
+//!
+//! ```toml
+//! [gyro_model]
+//! bias_rad_s = 1.2e-8
+//! scale_factor_error = 3.0e-6
+//! reference_temperature_c = 20.0
+//! temp_coeff_rad_s_per_c = 4.85e-9
+//! temp_rate_coeff_rad_s_per_c_s = 1.47e-5
+//! arw_rad_per_sqrt_s = 2.9e-8
+//! bias_instability_rad_s = 9.2e-9
+//! earth_rate = true
+//! thermal_time_constant_s = 0.0
+//!
+//! [uncertainty]                 # 1σ, same keys (optional, informative)
+//! bias_rad_s = 3.1e-9
+//!
+//! [source]                      # where it came from (optional, informative)
+//! recording = "run.mcap"
+//!
+//! [effects]                     # effects beyond the model (optional; see docs/scenario.md)
+//! earth_rate = false
+//! warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900.0 }
+//! ```
+//!
+//! `[gyro_model]` must hold every key; unknown keys anywhere in it are errors (a typo must not
+//! silently fall back to zero). `[effects]` takes the ids of [`bench_physics::effects`], each
+//! with every parameter of its struct. Errors name file, line and column.
+//!
+//! [`write_model_file`] / [`model_file_toml`] write a file from a model and effects (what
+//! `bench calibrate` and `bench diagnose` produce).
+
+use std::path::Path;
+
+use bench_physics::effects::Effects;
+use bench_physics::GyroModel;
+use serde::{Deserialize, Serialize};
+
+use crate::toml_doc::line_col;
+
+/// `[gyro_model]`: a [`GyroModel`] with units in the key names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelKeys {
+    /// Bias at T0, rad/s.
+    pub bias_rad_s: f64,
+    /// k_sf − 1.
+    pub scale_factor_error: f64,
+    /// T0, °C.
+    pub reference_temperature_c: f64,
+    /// rad/s per °C.
+    pub temp_coeff_rad_s_per_c: f64,
+    /// rad/s per °C/s.
+    pub temp_rate_coeff_rad_s_per_c_s: f64,
+    /// Angle random walk, rad/√s.
+    pub arw_rad_per_sqrt_s: f64,
+    /// Flicker floor of the Allan deviation, rad/s.
+    pub bias_instability_rad_s: f64,
+    /// Earth's rotation in the model.
+    pub earth_rate: bool,
+    /// Air-to-gyro thermal lag, s.
+    pub thermal_time_constant_s: f64,
+}
+
+impl From<&GyroModel> for ModelKeys {
+    fn from(m: &GyroModel) -> Self {
+        Self {
+            bias_rad_s: m.bias,
+            scale_factor_error: m.scale_factor_error,
+            reference_temperature_c: m.reference_temperature,
+            temp_coeff_rad_s_per_c: m.temp_coeff,
+            temp_rate_coeff_rad_s_per_c_s: m.temp_rate_coeff,
+            arw_rad_per_sqrt_s: m.arw,
+            bias_instability_rad_s: m.bias_instability,
+            earth_rate: m.earth_rate,
+            thermal_time_constant_s: m.thermal_time_constant,
+        }
+    }
+}
+
+impl From<&ModelKeys> for GyroModel {
+    fn from(k: &ModelKeys) -> Self {
+        Self {
+            bias: k.bias_rad_s,
+            scale_factor_error: k.scale_factor_error,
+            reference_temperature: k.reference_temperature_c,
+            temp_coeff: k.temp_coeff_rad_s_per_c,
+            temp_rate_coeff: k.temp_rate_coeff_rad_s_per_c_s,
+            arw: k.arw_rad_per_sqrt_s,
+            bias_instability: k.bias_instability_rad_s,
+            earth_rate: k.earth_rate,
+            thermal_time_constant: k.thermal_time_constant_s,
+        }
+    }
+}
+
+/// 1σ uncertainties of the fitted coefficients (same keys as [`ModelKeys`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Uncertainty {
+    /// rad/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_rad_s: Option<f64>,
+    /// 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_factor_error: Option<f64>,
+    /// rad/s per °C.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temp_coeff_rad_s_per_c: Option<f64>,
+    /// rad/s per °C/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temp_rate_coeff_rad_s_per_c_s: Option<f64>,
+}
+
+/// Where a calibration came from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Source {
+    /// Recording file name.
+    #[serde(default)]
+    pub recording: String,
+    /// Writer and version.
+    #[serde(default)]
+    pub software: String,
+    /// Estimator.
+    #[serde(default)]
+    pub method: String,
+}
+
+/// The whole calibration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationFile {
+    /// Where it came from.
+    #[serde(default)]
+    pub source: Source,
+    /// The model.
+    pub gyro_model: ModelKeys,
+    /// 1σ of the fitted coefficients.
+    #[serde(default)]
+    pub uncertainty: Uncertainty,
+    /// Effects beyond the model (none when the section is absent): recorded as `effect.*`
+    /// keys of `bench.gyro_model` and, on the simulated bench, simulated.
+    #[serde(default, skip_serializing_if = "no_effects")]
+    pub effects: Effects,
+}
+
+fn no_effects(e: &Effects) -> bool {
+    !e.any()
+}
+
+/// A calibration file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelFileError {
+    /// The file cannot be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or not a calibration file.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// File.
+        path: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Effects that cannot be written: a file with them would not load back.
+    #[error("{path}: not written: [effects] {message}")]
+    BadEffects {
+        /// File.
+        path: String,
+        /// Which parameter and what is wrong.
+        message: String,
+    },
+    /// A value out of range.
+    #[error("{path}: [gyro_model] {key} = {value}: {why}")]
+    Invalid {
+        /// File.
+        path: String,
+        /// Key.
+        key: &'static str,
+        /// Value.
+        value: f64,
+        /// Requirement.
+        why: &'static str,
+    },
+}
+
+impl CalibrationFile {
+    /// A file holding `model` and `effects`, with where it came from and the 1σ uncertainties.
+    pub fn new(
+        model: &GyroModel,
+        effects: &Effects,
+        source: Source,
+        uncertainty: Uncertainty,
+    ) -> Self {
+        Self { source, gyro_model: ModelKeys::from(model), uncertainty, effects: *effects }
+    }
+
+    /// The gyro model.
+    pub fn model(&self) -> GyroModel {
+        GyroModel::from(&self.gyro_model)
+    }
+
+    /// As TOML text, with a header comment.
+    pub fn to_toml(&self) -> String {
+        let body = toml::to_string_pretty(self).unwrap_or_default();
+        format!(
+            "# Gyro model written by bench. SI units, named in the keys; [uncertainty] holds 1σ\n\
+             # standard errors, [effects] effects beyond the model. Load with\n\
+             # `bench run --gyro-model FILE`.\n\n{body}"
+        )
+    }
+
+    /// Parse `text` (from `path`, for messages).
+    pub fn parse(text: &str, path: &str) -> Result<Self, ModelFileError> {
+        let file: CalibrationFile = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map(|s| line_col(text, s.start)).unwrap_or((1, 1));
+            ModelFileError::Parse {
+                path: path.to_owned(),
+                line,
+                column,
+                message: e.message().to_owned(),
+            }
+        })?;
+        let g = &file.gyro_model;
+        let checks: [(&'static str, f64, bool, &'static str); 9] = [
+            ("bias_rad_s", g.bias_rad_s, g.bias_rad_s.is_finite(), "must be finite"),
+            (
+                "scale_factor_error",
+                g.scale_factor_error,
+                g.scale_factor_error.is_finite() && g.scale_factor_error > -1.0,
+                "must be finite and above -1",
+            ),
+            (
+                "reference_temperature_c",
+                g.reference_temperature_c,
+                g.reference_temperature_c.is_finite(),
+                "must be finite",
+            ),
+            (
+                "temp_coeff_rad_s_per_c",
+                g.temp_coeff_rad_s_per_c,
+                g.temp_coeff_rad_s_per_c.is_finite(),
+                "must be finite",
+            ),
+            (
+                "temp_rate_coeff_rad_s_per_c_s",
+                g.temp_rate_coeff_rad_s_per_c_s,
+                g.temp_rate_coeff_rad_s_per_c_s.is_finite(),
+                "must be finite",
+            ),
+            (
+                "arw_rad_per_sqrt_s",
+                g.arw_rad_per_sqrt_s,
+                g.arw_rad_per_sqrt_s.is_finite() && g.arw_rad_per_sqrt_s >= 0.0,
+                "must be finite and not negative",
+            ),
+            (
+                "bias_instability_rad_s",
+                g.bias_instability_rad_s,
+                g.bias_instability_rad_s.is_finite() && g.bias_instability_rad_s >= 0.0,
+                "must be finite and not negative",
+            ),
+            (
+                "thermal_time_constant_s",
+                g.thermal_time_constant_s,
+                g.thermal_time_constant_s.is_finite() && g.thermal_time_constant_s >= 0.0,
+                "must be finite and not negative",
+            ),
+            ("earth_rate", 0.0, true, ""),
+        ];
+        for (key, value, ok, why) in checks {
+            if !ok {
+                return Err(ModelFileError::Invalid { path: path.to_owned(), key, value, why });
+            }
+        }
+        crate::effects_toml::check_located(&file.effects, text, &["effects"]).map_err(
+            |(line, column, message)| ModelFileError::Parse {
+                path: path.to_owned(),
+                line,
+                column,
+                message,
+            },
+        )?;
+        Ok(file)
+    }
+
+    /// Read a calibration file.
+    pub fn load(path: &Path) -> Result<Self, ModelFileError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ModelFileError::Io { path: path.display().to_string(), source })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Write the file. Effects that [`CalibrationFile::parse`] would reject (not finite, a
+    /// time constant not positive) are refused, naming the parameter.
+    pub fn save(&self, path: &Path) -> Result<(), ModelFileError> {
+        self.effects.validate().map_err(|message| ModelFileError::BadEffects {
+            path: path.display().to_string(),
+            message,
+        })?;
+        std::fs::write(path, self.to_toml())
+            .map_err(|source| ModelFileError::Io { path: path.display().to_string(), source })
+    }
+}
+
+/// The model file for `model` and `effects` (with `source` and the 1σ `uncertainty`) as TOML
+/// text, the format [`CalibrationFile::parse`] and `bench run --gyro-model` read back exactly.
+pub fn model_file_toml(
+    model: &GyroModel,
+    effects: &Effects,
+    source: &Source,
+    uncertainty: &Uncertainty,
+) -> String {
+    CalibrationFile::new(model, effects, source.clone(), uncertainty.clone()).to_toml()
+}
+
+/// Write the model file for `model` and `effects` (with `source` and the 1σ `uncertainty`)
+/// to `path`; refuses effects that would not load back (see [`CalibrationFile::save`]).
+pub fn write_model_file(
+    path: &Path,
+    model: &GyroModel,
+    effects: &Effects,
+    source: &Source,
+    uncertainty: &Uncertainty,
+) -> Result<(), ModelFileError> {
+    CalibrationFile::new(model, effects, source.clone(), uncertainty.clone()).save(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trips_a_model_exactly() {
+        let m = GyroModel { thermal_time_constant: 123.5, ..GyroModel::default() };
+        let f = CalibrationFile {
+            source: Source { recording: "x.mcap".into(), ..Source::default() },
+            gyro_model: ModelKeys::from(&m),
+            uncertainty: Uncertainty { bias_rad_s: Some(1e-9), ..Uncertainty::default() },
+            effects: Effects::default(),
+        };
+        let back = CalibrationFile::parse(&f.to_toml(), "cal.toml").expect("parses");
+        assert_eq!(back, f);
+        assert_eq!(back.model(), m);
+    }
+
+    #[test]
+    fn a_typo_is_an_error_with_line_and_column() {
+        let m = GyroModel::default();
+        let f = CalibrationFile {
+            source: Source::default(),
+            gyro_model: ModelKeys::from(&m),
+            uncertainty: Uncertainty::default(),
+            effects: Effects::default(),
+        };
+        let text = f.to_toml().replace("temp_coeff_rad_s_per_c =", "temp_cof_rad_s_per_c =");
+        let e = CalibrationFile::parse(&text, "cal.toml").expect_err("rejects");
+        let line = text.lines().position(|l| l.starts_with("temp_cof")).expect("line") + 1;
+        let msg = e.to_string();
+        assert!(msg.starts_with(&format!("cal.toml:{line}:1: ")), "{msg}");
+        assert!(msg.contains("temp_cof_rad_s_per_c"), "{msg}");
+    }
+
+    #[test]
+    fn a_missing_key_and_a_negative_noise_are_errors() {
+        let e = CalibrationFile::parse("[gyro_model]\nbias_rad_s = 0.0\n", "c.toml")
+            .expect_err("incomplete");
+        assert!(e.to_string().contains("missing field"), "{e}");
+        let m = GyroModel { arw: -1.0, ..GyroModel::default() };
+        let f = CalibrationFile {
+            source: Source::default(),
+            gyro_model: ModelKeys::from(&m),
+            uncertainty: Uncertainty::default(),
+            effects: Effects::default(),
+        };
+        let e = CalibrationFile::parse(&f.to_toml(), "c.toml").expect_err("negative");
+        assert_eq!(
+            e.to_string(),
+            "c.toml: [gyro_model] arw_rad_per_sqrt_s = -1: must be finite and not negative"
+        );
+    }
+}
+
+#[cfg(test)]
+mod effects_tests {
+    use bench_physics::effects::{BiasStep, OncePerRevolution, ThermalLag, WarmUp};
+
+    use super::*;
+
+    fn fitted() -> Effects {
+        Effects {
+            earth_rate: true,
+            thermal_lag: Some(ThermalLag { time_constant_s: 412.25 }),
+            once_per_revolution: Some(OncePerRevolution {
+                amplitude_rad_s: 2.0000000000000004e-8,
+                phase_rad: -0.1 - 0.2,
+            }),
+            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
+            bias_step: Some(BiasStep { time_s: 3600.5, step_rad_s: -3e-9 }),
+            ..Effects::default()
+        }
+    }
+
+    #[test]
+    fn the_writer_round_trips_model_and_effects_exactly() {
+        let model = GyroModel { temp_coeff: 4.67e-9, ..GyroModel::default() };
+        let source = Source {
+            recording: "run.mcap".into(),
+            software: "bench test".into(),
+            method: "diagnose".into(),
+        };
+        let unc = Uncertainty { bias_rad_s: Some(1.25e-8), ..Uncertainty::default() };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("model.toml");
+        write_model_file(&path, &model, &fitted(), &source, &unc).expect("writes");
+        let back = CalibrationFile::load(&path).expect("loads");
+        assert_eq!(back.model(), model);
+        assert_eq!(back.effects, fitted());
+        assert_eq!(back.source, source);
+        assert_eq!(back.uncertainty, unc);
+        let text = model_file_toml(&model, &fitted(), &source, &unc);
+        assert!(text.contains("[effects]"), "{text}");
+        assert!(text.contains("[effects.warm_up]") || text.contains("warm_up = {"), "{text}");
+        // Without effects there is no [effects] section, and it reads back as none.
+        let plain = model_file_toml(&model, &Effects::default(), &source, &unc);
+        assert!(!plain.contains("\n[effects"), "{plain}");
+        let back = CalibrationFile::parse(&plain, "plain.toml").expect("parses");
+        assert_eq!(back.effects, Effects::default());
+    }
+
+    #[test]
+    fn an_effects_section_written_by_hand_is_read() {
+        let base = model_file_toml(
+            &GyroModel::default(),
+            &Effects::default(),
+            &Source::default(),
+            &Uncertainty::default(),
+        );
+        let text = format!(
+            "{base}\n[effects]\nearth_rate = true\nwarm_up = {{ amplitude_rad_s = 1e-7, \
+             time_constant_s = 900 }}\n"
+        );
+        let f = CalibrationFile::parse(&text, "m.toml").expect("parses");
+        assert!(f.effects.earth_rate);
+        assert_eq!(
+            f.effects.warm_up,
+            Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 })
+        );
+    }
+
+    #[test]
+    fn bad_effects_are_located_and_refused_by_the_writer() {
+        let base = model_file_toml(
+            &GyroModel::default(),
+            &Effects::default(),
+            &Source::default(),
+            &Uncertainty::default(),
+        );
+        // The effect's line: right after the `[effects]` header appended below.
+        let line = format!("{base}\n[effects]\n").lines().count() + 1;
+        let bad = |effects: &str| {
+            CalibrationFile::parse(&format!("{base}\n[effects]\n{effects}\n"), "m.toml")
+                .expect_err("rejected")
+                .to_string()
+        };
+        assert_eq!(
+            bad("warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 0 }"),
+            format!(
+                "m.toml:{line}:55: [effects] warm_up.time_constant_s = 0: must be greater than zero"
+            )
+        );
+        assert_eq!(
+            bad("bias_step = { time_s = inf, step_rad_s = 1e-9 }"),
+            format!("m.toml:{line}:24: [effects] bias_step.time_s = inf: must be a finite number")
+        );
+        let e = bad("warmup = { amplitude_rad_s = 1e-7, time_constant_s = 9 }");
+        assert!(e.starts_with(&format!("m.toml:{line}:1: unknown field `warmup`")), "{e}");
+        assert!(e.contains("`warm_up`"), "{e}");
+        let e = bad("warm_up = { amplitude_rad_s = 1e-7 }");
+        assert!(
+            e.starts_with(&format!("m.toml:{line}:11: missing field `time_constant_s`")),
+            "{e}"
+        );
+        let e = bad("warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 9, tau_s = 1 }");
+        assert!(
+            e.starts_with(&format!("m.toml:{line}:")) && e.contains("unknown field `tau_s`"),
+            "{e}"
+        );
+
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("bad.toml");
+        let mut effects = fitted();
+        effects.thermal_lag = Some(ThermalLag { time_constant_s: -1.0 });
+        let e = write_model_file(
+            &path,
+            &GyroModel::default(),
+            &effects,
+            &Source::default(),
+            &Uncertainty::default(),
+        )
+        .expect_err("refused");
+        assert!(e.to_string().contains("thermal_lag.time_constant_s"), "{e}");
+        assert!(!path.exists());
+    }
+}

@@ -1,0 +1,436 @@
+//! The report page: one self-contained HTML document (inline CSS, figures as inline SVG, no
+//! script, nothing fetched). Every text taken from the recording or from an error message is
+//! escaped.
+
+use std::fmt::Write as _;
+
+use bench_analysis::allan_fit::{NoiseTerm, FLICKER_FLOOR_FACTOR};
+use bench_analysis::calibrate::{thermal_bias, ThermalErrorRemoval, WindowKind};
+use bench_analysis::Direction;
+use bench_physics::units::{DEG_PER_H, DEG_PER_SQRT_H};
+use bench_physics::GyroModel;
+
+use super::figures::Figure;
+use crate::calibrate::{CalibrationOutcome, FunctionErrors};
+use crate::render::{escape, figures_html, sig, STYLE};
+
+/// `value ± σ`.
+fn pm(value: f64, sigma: f64) -> String {
+    format!("{} ± {}", sig(value, 4), sig(sigma, 2))
+}
+
+/// Conversion from `bench.gyro_model` units to the report's, with the unit's name.
+#[derive(Clone, Copy)]
+struct Unit {
+    name: &'static str,
+    per_si: f64,
+}
+
+const RATE: Unit = Unit { name: "°/h", per_si: 1.0 / DEG_PER_H };
+const PPM: Unit = Unit { name: "ppm", per_si: 1e6 };
+const TEMP_COEFF: Unit = Unit { name: "°/h per °C", per_si: 1.0 / DEG_PER_H };
+/// rad/s per (°C/s) → °/h per (°C/min): one °C/min is 1/60 °C/s.
+const TEMP_RATE_COEFF: Unit = Unit { name: "°/h per °C/min", per_si: 1.0 / (60.0 * DEG_PER_H) };
+
+fn kind_text(k: WindowKind) -> &'static str {
+    match k {
+        WindowKind::Plateau => "plateau",
+        WindowKind::Ramp => "ramp",
+        WindowKind::Static => "static",
+    }
+}
+
+fn direction_text(d: Direction) -> &'static str {
+    match d {
+        Direction::Cw => "CW",
+        Direction::Ccw => "CCW",
+        Direction::Rest => "rest",
+    }
+}
+
+/// The coefficient rows: (name, unit, joint (value, σ), seed value, truth value).
+fn coefficient_rows(o: &CalibrationOutcome) -> String {
+    let joint = o.calibration.joint.as_ref().ok();
+    let seed = o.calibration.seed.as_ref().ok();
+    let t0 = o.calibration.options.reference_temperature_c;
+    let truth = o.truth.as_ref().map(|t| &t.model);
+    // The truth's bias at the calibration's T0 (its own T0 may differ).
+    let truth_bias = truth.map(|m| thermal_bias(m, t0, 0.0));
+    // (name, unit, joint (value, σ), seed value, truth value), SI.
+    type Row<'a> = (&'a str, Unit, Option<(f64, f64)>, Option<f64>, Option<f64>);
+    let rows: [Row; 4] = [
+        (
+            "bias at T0",
+            RATE,
+            joint.map(|j| (j.bias.value, j.bias.std_err)),
+            seed.map(|s| s.bias_rad_s),
+            truth_bias,
+        ),
+        (
+            "scale-factor error (k_sf − 1)",
+            PPM,
+            joint.map(|j| (j.scale_factor_error.value, j.scale_factor_error.std_err)),
+            None,
+            truth.map(|m| m.scale_factor_error),
+        ),
+        (
+            "temp_coeff (k_t slope)",
+            TEMP_COEFF,
+            joint.map(|j| (j.temp_coeff.value, j.temp_coeff.std_err)),
+            seed.map(|s| s.temp_coeff),
+            truth.map(|m| m.temp_coeff),
+        ),
+        (
+            "temp_rate_coeff (k_dt)",
+            TEMP_RATE_COEFF,
+            joint.map(|j| (j.temp_rate_coeff.value, j.temp_rate_coeff.std_err)),
+            seed.and_then(|s| s.temp_rate_coeff),
+            truth.map(|m| m.temp_rate_coeff),
+        ),
+    ];
+    let mut out = String::new();
+    for (name, unit, j, s, t) in rows {
+        let k = unit.per_si;
+        let jt = j.map_or("—".into(), |(v, e)| pm(v * k, e * k));
+        let st = s.map_or_else(
+            || if name.starts_with("scale") { "not fitted".into() } else { "—".into() },
+            |v| sig(v * k, 4),
+        );
+        let (tt, jd, sd) = match t {
+            Some(t) => (
+                sig(t * k, 4),
+                j.map_or("—".into(), |(v, e)| {
+                    let d = v - t;
+                    let z = if e > 0.0 { format!(" ({:.1}σ)", d / e) } else { String::new() };
+                    format!("{}{z}", sig(d * k, 3))
+                }),
+                s.map_or("—".into(), |v| sig((v - t) * k, 3)),
+            ),
+            None => ("—".into(), "—".into(), "—".into()),
+        };
+        let _ = writeln!(
+            out,
+            "<tr><td class=l>{}</td><td class=l>{}</td><td>{jt}</td><td>{st}</td><td>{tt}</td>\
+             <td>{jd}</td><td>{sd}</td></tr>",
+            escape(name),
+            escape(unit.name)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "<tr><td class=l>reference temperature T0</td><td class=l>°C</td><td>{}</td><td>{}</td>\
+         <td>{}</td><td></td><td></td></tr>",
+        sig(t0, 4),
+        seed.map_or("—".into(), |s| sig(s.reference_temperature_c, 4)),
+        truth.map_or("—".into(), |m| sig(m.reference_temperature, 4)),
+    );
+    out
+}
+
+fn function_error_row(name: &str, f: Option<&FunctionErrors>) -> String {
+    match f {
+        Some(f) => format!(
+            "<tr><td class=l>{name}</td><td>{}</td><td>{}</td></tr>",
+            sig(f.delta_k_t_rad_s / DEG_PER_H, 3),
+            sig(f.delta_k_dt_rad_s / DEG_PER_H, 3)
+        ),
+        None => format!("<tr><td class=l>{name}</td><td>—</td><td>—</td></tr>"),
+    }
+}
+
+fn removal_row(name: &str, r: Option<&ThermalErrorRemoval>) -> String {
+    match r {
+        Some(r) => format!(
+            "<tr><td class=l>{name}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            sig(r.rms_uncalibrated_rad_s / DEG_PER_H, 3),
+            sig(r.rms_calibrated_rad_s / DEG_PER_H, 3),
+            format_args!("{:.1} %", 100.0 * r.removed())
+        ),
+        None => format!("<tr><td class=l>{name}</td><td>—</td><td>—</td><td>—</td></tr>"),
+    }
+}
+
+fn noise_row(name: &str, unit: &str, t: &NoiseTerm, truth: Option<f64>) -> String {
+    format!(
+        "<tr><td class=l>{name}</td><td class=l>{unit}</td><td>{}</td><td>{} … {}</td><td>{}</td>\
+         <td>{}</td><td>{}</td></tr>",
+        sig(t.value, 3),
+        sig(t.low, 3),
+        sig(t.high, 3),
+        sig(t.tau_s, 3),
+        if t.upper_bound { "upper bound (never dominates)" } else { "tangent" },
+        truth.map_or("—".into(), |v| sig(v, 3)),
+    )
+}
+
+fn model_summary(m: &GyroModel) -> String {
+    format!(
+        "bias {} °/h, scale-factor error {} ppm, temp_coeff {} °/h per °C, temp_rate_coeff {} \
+         °/h per °C/min at T0 = {} °C",
+        sig(m.bias / DEG_PER_H, 4),
+        sig(m.scale_factor_error * 1e6, 4),
+        sig(m.temp_coeff / DEG_PER_H, 4),
+        sig(m.temp_rate_coeff * TEMP_RATE_COEFF.per_si, 4),
+        sig(m.reference_temperature, 4)
+    )
+}
+
+/// The whole page; `figures` pairs each figure with its SVG document.
+pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, String)]) -> String {
+    let src = escape(source);
+    let opts = &o.calibration.options;
+    let mut h = String::with_capacity(64 * 1024 + figures.iter().map(|f| f.1.len()).sum::<usize>());
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=en>\n<head>\n<meta charset=utf-8>\n\
+         <meta name=viewport content=\"width=device-width, initial-scale=1\">\n\
+         <title>Calibration report: {src}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n\
+         <h1>FOG thermal calibration report</h1>\n<p>Recording: <b>{src}</b></p>\n"
+    );
+
+    // Setting.
+    let d = &o.data;
+    let duration = match (d.run.series.gyro_time_s.first(), d.run.series.gyro_time_s.last()) {
+        (Some(a), Some(b)) => b - a,
+        _ => 0.0,
+    };
+    let _ = writeln!(
+        h,
+        "<ul>\n<li>Run: {} h, {} good gyro samples, {} record window(s).</li>\n\
+         <li>Site: {}; sensing axis {}.</li>\n\
+         <li>Model temperature: {}{}; dT/dt by local linear regression over {} s.</li>\n\
+         <li>Error model: V − Ω_in = bias + s·Ω_in + temp_coeff·(T − T0) + temp_rate_coeff·dT/dt, \
+         Ω_in = table rate + Earth's rate along the axis.</li>\n</ul>",
+        sig(duration / 3600.0, 3),
+        d.run.series.gyro_time_s.len(),
+        d.spans.len(),
+        match d.run.series.latitude_deg.or(opts.latitude_deg) {
+            Some(l) => format!("latitude {} °, Earth's rate removed", sig(l, 5)),
+            None => "no latitude: Earth's rate stays in the bias".into(),
+        },
+        if opts.axis_up { "up" } else { "down" },
+        if d.run.gyro_sensor() { "the gyro's own sensor" } else { "chamber air" },
+        match &o.calibration.lag {
+            Some(Ok(l)) if l.used_s > 0.0 => format!(" through a {} s lag", sig(l.used_s, 3)),
+            _ => String::new(),
+        },
+        sig(opts.rate_window_s, 3)
+    );
+
+    // Coefficients.
+    let _ = writeln!(
+        h,
+        "<h2>Coefficients</h2>\n<table>\n<tr><th class=l>coefficient</th><th class=l>unit</th>\
+         <th>joint fit (±1σ)</th><th>seed method</th><th>truth</th><th>joint − truth</th>\
+         <th>seed − truth</th></tr>\n{}</table>",
+        coefficient_rows(o)
+    );
+    let mut notes = Vec::new();
+    if let Err(e) = &o.calibration.joint {
+        notes.push(format!("Joint fit failed: {e}"));
+    }
+    if let Err(e) = &o.calibration.seed {
+        notes.push(format!("Seed method failed: {e}"));
+    }
+    if o.truth.is_none() {
+        notes.push("The recording carries no bench.gyro_model: no truth to compare with.".into());
+    } else {
+        notes.push(
+            "Truth: the recording's bench.gyro_model (the simulator's model for a simulated run); \
+             its bias is given at the calibration's T0. The joint − truth column gives the \
+             error in units of the joint fit's σ in brackets."
+                .into(),
+        );
+    }
+    notes.push(
+        "σ: the joint fit's stated standard error (it accounts for coloured noise; see the \
+         analysis' joint-fit docs). The seed method states no uncertainty and does not fit the \
+         scale factor."
+            .into(),
+    );
+    for n in &notes {
+        let _ = writeln!(h, "<p class=note>{}</p>", escape(n));
+    }
+    if let Some(m) = &o.model {
+        let _ = writeln!(
+            h,
+            "<p class=note>Calibrated model (joint): {}.</p>",
+            escape(&model_summary(m))
+        );
+    }
+
+    // Function errors and thermal error removed.
+    if let Some(t) = &o.truth {
+        let _ = writeln!(
+            h,
+            "<h2>Error functions against the truth</h2>\n<p class=note>The seed's Δk_t = \
+             max |k_t,true(T) − k_t,fit(T)| over the windows' temperature range {} … {} °C (bias \
+             included) and Δk_dt = max |(k_dt,true − k_dt,fit)·dT/dt| over their dT/dt range \
+             {} … {} °C/min.</p>\n<table>\n<tr><th class=l>method</th><th>Δk_t, °/h</th>\
+             <th>Δk_dt, °/h</th></tr>\n{}\n{}\n</table>",
+            sig(o.temp_range_c.0, 3),
+            sig(o.temp_range_c.1, 3),
+            sig(o.rate_range_c_s.0 * 60.0, 3),
+            sig(o.rate_range_c_s.1 * 60.0, 3),
+            function_error_row("joint fit", t.joint.as_ref()),
+            function_error_row("seed method", t.seed.as_ref()),
+        );
+        let _ = writeln!(
+            h,
+            "<h2>Thermal error removed</h2>\n<p class=note>Over the whole run's model \
+             temperature: RMS of the true thermal error k_t·(T − T0) + k_dt·dT/dt, and of what \
+             remains after subtracting the fitted bias and thermal terms from the true ones.</p>\n\
+             <table>\n<tr><th class=l>method</th><th>RMS before, °/h</th><th>RMS after, °/h</th>\
+             <th>removed</th></tr>\n{}\n{}\n</table>",
+            removal_row("joint fit", t.joint_removal.as_ref()),
+            removal_row("seed method", t.seed_removal.as_ref()),
+        );
+    }
+
+    // Noise terms.
+    let _ = writeln!(h, "<h2>Noise terms (IEEE 952, from the Allan deviation)</h2>");
+    match &o.calibration.allan {
+        Ok(a) => {
+            let f = &a.fit;
+            let truth = o.truth.as_ref().map(|t| &t.model);
+            let _ = writeln!(
+                h,
+                "<table>\n<tr><th class=l>term</th><th class=l>unit</th><th>value</th>\
+                 <th>{:.0} % interval</th><th>τ read, s</th><th class=l>read at</th>\
+                 <th>truth</th></tr>\n{}\n{}\n{}\n</table>\n<p class=note>B is IEEE 952's bias \
+                 instability (the flicker floor of the ADEV divided by 0.664); the contract's \
+                 bias_instability is the floor itself. The truth has no rate random walk.</p>",
+                f.confidence * 100.0,
+                noise_row(
+                    "N, angle random walk",
+                    "°/√h",
+                    &f.arw_deg_per_sqrt_h(),
+                    truth.map(|m| m.arw / DEG_PER_SQRT_H)
+                ),
+                noise_row(
+                    "B, bias instability",
+                    "°/h",
+                    &f.bias_instability_deg_per_h(),
+                    truth.map(|m| m.bias_instability / FLICKER_FLOOR_FACTOR / DEG_PER_H)
+                ),
+                noise_row(
+                    "K, rate random walk",
+                    "°/h/√h",
+                    &f.rate_random_walk_deg_per_h_per_sqrt_h(),
+                    truth.map(|_| 0.0)
+                ),
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(h, "<p class=bad>Not available: {}</p>", escape(&e.to_string()));
+        }
+    }
+
+    // Thermal lag.
+    let _ = writeln!(h, "<h2>Thermal lag</h2>");
+    let truth_tau = o.truth.as_ref().map(|t| t.model.thermal_time_constant);
+    match &o.calibration.lag {
+        None => {
+            let why = if o.data.run.gyro_sensor() {
+                "the model temperature is the gyro's own sensor"
+            } else if !o.calibration.windows.iter().any(|w| w.kind == WindowKind::Ramp) {
+                "no ramp window to tell it from"
+            } else {
+                "turned off"
+            };
+            let _ = writeln!(h, "<p>Not profiled: {why}; τ = 0.</p>");
+        }
+        Some(Err(e)) => {
+            let _ = writeln!(h, "<p class=bad>Profile failed: {}</p>", escape(&e.to_string()));
+        }
+        Some(Ok(l)) => {
+            let _ = writeln!(
+                h,
+                "<p>Best τ = {} s (interval {} … {} s); test statistic {} against the χ²₁ \
+                 threshold {} (n_eff = {}): {}. τ used: <b>{} s</b>{}.</p>",
+                sig(l.best_s, 3),
+                sig(l.interval_s.0, 3),
+                sig(l.interval_s.1, 3),
+                sig(l.statistic, 3),
+                sig(l.threshold, 3),
+                sig(l.n_eff, 3),
+                if l.significant() {
+                    "<span class=ok>the data tell the lag from zero</span>"
+                } else {
+                    "<span class=bad>the data cannot tell the lag from zero</span>"
+                },
+                sig(l.used_s, 3),
+                truth_tau.map_or(String::new(), |t| format!(" (truth {} s)", sig(t, 3))),
+            );
+        }
+    }
+
+    // Windows.
+    let _ = writeln!(
+        h,
+        "<h2>Record windows</h2>\n<table>\n<tr><th class=l>label</th><th class=l>kind</th>\
+         <th class=l>direction</th><th>start, h</th><th>duration, min</th><th>samples</th>\
+         <th>mean T, °C</th><th>T span, °C</th><th>table rate, °/min</th></tr>"
+    );
+    for (i, w) in o.calibration.windows.iter().enumerate() {
+        let start = match o.data.spans.get(i) {
+            Some(s) if s.label == w.label => Some(s.start_s),
+            _ => o.data.spans.iter().find(|s| s.label == w.label).map(|s| s.start_s),
+        };
+        let _ = writeln!(
+            h,
+            "<tr><td class=l>{}</td><td class=l>{}</td><td class=l>{}</td><td>{}</td><td>{}</td>\
+             <td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(&w.label),
+            kind_text(w.kind),
+            direction_text(w.direction),
+            start.map_or("—".into(), |s| format!("{:.3}", s / 3600.0)),
+            format_args!("{:.2}", w.duration_s / 60.0),
+            w.samples,
+            format_args!("{:.2}", w.mean_temp_c),
+            format_args!("{:.2}", w.temp_span_c),
+            sig(w.mean_table_rate_rad_s / bench_physics::units::DEG_PER_MIN, 4),
+        );
+    }
+    let _ = writeln!(h, "</table>");
+
+    // What the data lack.
+    let _ = writeln!(h, "<h2>What the data lack</h2>");
+    if o.calibration.missing.is_empty() {
+        let _ = writeln!(h, "<p>Nothing: every term could be estimated.</p>");
+    } else {
+        let _ = writeln!(h, "<ul class=missing>");
+        for m in &o.calibration.missing {
+            let _ = writeln!(h, "<li>{}</li>", escape(m));
+        }
+        let _ = writeln!(h, "</ul>");
+    }
+
+    // Figures.
+    let _ = writeln!(h, "<h2>Figures</h2>");
+    h.push_str(&figures_html(figures));
+    h.push_str("</body>\n</html>\n");
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escaping_covers_markup() {
+        assert_eq!(escape("a<b & \"c\" 'd'>"), "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;");
+    }
+
+    #[test]
+    fn significant_digits() {
+        assert_eq!(sig(1234.5678, 4), "1235");
+        assert_eq!(sig(0.012345, 3), "0.0123");
+        assert_eq!(sig(-2.5, 2), "-2.5");
+        assert_eq!(sig(1.5e-7, 3), "1.50e-7");
+        assert_eq!(sig(f64::NAN, 3), "n/a");
+        assert_eq!(sig(0.0, 3), "0");
+        assert_eq!(sig(-9.99999, 4), "-10.00");
+        assert_eq!(sig(0.099996, 3), "0.100");
+    }
+}

@@ -1,0 +1,92 @@
+//! `bench diagnose`: where a recording departs from the simulation of the same run, which
+//! physics the model left out, and the model with it put in.
+//!
+//! [`crate::load`] turns a recording (any writer's, per the contract) into the whole run's
+//! arrays ([`bench_analysis::run::RunSeries`]) and its nominal model (`bench.gyro_model`, its
+//! `effect.*` keys included); [`diagnose_recording`] runs
+//! [`bench_analysis::diagnose::diagnose`], then **re-simulates** the run with the updated model
+//! (the same physics, [`bench_physics::effects`], driven by the recording's inputs) to show
+//! the fit it gives; [`json`] writes the machine-readable result (`docs/diagnose.md`);
+//! [`report`] the HTML/SVG/PNG report.
+
+pub mod json;
+pub mod report;
+
+use std::path::Path;
+
+use bench_analysis::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use bench_analysis::AnalysisError;
+use bench_physics::effects::Effects;
+use bench_physics::GyroModel;
+use bench_recording::{Recording, RecordingError};
+
+use crate::load::{LoadError, RunData};
+
+/// Why a recording cannot be diagnosed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// The recording could not be read.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The recording's arrays could not be read.
+    #[error(transparent)]
+    Load(#[from] LoadError),
+    /// No nominal model: neither `--model` nor `bench.gyro_model`.
+    #[error(
+        "no nominal model: the recording has no bench.gyro_model metadata; give one with \
+         --model MODEL.toml"
+    )]
+    NoModel,
+    /// The analysis rejected the data.
+    #[error(transparent)]
+    Analysis(#[from] AnalysisError),
+}
+
+/// A diagnosis with its inputs and the re-simulation under the updated model.
+#[derive(Debug, Clone)]
+pub struct DiagnoseOutcome {
+    /// What was read.
+    pub data: RunData,
+    /// The nominal model used, and where it came from (`--model` path or `bench.gyro_model`).
+    pub nominal: (GyroModel, Effects, String),
+    /// The settings it ran with.
+    pub options: DiagnoseOptions,
+    /// The diagnosis.
+    pub diagnosis: Diagnosis,
+    /// The same run diagnosed against the updated model (the re-simulation): its residual
+    /// RMS and verdict show whether the updated model file reproduces the recording.
+    pub resimulated: Option<Diagnosis>,
+}
+
+/// Diagnose `rec` against `nominal` (model, effects, source name) or else the recording's own
+/// `bench.gyro_model`.
+pub fn diagnose_recording(
+    rec: &Recording,
+    nominal: Option<(GyroModel, Effects, String)>,
+    opts: &DiagnoseOptions,
+) -> Result<DiagnoseOutcome, DiagnoseError> {
+    let data = crate::load::load(rec)?;
+    let nominal = match nominal {
+        Some(n) => n,
+        None => {
+            let m = data.model.clone().ok_or(DiagnoseError::NoModel)?;
+            (m.model, m.effects, "bench.gyro_model".into())
+        }
+    };
+    let diagnosis = diagnose(&data.series, &nominal.0, &nominal.1, opts)?;
+    // The re-simulation needs the residual and the verdict on parameters, not a new search.
+    let resim_opts = DiagnoseOptions { max_effects: 0, ..opts.clone() };
+    let resimulated =
+        diagnose(&data.series, &diagnosis.model, &diagnosis.effects, &resim_opts).ok();
+    Ok(DiagnoseOutcome { data, nominal, options: opts.clone(), diagnosis, resimulated })
+}
+
+/// [`diagnose_recording`] on a file.
+pub fn diagnose_file(
+    path: &Path,
+    nominal: Option<(GyroModel, Effects, String)>,
+    opts: &DiagnoseOptions,
+) -> Result<DiagnoseOutcome, DiagnoseError> {
+    let rec = Recording::load(path)?;
+    diagnose_recording(&rec, nominal, opts)
+}

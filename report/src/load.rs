@@ -1,0 +1,247 @@
+//! From a recording to the analyses' inputs: the one loader that calibration and diagnosis share.
+//!
+//! - **Time zero**: [`Recording::time_zero_ns`] (the earliest message on the contract's four
+//!   channels); every time in [`RunSeries`] is in seconds from it.
+//! - **Gyro**: samples whose `status` is 0 and whose rate is finite, in time order; a repeated
+//!   time stamp keeps its first sample. Samples left out are counted, with their times.
+//! - **Gyro temperature**: the gyro's own sensor where it reads on more than half of the kept
+//!   samples (gaps filled linearly); otherwise none, and the analyses use chamber air.
+//! - **Table and chamber**: every reading with finite values, in time order.
+//! - **Steps**: each `start` event paired with the same step's next `end` or `abort`; a step
+//!   the file does not end runs to the last gyro sample.
+//! - **Site and model**: `bench.site` ([`bench_recording::Site::from_metadata`]) and
+//!   `bench.gyro_model` with its `effect.*` keys.
+
+use std::collections::BTreeMap;
+
+use bench_analysis::interp::interp_at;
+use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
+use bench_physics::effects::Effects;
+use bench_physics::GyroModel;
+use bench_recording::reader::seconds_since;
+use bench_recording::schema::{META_GYRO_MODEL, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE};
+use bench_recording::{MetadataError, Recording, StepEvent};
+
+/// Why a recording cannot be turned into arrays.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// A required channel is missing or nearly empty.
+    #[error("{topic}: {messages} usable message(s); the analysis needs this channel")]
+    MissingChannel {
+        /// Channel.
+        topic: &'static str,
+        /// Usable messages.
+        messages: usize,
+    },
+    /// `bench.site` is not as the contract says.
+    #[error(transparent)]
+    Site(#[from] MetadataError),
+    /// `bench.gyro_model` has a value that is not a number, or an incomplete effect.
+    #[error("metadata bench.gyro_model: {0}")]
+    BadModel(String),
+}
+
+/// The gyro model a recording carries in `bench.gyro_model`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedModel {
+    /// The contract's keys.
+    pub model: GyroModel,
+    /// Effects beyond it (`effect.*` keys).
+    pub effects: Effects,
+    /// Keys neither knows, kept to be reported.
+    pub unknown_keys: BTreeMap<String, String>,
+}
+
+/// A recording as arrays.
+#[derive(Debug, Clone)]
+pub struct RunData {
+    /// The run's arrays, times in s from [`Self::zero_ns`].
+    pub series: RunSeries,
+    /// Time zero, ns since the Unix epoch.
+    pub zero_ns: u64,
+    /// `bench.gyro_model`, if the recording has one.
+    pub model: Option<RecordedModel>,
+    /// Times (s) of gyro samples left out for a non-zero status or a non-finite rate.
+    pub bad_gyro_time_s: Vec<f64>,
+    /// Median gyro sample interval, s.
+    pub gyro_dt_s: f64,
+}
+
+impl RunData {
+    /// Whether the gyro's own temperature sensor is used.
+    pub fn gyro_sensor(&self) -> bool {
+        self.series.gyro_temp_c.is_some()
+    }
+
+    /// Gyro samples left out within `(start_s, end_s]`.
+    pub fn bad_gyro_samples_in(&self, start_s: f64, end_s: f64) -> usize {
+        let t = &self.bad_gyro_time_s;
+        t.partition_point(|&x| x <= end_s) - t.partition_point(|&x| x <= start_s)
+    }
+
+    /// The record steps (labels starting with `record`), in time order.
+    pub fn record_steps(&self) -> impl Iterator<Item = &StepSpan> {
+        self.series.steps.iter().filter(|s| s.is_record())
+    }
+}
+
+/// Keep only strictly increasing times (a duplicate time stamp keeps its first sample).
+fn strictly_increasing(t: &mut Vec<f64>, cols: &mut [&mut Vec<f64>]) {
+    let mut keep = 0;
+    for i in 0..t.len() {
+        if keep == 0 || t[i] > t[keep - 1] {
+            t[keep] = t[i];
+            for c in cols.iter_mut() {
+                c[keep] = c[i];
+            }
+            keep += 1;
+        }
+    }
+    t.truncate(keep);
+    for c in cols.iter_mut() {
+        c.truncate(keep);
+    }
+}
+
+/// `bench.gyro_model` with its effects, if the recording has one.
+pub fn recorded_model(rec: &Recording) -> Result<Option<RecordedModel>, LoadError> {
+    let Some(meta) = rec.metadata(META_GYRO_MODEL) else { return Ok(None) };
+    let (model, unknown) =
+        GyroModel::from_metadata(meta).map_err(|e| LoadError::BadModel(e.to_string()))?;
+    let effects = Effects::from_metadata(meta).map_err(LoadError::BadModel)?;
+    let unknown_keys = unknown
+        .into_iter()
+        .filter(|(k, _)| !k.starts_with(bench_physics::effects::METADATA_PREFIX))
+        .collect();
+    Ok(Some(RecordedModel { model, effects, unknown_keys }))
+}
+
+/// Read the run's arrays from `rec` (module docs).
+pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
+    let need = |topic, n: usize| {
+        if n < 2 {
+            Err(LoadError::MissingChannel { topic, messages: n })
+        } else {
+            Ok(())
+        }
+    };
+    need(TOPIC_GYRO, rec.gyro.len())?;
+    need(TOPIC_TABLE, rec.table.len())?;
+    need(TOPIC_CHAMBER, rec.chamber.len())?;
+    let zero_ns = rec.time_zero_ns().unwrap_or(0);
+    let secs = |ns: u64| seconds_since(zero_ns, ns);
+    let site = rec.site()?;
+
+    let mut gyro_time_s = Vec::with_capacity(rec.gyro.len());
+    let mut gyro_rate = Vec::with_capacity(rec.gyro.len());
+    let mut gyro_temp = Vec::with_capacity(rec.gyro.len());
+    let mut bad_gyro_time_s = Vec::new();
+    for g in &rec.gyro {
+        if g.msg.status != 0 || !g.msg.rate_rad_s.is_finite() {
+            bad_gyro_time_s.push(secs(g.log_time_ns));
+            continue;
+        }
+        gyro_time_s.push(secs(g.log_time_ns));
+        gyro_rate.push(g.msg.rate_rad_s);
+        gyro_temp.push(g.msg.temperature_c.filter(|t| t.is_finite()).unwrap_or(f64::NAN));
+    }
+    bad_gyro_time_s.sort_by(f64::total_cmp);
+    strictly_increasing(&mut gyro_time_s, &mut [&mut gyro_rate, &mut gyro_temp]);
+    need(TOPIC_GYRO, gyro_time_s.len())?;
+    let readings = gyro_temp.iter().filter(|t| t.is_finite()).count();
+    let gyro_temp_c = (readings >= 2 && readings * 2 > gyro_temp.len()).then(|| {
+        let (ts, vs): (Vec<f64>, Vec<f64>) = gyro_time_s
+            .iter()
+            .zip(&gyro_temp)
+            .filter(|(_, v)| v.is_finite())
+            .map(|(t, v)| (*t, *v))
+            .unzip();
+        let filled = interp_at(&ts, &vs, &gyro_time_s);
+        gyro_temp.iter().zip(filled).map(|(v, f)| if v.is_finite() { *v } else { f }).collect()
+    });
+    let mut dts: Vec<f64> = gyro_time_s.windows(2).map(|w| w[1] - w[0]).collect();
+    dts.sort_by(f64::total_cmp);
+    let gyro_dt_s = dts[dts.len() / 2];
+
+    let mut table_time_s = Vec::with_capacity(rec.table.len());
+    let mut angle = Vec::with_capacity(rec.table.len());
+    let mut command = Vec::with_capacity(rec.table.len());
+    for t in &rec.table {
+        if t.msg.angle_rad.is_finite() && t.msg.rate_command_rad_s.is_finite() {
+            table_time_s.push(secs(t.log_time_ns));
+            angle.push(t.msg.angle_rad);
+            command.push(t.msg.rate_command_rad_s);
+        }
+    }
+    strictly_increasing(&mut table_time_s, &mut [&mut angle, &mut command]);
+    let mut chamber_time_s = Vec::with_capacity(rec.chamber.len());
+    let mut air = Vec::with_capacity(rec.chamber.len());
+    for c in rec.chamber.iter().filter(|c| c.msg.temperature_c.is_finite()) {
+        chamber_time_s.push(secs(c.log_time_ns));
+        air.push(c.msg.temperature_c);
+    }
+    strictly_increasing(&mut chamber_time_s, &mut [&mut air]);
+    need(TOPIC_TABLE, table_time_s.len())?;
+    need(TOPIC_CHAMBER, chamber_time_s.len())?;
+
+    // Steps: each start paired with the same step's next end or abort.
+    let mut events = rec.steps.clone();
+    events.sort_by_key(|s| s.log_time_ns);
+    let last_s = gyro_time_s.last().copied().unwrap_or(0.0);
+    let mut steps = Vec::new();
+    for (i, s) in events.iter().enumerate() {
+        if s.msg.event != StepEvent::Start {
+            continue;
+        }
+        let end = events[i + 1..]
+            .iter()
+            .find(|e| e.msg.index == s.msg.index && e.msg.event != StepEvent::Start);
+        let (end_s, ended) = match end {
+            Some(e) if e.msg.event == StepEvent::Abort => (secs(e.log_time_ns), StepEnd::Abort),
+            Some(e) => (secs(e.log_time_ns), StepEnd::End),
+            None => (last_s, StepEnd::Missing),
+        };
+        steps.push(StepSpan {
+            index: s.msg.index,
+            name: s.msg.name.clone(),
+            label: s.msg.label.clone(),
+            start_s: secs(s.log_time_ns),
+            end_s,
+            ended,
+        });
+    }
+
+    Ok(RunData {
+        series: RunSeries {
+            gyro_time_s,
+            gyro_rate_rad_s: gyro_rate,
+            gyro_temp_c,
+            table_time_s,
+            table_angle_rad: angle,
+            table_rate_command_rad_s: command,
+            chamber_time_s,
+            chamber_temp_c: air,
+            steps,
+            latitude_deg: site.map(|s| s.latitude_deg),
+            axis_up: site.is_none_or(|s| s.axis_up()),
+        },
+        zero_ns,
+        model: recorded_model(rec)?,
+        bad_gyro_time_s,
+        gyro_dt_s,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn duplicate_time_stamps_keep_the_first_sample() {
+        let mut t = vec![0.0, 1.0, 1.0, 2.0];
+        let mut v = vec![1.0, 2.0, 3.0, 4.0];
+        strictly_increasing(&mut t, &mut [&mut v]);
+        assert_eq!(t, vec![0.0, 1.0, 2.0]);
+        assert_eq!(v, vec![1.0, 2.0, 4.0]);
+    }
+}

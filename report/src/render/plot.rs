@@ -1,0 +1,544 @@
+//! A small plot description and its renderer: one description drawn by `plotters` to an SVG
+//! string (for the HTML page) and to an RGB bitmap (for the PNG), so both show the same figure.
+//!
+//! Text goes through `plotters`' `ab_glyph` path with DejaVu Sans embedded in the binary: no
+//! system font, fontconfig or freetype is needed to lay out or rasterise a label.
+
+use std::sync::OnceLock;
+
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+/// DejaVu Sans (Bitstream Vera licence, `report/assets/fonts/DejaVu-LICENSE.txt`).
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Register the embedded font under the family names `plotters` asks for. Idempotent; returns
+/// whether the font could be read.
+pub(crate) fn register_fonts() -> bool {
+    static DONE: OnceLock<bool> = OnceLock::new();
+    *DONE.get_or_init(|| {
+        ["sans-serif", "serif", "monospace"]
+            .iter()
+            .all(|name| plotters::style::register_font(name, FontStyle::Normal, FONT).is_ok())
+    })
+}
+
+/// Colours of the report (a colour-blind-safe set, Okabe–Ito).
+pub(crate) mod colour {
+    use plotters::style::RGBColor;
+    /// Blue.
+    pub const BLUE: RGBColor = RGBColor(0, 114, 178);
+    /// Vermillion.
+    pub const RED: RGBColor = RGBColor(213, 94, 0);
+    /// Bluish green.
+    pub const GREEN: RGBColor = RGBColor(0, 158, 115);
+    /// Orange.
+    pub const ORANGE: RGBColor = RGBColor(230, 159, 0);
+    /// Reddish purple.
+    pub const PURPLE: RGBColor = RGBColor(204, 121, 167);
+    /// Sky blue.
+    pub const SKY: RGBColor = RGBColor(86, 180, 233);
+    /// Near black.
+    pub const BLACK: RGBColor = RGBColor(30, 30, 30);
+    /// Grey.
+    pub const GREY: RGBColor = RGBColor(120, 120, 120);
+}
+
+/// One axis.
+#[derive(Debug, Clone)]
+pub(crate) struct Axis {
+    /// Description with unit.
+    pub label: String,
+    /// Logarithmic scale (only positive values are drawn).
+    pub log: bool,
+    /// Fixed range; `None` fits the data.
+    pub range: Option<(f64, f64)>,
+}
+
+impl Axis {
+    /// A linear axis fitted to the data.
+    pub fn linear(label: impl Into<String>) -> Self {
+        Self { label: label.into(), log: false, range: None }
+    }
+    /// A logarithmic axis fitted to the data.
+    pub fn log(label: impl Into<String>) -> Self {
+        Self { label: label.into(), log: true, range: None }
+    }
+}
+
+/// Marker shapes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Marker {
+    /// Filled circle.
+    Circle,
+    /// Filled triangle.
+    Triangle,
+    /// Diagonal cross.
+    Cross,
+}
+
+/// A marker at `(x, y)` with an optional vertical error bar `(low, high)`.
+pub(crate) type MarkerPoint = (f64, f64, Option<(f64, f64)>);
+
+/// Something drawn in a panel; points are `(x, y)` in axis units. Non-finite points (and, on a
+/// log axis, non-positive ones) are skipped.
+#[derive(Debug, Clone)]
+pub(crate) enum Item {
+    /// A polyline.
+    Line {
+        /// Legend entry.
+        label: Option<String>,
+        /// Colour.
+        colour: RGBColor,
+        /// Stroke width, px.
+        width: u32,
+        /// Dashed.
+        dashed: bool,
+        /// Points in drawing order.
+        points: Vec<(f64, f64)>,
+    },
+    /// A filled band between two curves sampled at the same x.
+    Band {
+        /// Legend entry.
+        label: Option<String>,
+        /// Colour (drawn translucent).
+        colour: RGBColor,
+        /// `(x, low, high)`.
+        points: Vec<(f64, f64, f64)>,
+    },
+    /// Markers, optionally with vertical error bars.
+    Markers {
+        /// Legend entry.
+        label: Option<String>,
+        /// Colour.
+        colour: RGBColor,
+        /// Shape.
+        shape: Marker,
+        /// `(x, y, Some((low, high)))`.
+        points: Vec<MarkerPoint>,
+    },
+}
+
+/// A shaded x interval (e.g. a record window on a time axis).
+#[derive(Debug, Clone)]
+pub(crate) struct Span {
+    /// Start, x units.
+    pub x0: f64,
+    /// End, x units.
+    pub x1: f64,
+    /// Colour (drawn translucent).
+    pub colour: RGBColor,
+    /// Legend entry; spans sharing a label share one entry.
+    pub label: String,
+}
+
+/// One panel.
+#[derive(Debug, Clone)]
+pub(crate) struct Plot {
+    /// Panel caption.
+    pub title: String,
+    /// x axis.
+    pub x: Axis,
+    /// y axis.
+    pub y: Axis,
+    /// Shaded x intervals, drawn under everything.
+    pub spans: Vec<Span>,
+    /// Contents, drawn in order.
+    pub items: Vec<Item>,
+    /// Text shown inside the panel (e.g. why it is empty, or an RMS).
+    pub note: Option<String>,
+}
+
+impl Plot {
+    /// An empty panel.
+    pub fn new(title: impl Into<String>, x: Axis, y: Axis) -> Self {
+        Self { title: title.into(), x, y, spans: Vec::new(), items: Vec::new(), note: None }
+    }
+}
+
+fn usable(v: f64, log: bool) -> bool {
+    v.is_finite() && (!log || v > 0.0)
+}
+
+fn point_ok(p: (f64, f64), x: &Axis, y: &Axis) -> bool {
+    usable(p.0, x.log) && usable(p.1, y.log)
+}
+
+/// The drawn range of an axis from the values seen, padded; a fixed range wins.
+fn fit_range(axis: &Axis, values: impl Iterator<Item = f64>) -> (f64, f64) {
+    if let Some(r) = axis.range {
+        return r;
+    }
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values.filter(|v| usable(*v, axis.log)) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if axis.log {
+        if !(lo.is_finite() && hi.is_finite()) {
+            return (0.1, 10.0);
+        }
+        decades(lo, hi)
+    } else {
+        if !(lo.is_finite() && hi.is_finite()) {
+            return (0.0, 1.0);
+        }
+        let span = hi - lo;
+        if span <= 1e-12 * lo.abs().max(hi.abs()).max(f64::MIN_POSITIVE) {
+            let d = if lo == 0.0 { 1.0 } else { 0.1 * lo.abs() };
+            return (lo - d, hi + d);
+        }
+        (lo - 0.04 * span, hi + 0.04 * span)
+    }
+}
+
+impl Plot {
+    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+        let mut xs = Vec::new();
+        let mut ys = Vec::new();
+        for item in &self.items {
+            match item {
+                Item::Line { points, .. } => {
+                    for &p in points.iter().filter(|p| point_ok(**p, &self.x, &self.y)) {
+                        xs.push(p.0);
+                        ys.push(p.1);
+                    }
+                }
+                Item::Band { points, .. } => {
+                    for &(x, lo, hi) in points {
+                        if usable(x, self.x.log) {
+                            xs.push(x);
+                            ys.extend([lo, hi]);
+                        }
+                    }
+                }
+                Item::Markers { points, .. } => {
+                    for &(x, y, bar) in points {
+                        if point_ok((x, y), &self.x, &self.y) {
+                            xs.push(x);
+                            ys.push(y);
+                            if let Some((lo, hi)) = bar {
+                                ys.extend([lo, hi]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for s in &self.spans {
+            xs.extend([s.x0, s.x1]);
+        }
+        (fit_range(&self.x, xs.into_iter()), fit_range(&self.y, ys.into_iter()))
+    }
+}
+
+/// `(lo, hi)` widened to whole decades (at least one), so that a log axis has labels.
+pub(crate) fn decades(lo: f64, hi: f64) -> (f64, f64) {
+    let a = lo.log10().floor();
+    let b = hi.log10().ceil().max(a + 1.0);
+    (10f64.powf(a), 10f64.powf(b))
+}
+
+/// Tick label: up to 6 significant digits, trailing zeros trimmed, exponent form outside
+/// 1e-3..1e6.
+pub(crate) fn tick(v: &f64) -> String {
+    let v = *v;
+    if v == 0.0 || !v.is_finite() {
+        return if v.is_finite() { "0".into() } else { v.to_string() };
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        let s = format!("{v:.2e}");
+        // 1.00e-5 → 1e-5, 2.50e4 → 2.5e4
+        let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
+        let m = m.trim_end_matches('0').trim_end_matches('.');
+        return format!("{m}e{e}");
+    }
+    let decimals = (5 - a.log10().floor() as i32).clamp(0, 9) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Draw `plot` into `area`.
+fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, plot: &Plot) -> DrawResult<DB> {
+    let ((x0, x1), (y0, y1)) = plot.ranges();
+    let mut b = ChartBuilder::on(area);
+    b.caption(&plot.title, ("sans-serif", 17))
+        .margin(10)
+        .margin_right(18)
+        .x_label_area_size(44)
+        .y_label_area_size(78);
+    match (plot.x.log, plot.y.log) {
+        (false, false) => draw_in(b.build_cartesian_2d(x0..x1, y0..y1)?, plot, (y0, y1)),
+        (true, true) => draw_in(
+            b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?,
+            plot,
+            (y0, y1),
+        ),
+        (true, false) => {
+            draw_in(b.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?, plot, (y0, y1))
+        }
+        (false, true) => {
+            draw_in(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?, plot, (y0, y1))
+        }
+    }
+}
+
+/// The legend swatch of a line.
+fn swatch(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style)
+}
+
+fn draw_in<'a, DB, X, Y>(
+    mut chart: ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    plot: &Plot,
+    (y0, y1): (f64, f64),
+) -> DrawResult<DB>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    // Key points computed as multiples of a step can miss zero by rounding (1.7e-18).
+    let snap = |span: f64| move |v: &f64| tick(&if v.abs() < 1e-9 * span { 0.0 } else { *v });
+    let (xr, yr) = (chart.x_range(), chart.y_range());
+    let x_tick = snap((xr.end - xr.start).abs());
+    let y_tick = snap((yr.end - yr.start).abs());
+    chart
+        .configure_mesh()
+        .x_desc(plot.x.label.as_str())
+        .y_desc(plot.y.label.as_str())
+        .x_label_formatter(&x_tick)
+        .y_label_formatter(&y_tick)
+        .label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 14))
+        .max_light_lines(4)
+        .draw()?;
+    let (xa, ya) = (&plot.x, &plot.y);
+    let mut legend = false;
+
+    // Shaded spans, one legend entry per label.
+    let mut labels: Vec<(&str, RGBColor)> = Vec::new();
+    for s in &plot.spans {
+        if !labels.iter().any(|(l, _)| *l == s.label) {
+            labels.push((&s.label, s.colour));
+        }
+    }
+    for (label, colour) in labels {
+        let fill = colour.mix(0.18).filled();
+        let rects = plot
+            .spans
+            .iter()
+            .filter(|s| s.label == label && usable(s.x0, xa.log) && usable(s.x1, xa.log))
+            .map(|s| Rectangle::new([(s.x0, y0), (s.x1, y1)], fill));
+        chart
+            .draw_series(rects)?
+            .label(label)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill));
+        legend = true;
+    }
+
+    for item in &plot.items {
+        match item {
+            Item::Band { label, colour, points } => {
+                let fill = colour.mix(0.22).filled();
+                let pts: Vec<(f64, f64, f64)> = points
+                    .iter()
+                    .copied()
+                    .filter(|&(x, lo, hi)| {
+                        usable(x, xa.log) && usable(lo, ya.log) && usable(hi, ya.log)
+                    })
+                    .collect();
+                if pts.len() < 2 {
+                    continue;
+                }
+                let poly: Vec<(f64, f64)> = pts
+                    .iter()
+                    .map(|&(x, lo, _)| (x, lo))
+                    .chain(pts.iter().rev().map(|&(x, _, hi)| (x, hi)))
+                    .collect();
+                let anno = chart.draw_series(std::iter::once(Polygon::new(poly, fill)))?;
+                if let Some(l) = label {
+                    anno.label(l.as_str())
+                        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill));
+                    legend = true;
+                }
+            }
+            Item::Line { label, colour, width, dashed, points } => {
+                let style = colour.stroke_width(*width);
+                // Split at unusable points so a gap stays a gap.
+                let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+                for &p in points {
+                    if point_ok(p, xa, ya) {
+                        if let Some(run) = runs.last_mut() {
+                            run.push(p);
+                        }
+                    } else if runs.last().is_some_and(|r| !r.is_empty()) {
+                        runs.push(Vec::new());
+                    }
+                }
+                let mut first = true;
+                for run in runs.into_iter().filter(|r| !r.is_empty()) {
+                    let anno = if *dashed {
+                        chart.draw_series(DashedLineSeries::new(run, 8, 5, style))?
+                    } else {
+                        chart.draw_series(LineSeries::new(run, style))?
+                    };
+                    if let (true, Some(l)) = (first, label) {
+                        anno.label(l.as_str()).legend(swatch(style));
+                        legend = true;
+                    }
+                    first = false;
+                }
+            }
+            Item::Markers { label, colour, shape, points } => {
+                let line = colour.stroke_width(1);
+                let bars: Vec<(f64, f64, f64)> = points
+                    .iter()
+                    .filter_map(|&(x, _, bar)| bar.map(|(lo, hi)| (x, lo, hi)))
+                    .filter(|&(x, lo, hi)| {
+                        usable(x, xa.log) && usable(lo, ya.log) && usable(hi, ya.log)
+                    })
+                    .collect();
+                chart.draw_series(
+                    bars.iter().map(|&(x, lo, hi)| PathElement::new(vec![(x, lo), (x, hi)], line)),
+                )?;
+                let cap = |p: (f64, f64)| {
+                    EmptyElement::at(p) + PathElement::new(vec![(-4, 0), (4, 0)], line)
+                };
+                chart.draw_series(bars.iter().map(|&(x, lo, _)| cap((x, lo))))?;
+                chart.draw_series(bars.iter().map(|&(x, _, hi)| cap((x, hi))))?;
+                let pts: Vec<(f64, f64)> = points
+                    .iter()
+                    .map(|&(x, y, _)| (x, y))
+                    .filter(|p| point_ok(*p, xa, ya))
+                    .collect();
+                let fill = colour.filled();
+                let cross = colour.stroke_width(2);
+                match shape {
+                    Marker::Circle => {
+                        let anno =
+                            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, fill)))?;
+                        if let Some(l) = label {
+                            anno.label(l.as_str())
+                                .legend(move |(x, y)| Circle::new((x + 10, y), 4, fill));
+                        }
+                    }
+                    Marker::Triangle => {
+                        let anno = chart
+                            .draw_series(pts.iter().map(|&p| TriangleMarker::new(p, 6, fill)))?;
+                        if let Some(l) = label {
+                            anno.label(l.as_str())
+                                .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, fill));
+                        }
+                    }
+                    Marker::Cross => {
+                        let anno =
+                            chart.draw_series(pts.iter().map(|&p| Cross::new(p, 5, cross)))?;
+                        if let Some(l) = label {
+                            anno.label(l.as_str())
+                                .legend(move |(x, y)| Cross::new((x + 10, y), 5, cross));
+                        }
+                    }
+                }
+                legend |= label.is_some();
+            }
+        }
+    }
+
+    if let Some(note) = &plot.note {
+        let area = chart.plotting_area().strip_coord_spec();
+        let (w, _) = area.dim_in_pixel();
+        let style = TextStyle::from(("sans-serif", 14).into_font()).color(&colour::BLACK);
+        let lines: Vec<&str> = note.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let y = 8 + 18 * i as i32;
+            let text_w = area.estimate_text_size(line, &style).map_or(0, |(w, _)| w as i32);
+            area.draw(&Text::new(*line, (w as i32 - text_w - 10, y), style.clone()))?;
+        }
+    }
+
+    if legend {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(colour::GREY)
+            .label_font(("sans-serif", 13))
+            .draw()?;
+    }
+    Ok(())
+}
+
+/// Draw `panels` side by side on `root`, white background.
+pub(crate) fn draw_figure<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    panels: &[Plot],
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let n = panels.len().max(1);
+    let areas = root.split_evenly((1, n));
+    for (area, plot) in areas.iter().zip(panels) {
+        draw_panel(area, plot)?;
+    }
+    root.present()
+}
+
+/// Boxed drawing error (the backends' error types differ).
+pub(crate) type PlotError = Box<dyn std::error::Error + Send + Sync>;
+
+/// The figure as an SVG document.
+pub(crate) fn to_svg(panels: &[Plot], size: (u32, u32)) -> Result<String, PlotError> {
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, size).into_drawing_area();
+        draw_figure(root, panels).map_err(|e| Box::new(e) as PlotError)?;
+    }
+    Ok(out)
+}
+
+/// The figure as packed 8-bit RGB pixels, row by row.
+pub(crate) fn to_rgb(panels: &[Plot], size: (u32, u32)) -> Result<Vec<u8>, PlotError> {
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        draw_figure(root, panels).map_err(|e| Box::new(e) as PlotError)?;
+    }
+    Ok(buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_short() {
+        assert_eq!(tick(&0.0), "0");
+        assert_eq!(tick(&0.5), "0.5");
+        assert_eq!(tick(&100.0), "100");
+        assert_eq!(tick(&1e-5), "1e-5");
+        assert_eq!(tick(&2.5e7), "2.5e7");
+        assert_eq!(tick(&-0.25), "-0.25");
+        assert_eq!(tick(&0.30000000000000004), "0.3");
+    }
+
+    #[test]
+    fn ranges_pad_and_survive_degenerate_data() {
+        let a = Axis::linear("x");
+        assert_eq!(fit_range(&a, [1.0, 1.0].into_iter()), (0.9, 1.1));
+        assert_eq!(fit_range(&a, std::iter::empty()), (0.0, 1.0));
+        let (lo, hi) = fit_range(&a, [0.0, 10.0, f64::NAN].into_iter());
+        assert!((lo + 0.4).abs() < 1e-12 && (hi - 10.4).abs() < 1e-12);
+        let l = Axis::log("x");
+        assert_eq!(fit_range(&l, [-1.0, 2.0, 100.0].into_iter()), (1.0, 100.0));
+        assert_eq!(fit_range(&l, [0.002, 0.04].into_iter()), (0.001, 0.1));
+        assert_eq!(fit_range(&l, [1.0].into_iter()), (1.0, 10.0));
+    }
+}
