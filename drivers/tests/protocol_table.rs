@@ -137,10 +137,7 @@ fn issue17_acutrol_short_form_only_where_known() {
         written_short
     })
     .collect();
-    assert_eq!(
-        known,
-        [false, false, false, false, false, true, false, true, false, true, true]
-    );
+    assert_eq!(known, [false, false, false, false, false, true, false, true, false, true, true]);
     let mut dec = acutrol::CommandDecoder::new();
     for (line, c) in [
         (&b":U:L ON\r\n"[..], C::Lockout(true)),

@@ -148,4 +148,3 @@ fn check_gyro(log: &[Value]) {
     assert_eq!(commands[..4], ["C", "S6", "V", "O"], "{commands:?}");
     assert!(log.iter().filter(|e| e.get("sample").is_some()).count() > 100);
 }
-

@@ -126,7 +126,8 @@ async fn watlow_f4(transport: &str) {
     c.set_target(23.0, None).await.expect("safe set point");
     drop(c);
     let log = peer.stop();
-    let ramp: Vec<String> = [297, 298, 299].iter().rev().map(|&w| format!("w300={}/fc6", int16(w))).collect();
+    let ramp: Vec<String> =
+        [297, 298, 299].iter().rev().map(|&w| format!("w300={}/fc6", int16(w))).collect();
     let mut expected = vec!["r100x1", "r606x1", "r901x1", "r0x1", "r300x1", "r100x1"]
         .into_iter()
         .map(String::from)

@@ -54,7 +54,8 @@ async fn can_gyro_over_slcan_on_a_pty() {
         let rate = p["delta"].as_f64().expect("delta") * 2f64.powi(-40) / period_s;
         assert!((s.rate_rad_s - rate).abs() <= 1e-12 * rate.abs(), "{s:?} vs {p}");
         let peer_status = p["status"].as_u64().expect("status");
-        let temp = (peer_status & 0x8 == 0).then(|| p["temp_centi"].as_f64().unwrap_or(0.0) / 100.0);
+        let temp =
+            (peer_status & 0x8 == 0).then(|| p["temp_centi"].as_f64().unwrap_or(0.0) / 100.0);
         assert_eq!(s.temperature_c, temp, "{s:?} vs {p}");
         let mut expected = 0;
         if peer_status & 0x5 != 0 {
@@ -70,10 +71,8 @@ async fn can_gyro_over_slcan_on_a_pty() {
 
     // The adapter saw: close (BEL: it was closed), bit rate 500k, version, open, status polls,
     // close.
-    let commands: Vec<(&str, &str)> = log
-        .iter()
-        .filter_map(|e| Some((e["rx"].as_str()?, e["tx"].as_str()?)))
-        .collect();
+    let commands: Vec<(&str, &str)> =
+        log.iter().filter_map(|e| Some((e["rx"].as_str()?, e["tx"].as_str()?))).collect();
     let (polls, other): (Vec<_>, Vec<_>) = commands.iter().copied().partition(|(rx, _)| *rx == "F");
     assert_eq!(
         other,
@@ -92,11 +91,7 @@ fn python_can_reads_the_adapter_peer() {
         .output()
         .expect("runs");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\nstderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{stdout}\nstderr:\n{}", String::from_utf8_lossy(&out.stderr));
     let r: Value = serde_json::from_str(stdout.trim()).expect("one JSON line");
     assert!(r["decoded_samples"].as_u64() >= Some(10), "{r}");
     // python-can reads the version digits as decimal (bench: hex; see peers.md).
@@ -104,5 +99,9 @@ fn python_can_reads_the_adapter_peer() {
     assert_eq!(r["serial_number"], "A123", "{r}");
     // python-can's open: C, S6, an empty command (no data bit rate), O, and O again.
     let commands = r["commands"].as_array().expect("commands");
-    assert_eq!(commands[..5], serde_json::json!(["C", "S6", "", "O", "O"]).as_array().expect("a")[..], "{r}");
+    assert_eq!(
+        commands[..5],
+        serde_json::json!(["C", "S6", "", "O", "O"]).as_array().expect("a")[..],
+        "{r}"
+    );
 }

@@ -130,9 +130,8 @@ async fn actidyn_keep_alive_holds_the_drive_and_its_absence_drops_it() {
     );
     let clock = SystemClock::new(scale);
     let cfg = table_config(&format!("endpoint = {}\n", endpoint(&peer)));
-    let mut t = RateTableDriver::connect_with_clock(cfg, Arc::new(clock.clone()))
-        .await
-        .expect("connect");
+    let mut t =
+        RateTableDriver::connect_with_clock(cfg, Arc::new(clock.clone())).await.expect("connect");
     t.set_rate(1.0 * DEG, 1.0 * DEG).await.expect("set_rate");
     let end = clock.now() + Duration::from_secs(65);
     while clock.now() < end {
@@ -160,9 +159,8 @@ async fn actidyn_keep_alive_holds_the_drive_and_its_absence_drops_it() {
     );
     let clock = SystemClock::new(SCALE);
     let cfg = table_config(&format!("endpoint = {}\nkeep_alive_s = 0\n", endpoint(&peer)));
-    let mut t = RateTableDriver::connect_with_clock(cfg, Arc::new(clock.clone()))
-        .await
-        .expect("connect");
+    let mut t =
+        RateTableDriver::connect_with_clock(cfg, Arc::new(clock.clone())).await.expect("connect");
     t.set_rate(1.0 * DEG, 1.0 * DEG).await.expect("set_rate");
     let r = poll_until(&mut t, &clock, |r| r.mode == TableMode::Off).await;
     assert_ne!(r.status & status::table::ALARM, 0, "{r:?}");
@@ -182,10 +180,8 @@ async fn acutrol_sequence(extra: &str, expected: &[&str]) {
         "table.py",
         &["--dialect", "acutrol", "--transport", "tcp", "--time-scale", &SCALE.to_string()],
     );
-    let cfg = table_config(&format!(
-        "dialect = \"acutrol\"\nendpoint = {}\n{extra}",
-        endpoint(&peer)
-    ));
+    let cfg =
+        table_config(&format!("dialect = \"acutrol\"\nendpoint = {}\n{extra}", endpoint(&peer)));
     let clock = SystemClock::new(SCALE);
     let mut t = RateTableDriver::connect_with_clock(cfg, Arc::new(clock.clone()))
         .await
