@@ -287,3 +287,15 @@ fn assembler_pairs_by_sequence_in_either_order() {
     let short = CanFrame::new_data(CanId::extended(0x1800_0001).unwrap(), &[1, 2, 3]).unwrap();
     assert_eq!(asm.push(&short).unwrap().unwrap_err().offset, 3);
 }
+
+/// Issue 17: an independent peer's 2506 (0.01 °C) is 25.06 °C, the nearest double, as Python's
+/// `2506 / 100` gives (bench multiplied by 0.01 and read 25.060000000000002).
+#[test]
+fn issue17_housekeeping_temperature_is_the_nearest_double() {
+    use bench_drivers::protocol::gyro_can::Housekeeping;
+    for centi in [2506_i16, -4000, 1, -1, 12345, i16::MAX, i16::MIN] {
+        let h = Housekeeping { seq: 0, status: 0, temp_centi_c: centi };
+        assert_eq!(h.temp_c(), f64::from(centi) / 100.0);
+    }
+    assert_eq!(Housekeeping { seq: 0, status: 0, temp_centi_c: 2506 }.temp_c(), 25.06);
+}

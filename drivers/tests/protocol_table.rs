@@ -109,19 +109,60 @@ fn actidyn_reply_errors_carry_stream_offsets() {
     assert!(parse_command_line(&[0xFF, b'\n']).is_err());
 }
 
+/// Issue 17: with `acutrol_short_form` only the short forms the public client showed (`:M:R`,
+/// `:D:R`, `:R:R`, `:R:P`) are written; the others stay long (an independent peer that knows
+/// only those refused `:U:L ON`). The controller-side parser still reads any abbreviation.
+#[test]
+fn issue17_acutrol_short_form_only_where_known() {
+    use acutrol::Command as C;
+    let short = Encoding { form: Form::Short, decimals: 3 };
+    let known: Vec<bool> = [
+        C::Lockout(true),
+        C::InterlockOpen(1),
+        C::InterlockReset(1),
+        C::InterlockClose(1),
+        C::ModeOff(1),
+        C::ModeRate(1),
+        C::ModePosition(1),
+        C::DemandRate { axis: 1, rate_deg_s: 1.0 },
+        C::DemandPosition { axis: 1, position_deg: 1.0 },
+        C::ReadRate(1),
+        C::ReadPosition(1),
+    ]
+    .iter()
+    .map(|c| {
+        let long = Encoding { form: Form::Long, ..short };
+        let written_short = c.encode(short).unwrap() != c.encode(long).unwrap();
+        assert_eq!(written_short, c.has_known_short_form(), "{c:?}");
+        written_short
+    })
+    .collect();
+    assert_eq!(known, [false, false, false, false, false, true, false, true, false, true, true]);
+    let mut dec = acutrol::CommandDecoder::new();
+    for (line, c) in [
+        (&b":U:L ON\r\n"[..], C::Lockout(true)),
+        (b":I:O 1\r\n", C::InterlockOpen(1)),
+        (b":M:O 1\r\n", C::ModeOff(1)),
+        (b":D:P 1, 090.000\r\n", C::DemandPosition { axis: 1, position_deg: 90.0 }),
+    ] {
+        dec.push(line);
+        assert_eq!(dec.next_command().unwrap().unwrap(), c);
+    }
+}
+
 #[test]
 fn acutrol_commands_byte_exact() {
     use acutrol::Command as C;
     let long3 = Encoding { form: Form::Long, decimals: 3 };
     let short3 = Encoding { form: Form::Short, decimals: 3 };
     let cases: Vec<(C, &[u8], &[u8])> = vec![
-        (C::Lockout(true), b":utility:lockout on\r\n", b":U:L ON\r\n"),
-        (C::InterlockOpen(1), b":interlock:open 1\r\n", b":I:O 1\r\n"),
-        (C::InterlockReset(1), b":interlock:reset 1\r\n", b":I:R 1\r\n"),
-        (C::InterlockClose(1), b":interlock:close 1\r\n", b":I:C 1\r\n"),
-        (C::ModeOff(1), b":mode:off 1\r\n", b":M:O 1\r\n"),
+        (C::Lockout(true), b":utility:lockout on\r\n", b":utility:lockout on\r\n"),
+        (C::InterlockOpen(1), b":interlock:open 1\r\n", b":interlock:open 1\r\n"),
+        (C::InterlockReset(1), b":interlock:reset 1\r\n", b":interlock:reset 1\r\n"),
+        (C::InterlockClose(1), b":interlock:close 1\r\n", b":interlock:close 1\r\n"),
+        (C::ModeOff(1), b":mode:off 1\r\n", b":mode:off 1\r\n"),
         (C::ModeRate(1), b":mode:rate 1\r\n", b":M:R 1\r\n"),
-        (C::ModePosition(2), b":mode:position 2\r\n", b":M:P 2\r\n"),
+        (C::ModePosition(2), b":mode:position 2\r\n", b":mode:position 2\r\n"),
         (
             C::DemandRate { axis: 1, rate_deg_s: 10.0 },
             b":demand:rate 1, 010.000\r\n",
@@ -135,7 +176,7 @@ fn acutrol_commands_byte_exact() {
         (
             C::DemandPosition { axis: 1, position_deg: 90.0 },
             b":demand:position 1, 090.000\r\n",
-            b":D:P 1, 090.000\r\n",
+            b":demand:position 1, 090.000\r\n",
         ),
         (C::ReadRate(1), b":read:rate 1\r\n", b":R:R 1\r\n"),
         (C::ReadPosition(1), b":read:position 1\r\n", b":R:P 1\r\n"),

@@ -134,23 +134,30 @@ impl Command {
         matches!(self, Command::ReadRate(_) | Command::ReadPosition(_))
     }
 
-    /// Command text without terminator.
+    /// Whether the public client showed this command's short form (`:M:R`, `:D:R`, `:R:R`,
+    /// `:R:P`). Only these are written short with [`Form::Short`]: the short forms of the
+    /// others (`:U:L`, `:I:O`, `:M:O`, …) are not known, so they stay long.
+    pub fn has_known_short_form(&self) -> bool {
+        matches!(
+            self,
+            Command::ModeRate(_)
+                | Command::DemandRate { .. }
+                | Command::ReadRate(_)
+                | Command::ReadPosition(_)
+        )
+    }
+
+    /// Command text without terminator. With [`Form::Short`], only the commands whose short
+    /// form is known ([`Command::has_known_short_form`]) are written short.
     pub fn to_text(&self, enc: Encoding) -> Result<String, EncodeError> {
+        let short = enc.form == Form::Short && self.has_known_short_form();
         let mut s = String::new();
-        for (long, short) in self.path() {
+        for (long, abbrev) in self.path() {
             s.push(':');
-            s.push_str(match enc.form {
-                Form::Long => long,
-                Form::Short => short,
-            });
+            s.push_str(if short { abbrev } else { long });
         }
         let args = match *self {
-            Command::Lockout(on) => match (on, enc.form) {
-                (true, Form::Long) => "on".to_owned(),
-                (false, Form::Long) => "off".to_owned(),
-                (true, Form::Short) => "ON".to_owned(),
-                (false, Form::Short) => "OFF".to_owned(),
-            },
+            Command::Lockout(on) => if on { "on" } else { "off" }.to_owned(),
             Command::InterlockOpen(a)
             | Command::InterlockReset(a)
             | Command::InterlockClose(a)

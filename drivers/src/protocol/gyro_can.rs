@@ -154,9 +154,10 @@ pub struct Housekeeping {
 }
 
 impl Housekeeping {
-    /// Temperature, °C.
+    /// Temperature, °C: the count divided by 100, so that 2506 reads 25.06 exactly as printed
+    /// (× 0.01 gave 25.060000000000002).
     pub fn temp_c(&self) -> f64 {
-        f64::from(self.temp_centi_c) * TEMP_LSB_C
+        f64::from(self.temp_centi_c) / 100.0
     }
 
     /// Temperature in 0.01 °C from °C, rounded.

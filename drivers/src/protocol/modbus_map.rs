@@ -139,7 +139,8 @@ impl ValueEncoding {
     }
 }
 
-/// A single-register write done once when taking control (e.g. selecting the remote set point).
+/// A register and a raw word: a write done once when taking control (e.g. selecting the remote
+/// set point), or a value a register must hold ([`RegisterMap::celsius_check`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegisterWrite {
@@ -174,13 +175,17 @@ pub struct RegisterMap {
     /// Registers stored in EEPROM: never written cyclically.
     #[serde(default)]
     pub eeprom_registers: Vec<u16>,
+    /// A register that must hold this word for temperatures to be in °C, checked at connection
+    /// (Watlow F4: 901 = 1; 0 means °F, and every temperature register would be in °F).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub celsius_check: Option<RegisterWrite>,
 }
 
 /// Built-in maps (device-facts.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
-    /// Watlow F4: int16, decimals from register 606, PV 100, SP 300.
+    /// Watlow F4: int16, decimals from register 606, PV 100, SP 300; 901 must be 1 (°C).
     #[serde(rename = "watlow_f4")]
     WatlowF4,
     /// Watlow F4T loop 1: float32 low word first, PV 2820, SP 2782, WSP 2810.
@@ -215,6 +220,7 @@ impl RegisterMap {
                 ramp_rate: None,
                 on_connect: Vec::new(),
                 eeprom_registers: Vec::new(),
+                celsius_check: Some(RegisterWrite { register: 901, value: 1 }),
             },
             Preset::WatlowF4T => Self {
                 model: "Watlow F4T".into(),
@@ -225,6 +231,7 @@ impl RegisterMap {
                 ramp_rate: None,
                 on_connect: Vec::new(),
                 eeprom_registers: Vec::new(),
+                celsius_check: None,
             },
             Preset::Eurotherm3216 => Self {
                 model: "Eurotherm 3216".into(),
@@ -235,6 +242,7 @@ impl RegisterMap {
                 ramp_rate: Some(35),
                 on_connect: vec![RegisterWrite { register: 276, value: 1 }],
                 eeprom_registers: vec![2, 24, 25],
+                celsius_check: None,
             },
         }
     }

@@ -13,7 +13,7 @@
 //! | reply for another request (header / function mismatch), undecodable frame | `Protocol` |
 //! | port closed, connection reset | `Link` |
 //! | exception 1 illegal function | `Unsupported` |
-//! | exception 2 illegal data address | `Protocol` (the map does not fit the controller) |
+//! | exception 2 illegal data address | `Unsupported` (the map does not fit the controller) |
 //! | exception 3 illegal data value | `OutOfRange` |
 //! | exception 4 server device failure | `DeviceFault` |
 //! | exception 5 acknowledge, 6 busy | `NotReady` |
@@ -480,6 +480,19 @@ impl ModbusChamber {
                 ));
             }
             self.decimals = d as u8;
+        }
+        if let Some(RegisterWrite { register, value }) = self.map.celsius_check {
+            let w = self.transact(&Op::Read { addr: register, count: 1 }, "units").await?;
+            if w.first() != Some(&value) {
+                return Err(DeviceError::new(
+                    ErrorKind::Unsupported,
+                    format!(
+                        "units register {register} holds {w:?}, expected {value} (°C): the \
+                         controller is not set to °C, and its temperatures would be misread; \
+                         set it to °C"
+                    ),
+                ));
+            }
         }
         if let Some(check) = self.config.model_check {
             let w = self

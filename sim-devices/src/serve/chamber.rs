@@ -11,7 +11,7 @@
 //!   controller ramps; reading the set point back gives the words written (or the chamber's
 //!   target before any write);
 //! - the rate-limit register, the map's `on_connect` and EEPROM registers and
-//!   `extra_registers` are plain read/write words (F4 presets add 606 = decimals, 0 = 5270);
+//!   `extra_registers` are plain read/write words (F4 presets add 606 = decimals, 0 = 5270, 901 = 1);
 //! - any other address answers exception 2 (illegal data address); a write to the process value
 //!   or working set point, too; a set point the chamber refuses answers exception 3.
 //!
@@ -80,7 +80,7 @@ pub struct ChamberServeOptions {
 
 impl ChamberServeOptions {
     /// Options for a preset: unit 1, 1 decimal; the Watlow F4 also serves its decimals register
-    /// 606 = 1 and model register 0 = 5270.
+    /// 606 = 1, model register 0 = 5270 and the units register its map checks (901 = 1, °C).
     pub fn preset(p: Preset) -> Self {
         let map = RegisterMap::preset(p);
         let mut extra = Vec::new();
@@ -89,6 +89,9 @@ impl ChamberServeOptions {
         }
         if p == Preset::WatlowF4 {
             extra.push((0, 5270));
+        }
+        if let Some(c) = map.celsius_check {
+            extra.push((c.register, c.value));
         }
         Self { extra_registers: extra, ..Self::new(map) }
     }
