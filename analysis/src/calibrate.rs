@@ -17,13 +17,16 @@
 //!    residual's effective sample count `n_eff = n/(2·k_e)` (`k_e`: its correlation lag): τ̂ is
 //!    kept only when `n_eff·ΔRSS/RSS` exceeds the χ²₁ quantile of the confidence level;
 //!    otherwise τ = 0 (the measured temperature) and the report says the data cannot tell it.
-//! 4. **Seed method** and **joint fit** on the windows with the chosen model temperature.
+//! 4. **Seed method**, **joint fit** (rate domain) and **angle-domain fit** (the
+//!    navigation-solution method, [`crate::angle_fit`], when the table's readings are given) on
+//!    the windows with the chosen model temperature, under the same noise model.
 
 use bench_physics::allan::{octave_factors, AdevPoint};
 use bench_physics::lag::FirstOrderLag;
 use bench_physics::GyroModel;
 
 use crate::allan_fit::{allan_fit, AllanFit};
+use crate::angle_fit::{angle_fit, AngleFit, AngleFitOptions, TableReadings};
 use crate::error::AnalysisError;
 use crate::joint_fit::{correlation_lag, joint_fit, JointFit, JointFitOptions, NoiseSpec};
 use crate::seed_method::{seed_calibration, SeedCalibration, SeedOptions};
@@ -307,8 +310,10 @@ pub struct Calibration {
     pub lag: Option<Result<LagFit, AnalysisError>>,
     /// The seed's method.
     pub seed: Result<SeedCalibration, AnalysisError>,
-    /// The joint fit.
+    /// The joint fit (rate domain).
     pub joint: Result<JointFit, AnalysisError>,
+    /// The angle-domain fit, when the table's readings were given.
+    pub angle: Option<Result<AngleFit, AnalysisError>>,
     /// What the data lack, and what could still be estimated, one sentence each.
     pub missing: Vec<String>,
 }
@@ -533,9 +538,11 @@ pub fn fit_lag(
 }
 
 /// Calibrate from `windows` (time on the same origin as `series`, the whole-run measured
-/// temperature).
+/// temperature); `readings`, one per window (or none), are the table's angle readings over
+/// each, for the angle-domain fit.
 pub fn calibrate(
     windows: &[RecordWindow],
+    readings: &[TableReadings],
     series: &TemperatureSeries,
     opts: &CalibrateOptions,
 ) -> Calibration {
@@ -626,6 +633,24 @@ pub fn calibrate(
     if let Err(e) = &joint {
         missing.push(format!("joint fit: {e}"));
     }
+    let angle = (readings.len() == model_windows.len() && !readings.is_empty()).then(|| {
+        let noise = allan.as_ref().map(AllanResult::noise_spec).map_err(Clone::clone)?;
+        let aws: Vec<_> =
+            readings.iter().zip(&model_windows).map(|(r, w)| r.for_window(w)).collect();
+        angle_fit(
+            &aws,
+            &AngleFitOptions {
+                reference_temperature_c: opts.reference_temperature_c,
+                latitude_deg: opts.latitude_deg,
+                axis_up: opts.axis_up,
+                noise,
+                temp_window_s: opts.rate_window_s,
+            },
+        )
+    });
+    if let Some(Err(e)) = &angle {
+        missing.push(format!("angle-domain fit: {e}"));
+    }
     Calibration {
         options: opts.clone(),
         windows: summaries,
@@ -634,6 +659,7 @@ pub fn calibrate(
         lag,
         seed,
         joint,
+        angle,
         missing,
     }
 }

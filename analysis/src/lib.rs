@@ -2,6 +2,9 @@
 //!
 //! - [`run`]: a whole run as arrays ([`run::RunSeries`]), the input of both analyses;
 //!   [`interp`]: the one linear interpolator.
+//! - [`steady`]: where the table turns steadily, from its own readings — the one rule of which
+//!   samples enter a fit, for calibration and diagnosis alike.
+//! - [`timebase`]: host stamps mapped onto a device's own clock (its stamps or its counter).
 //! - [`windows`]: the calibration's input, one record window (a `record …` step of a recording) as
 //!   arrays of time, gyro rate, table rate and temperatures.
 //! - [`temperature_rate`]: dT/dt from quantised temperature readings (local linear regression).
@@ -25,6 +28,7 @@
 //! (`recording/FORMAT.md`).
 
 pub mod allan_fit;
+pub mod angle_fit;
 pub mod calibrate;
 pub mod diagnose;
 pub mod error;
@@ -33,7 +37,9 @@ pub mod interp;
 pub mod joint_fit;
 pub mod run;
 pub mod seed_method;
+pub mod steady;
 pub mod temperature_rate;
+pub mod timebase;
 pub mod windows;
 
 pub use error::AnalysisError;

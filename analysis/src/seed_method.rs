@@ -39,10 +39,8 @@
 //! the origin: `temp_rate_coeff = Σ r_i·d_i / Σ d_i²`. As in the seed, the scale-factor term is
 //! not modelled; it cancels only when CW and CCW ramps are alike.
 
-use std::collections::BTreeMap;
-
 use bench_physics::earth::vertical_rate_rad_s;
-use bench_physics::GyroModel;
+use bench_physics::{GyroModel, ModelKey};
 
 use crate::error::AnalysisError;
 use crate::temperature_rate::local_linear_rate;
@@ -114,6 +112,17 @@ pub struct SeedCalibration {
 }
 
 impl SeedCalibration {
+    /// The value of a coefficient the method estimates (`None` for the scale factor, which it
+    /// cannot tell, and for a temperature-rate coefficient without ramps).
+    pub fn coefficient(&self, key: ModelKey) -> Option<f64> {
+        match key {
+            ModelKey::Bias => Some(self.bias_rad_s),
+            ModelKey::TempCoeff => Some(self.temp_coeff),
+            ModelKey::TempRateCoeff => self.temp_rate_coeff,
+            _ => None,
+        }
+    }
+
     /// The calibrated coefficients written over `base` (its noise terms and other keys kept).
     pub fn to_model(&self, base: &GyroModel) -> GyroModel {
         GyroModel {
@@ -123,19 +132,6 @@ impl SeedCalibration {
             temp_rate_coeff: self.temp_rate_coeff.unwrap_or(0.0),
             ..base.clone()
         }
-    }
-
-    /// The coefficients as `bench.gyro_model` keys (`bias`, `reference_temperature`,
-    /// `temp_coeff`, `temp_rate_coeff`), decimal text.
-    pub fn to_metadata(&self) -> BTreeMap<String, String> {
-        let mut m = BTreeMap::new();
-        m.insert("bias".into(), format!("{:e}", self.bias_rad_s));
-        m.insert("reference_temperature".into(), format!("{}", self.reference_temperature_c));
-        m.insert("temp_coeff".into(), format!("{:e}", self.temp_coeff));
-        if let Some(c) = self.temp_rate_coeff {
-            m.insert("temp_rate_coeff".into(), format!("{c:e}"));
-        }
-        m
     }
 }
 
@@ -324,10 +320,9 @@ mod tests {
         let kdt = cal.temp_rate_coeff.expect("ramps present");
         assert!((kdt / m.kdt - 1.0).abs() < 1e-6, "kdt {kdt}");
         assert_eq!(cal.ramp_samples, 2 * 12_000);
-        let meta = cal.to_metadata();
-        assert_eq!(meta.get("reference_temperature").map(String::as_str), Some("20"));
         let model = cal.to_model(&GyroModel::zero());
         assert_eq!(model.temp_coeff, cal.temp_coeff);
+        assert_eq!(model.reference_temperature, 20.0);
     }
 
     #[test]

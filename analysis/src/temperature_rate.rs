@@ -31,6 +31,27 @@ pub fn local_linear_rate(
     temp_c: &[f64],
     window_s: f64,
 ) -> Result<Vec<f64>, AnalysisError> {
+    Ok(local_linear(time_s, temp_c, window_s)?.into_iter().map(|(slope, _)| slope).collect())
+}
+
+/// The temperature itself (°C) at every sample, smoothed by the same centred local linear
+/// regression as [`local_linear_rate`]: the regression line's value there. Quantisation steps
+/// of `q` become errors of about `q/√(12·n)` for `n` readings per window, and a ramp is
+/// reproduced exactly.
+pub fn local_linear_value(
+    time_s: &[f64],
+    temp_c: &[f64],
+    window_s: f64,
+) -> Result<Vec<f64>, AnalysisError> {
+    Ok(local_linear(time_s, temp_c, window_s)?.into_iter().map(|(_, value)| value).collect())
+}
+
+/// (slope, value) of the centred local linear regression at every sample.
+fn local_linear(
+    time_s: &[f64],
+    temp_c: &[f64],
+    window_s: f64,
+) -> Result<Vec<(f64, f64)>, AnalysisError> {
     let n = time_s.len();
     if temp_c.len() != n {
         return Err(AnalysisError::LengthMismatch {
@@ -80,7 +101,7 @@ pub fn local_linear_rate(
             hi += 1;
         }
         if hi - lo >= 3 {
-            out.push(sums.slope());
+            out.push(sums.slope_value(t, temp_c[i]));
         } else {
             // At least 3 samples: widen at whichever side has room.
             let (mut a, mut b) = (lo, hi);
@@ -90,7 +111,8 @@ pub fn local_linear_rate(
                     b += 1;
                 }
             }
-            out.push(slope(&time_s[a..b], &temp_c[a..b]));
+            let (s, v) = slope_value(&time_s[a..b], &temp_c[a..b], t);
+            out.push((s, v));
         }
     }
     Ok(out)
@@ -132,19 +154,24 @@ impl WindowSums {
         self.sxx -= dx * dx;
         self.sxy -= dx * dy;
     }
-    fn slope(&self) -> f64 {
+    /// Slope, and the line's value at `x` (`y_near`: a reading near it, for a degenerate
+    /// window).
+    fn slope_value(&self, x: f64, y_near: f64) -> (f64, f64) {
         let vxx = self.sxx - self.sx * self.sx / self.n;
         let vxy = self.sxy - self.sx * self.sy / self.n;
         if vxx > 0.0 {
-            vxy / vxx
+            let b = vxy / vxx;
+            let (xm, ym) = (self.sx / self.n, self.sy / self.n);
+            (b, self.y0 + ym + b * (x - self.x0 - xm))
         } else {
-            0.0
+            (0.0, y_near)
         }
     }
 }
 
-/// Least-squares slope of `y` on `x` (two-pass, centred for precision).
-fn slope(x: &[f64], y: &[f64]) -> f64 {
+/// Least-squares slope of `y` on `x` and the line's value at `at` (two-pass, centred for
+/// precision).
+fn slope_value(x: &[f64], y: &[f64], at: f64) -> (f64, f64) {
     let n = x.len() as f64;
     let xm = x.iter().sum::<f64>() / n;
     let ym = y.iter().sum::<f64>() / n;
@@ -154,11 +181,8 @@ fn slope(x: &[f64], y: &[f64]) -> f64 {
         sxy += dx * (yi - ym);
         sxx += dx * dx;
     }
-    if sxx > 0.0 {
-        sxy / sxx
-    } else {
-        0.0
-    }
+    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (b, ym + b * (at - xm))
 }
 
 #[cfg(test)]
@@ -223,7 +247,7 @@ mod tests {
                 t.partition_point(|&s| s < t[i] - w / 2.0),
                 t.partition_point(|&s| s <= t[i] + w / 2.0),
             );
-            let direct = slope(&t[a..b], &y[a..b]);
+            let direct = slope_value(&t[a..b], &y[a..b], 0.0).0;
             assert!((f - direct).abs() < 1e-9 * (1.0 + direct.abs()), "{i}: {f} vs {direct}");
         }
     }
@@ -235,5 +259,19 @@ mod tests {
         assert!(local_linear_rate(&t[..2], &[1.0, 2.0], 1.0).is_err());
         assert!(local_linear_rate(&t, &[1.0, 2.0, 3.0], 0.0).is_err());
         assert!(local_linear_rate(&t, &[1.0, 2.0, 3.0], f64::NAN).is_err());
+    }
+
+    #[test]
+    fn smoothed_values_follow_a_quantised_ramp_within_a_fraction_of_a_step() {
+        let t: Vec<f64> = (0..12_000).map(|k| k as f64 * 0.05).collect();
+        let truth: Vec<f64> = t.iter().map(|x| 20.0 + x / 60.0).collect();
+        let q = 0.01;
+        let read: Vec<f64> = truth.iter().map(|v| (v / q).round() * q).collect();
+        let smooth = local_linear_value(&t, &read, 60.0).expect("valid");
+        let worst = smooth.iter().zip(&truth).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        // 1200 readings per window: far below the step (0.01 °C).
+        assert!(worst < 0.1 * q, "{worst}");
+        let exact = local_linear_value(&t, &truth, 60.0).expect("valid");
+        assert!(exact.iter().zip(&truth).all(|(a, b)| (a - b).abs() < 1e-9));
     }
 }

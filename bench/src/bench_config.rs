@@ -35,9 +35,9 @@ use bench_drivers::{Clock, DeviceError, Gyro};
 use bench_physics::effects::Effects;
 use serde::{Deserialize, Serialize};
 
-use crate::plan::Site;
 use crate::run::{Devices, FaultPolicy};
 use crate::scenario::Capabilities;
+use bench_recording::{Axis, Site};
 
 /// A bench configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -282,7 +282,7 @@ impl BenchConfig {
             latitude_deg: s.latitude_deg,
             longitude_deg: s.longitude_deg,
             height_m: s.height_m,
-            axis_up: s.axis == "up",
+            axis: Some(if s.axis == "down" { Axis::Down } else { Axis::Up }),
         })
     }
 
@@ -438,15 +438,6 @@ impl BenchSource {
     }
 }
 
-/// A `[replay]` config pointing at `recording` (what `bench replay --serve` writes beside its
-/// device config, for replaying without the wire).
-pub fn for_replay(recording: &Path, speed: Option<f64>) -> ReplayBenchConfig {
-    ReplayBenchConfig {
-        replay: ReplayConfig { recording: recording.to_path_buf(), speed },
-        bench: BenchSettings::default(),
-    }
-}
-
 /// The bench config that reaches a served simulated bench (`bench sim serve`): the table's
 /// Actidyn port, the chamber's Modbus RTU port and the gyro's SLCAN adapter, at the served
 /// time scale and the simulator's latitude.
@@ -524,7 +515,7 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         assert_eq!(c.bench.time_scale, 1.0);
         assert_eq!(c.bench.policy().stale_after, std::time::Duration::from_secs(30));
         assert_eq!(c.bench.policy().max_consecutive_errors, 5);
-        assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up)), Some((43.56, true)));
+        assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up())), Some((43.56, true)));
         assert!(matches!(c.gyro, Some(GyroConfig::Can(_))));
         assert_eq!(c.chamber.as_ref().map(|c| c.unit_id), Some(1));
         assert!(!c.is_simulated());

@@ -19,7 +19,7 @@ pub struct RunPlan {
     /// Where the scenario was read from, for messages.
     pub source: String,
     /// The bench site.
-    pub site: Site,
+    pub site: bench_recording::Site,
     /// Gyro settings.
     pub gyro: GyroSetup,
     /// Polling rates of the table and chamber, Hz (contract default 20).
@@ -34,19 +34,6 @@ pub struct RunPlan {
     pub safe_temp_c: f64,
     /// The steps, loops expanded, in execution order.
     pub steps: Vec<PlannedStep>,
-}
-
-/// Site data (`bench.site`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Site {
-    /// Geodetic latitude, degrees, north positive.
-    pub latitude_deg: f64,
-    /// Longitude, degrees, east positive.
-    pub longitude_deg: Option<f64>,
-    /// Height above the ellipsoid, m.
-    pub height_m: Option<f64>,
-    /// Whether the sensing axis points up (`axis = "up"`), else down.
-    pub axis_up: bool,
 }
 
 /// Gyro settings.

@@ -15,7 +15,7 @@ use bench_drivers::clock::{run_virtual as run_on_virtual_executor, TokioSpawner,
 use bench_drivers::{Clock, SystemClock};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
-use bench_recording::{Axis, Outcome, Recorder, RunInfo, Site};
+use bench_recording::{Outcome, Recorder, RunInfo};
 
 use crate::live_view::{LiveTee, LiveView};
 use crate::plan::RunPlan;
@@ -200,17 +200,11 @@ pub fn wall_epoch_ns() -> u64 {
 /// `bench.*` metadata of a run of `plan`: its site, its scenario (attached under the scenario
 /// file's name) and its nominal gyro model.
 pub fn run_info(plan: &RunPlan, epoch_ns: u64) -> RunInfo {
-    let site = Site {
-        latitude_deg: plan.site.latitude_deg,
-        longitude_deg: plan.site.longitude_deg,
-        height_m: plan.site.height_m,
-        axis: Some(if plan.site.axis_up { Axis::Up } else { Axis::Down }),
-    };
     let mut info = RunInfo::new(
         epoch_ns,
         &plan.name,
         &plan.text,
-        site,
+        plan.site,
         gyro_model_metadata(&plan.gyro.model, &plan.gyro.effects),
     );
     info.scenario_attachment = Path::new(&plan.source)

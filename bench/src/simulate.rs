@@ -65,7 +65,7 @@ pub fn sim_config(plan: &RunPlan, seed: u64) -> SimConfig {
         gyro_effects: plan.sim.truth_effects,
         gyro_sample_rate_hz: plan.gyro.sample_rate_hz,
         latitude_deg: plan.site.latitude_deg,
-        axis_up: plan.site.axis_up,
+        axis_up: plan.site.axis_up(),
         initial_temp_c: plan.sim.initial_temp_c,
         ..SimConfig::default()
     }

@@ -79,7 +79,7 @@ fn seed_scenario_is_the_seeds_procedure() {
     let p = load_ok("seed.toml", &st1300());
     assert_eq!(p.name, "seed");
     assert_eq!(p.site.latitude_deg, 59.94);
-    assert!(p.site.axis_up);
+    assert!(p.site.axis_up());
     assert_eq!(p.gyro.sample_rate_hz, 20.0);
     assert_eq!(p.sim.initial_temp_c, 20.0);
     assert!(p.text.contains("[scenario]"));

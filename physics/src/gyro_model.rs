@@ -1,5 +1,5 @@
 //! The gyro's error model, with the parameter names and units of `bench.gyro_model` in the
-//! recording contract (`shared/spec/recording.md`).
+//! recording format (`recording/FORMAT.md`).
 //!
 //! Output of the gyro, averaged over a sample interval:
 //!
@@ -42,21 +42,100 @@ pub struct GyroModel {
     pub thermal_time_constant: f64,
 }
 
-/// Keys of `bench.gyro_model`, in contract order.
-pub const GYRO_MODEL_KEYS: [&str; 9] = [
-    "bias",
-    "scale_factor_error",
-    "reference_temperature",
-    "temp_coeff",
-    "temp_rate_coeff",
-    "arw",
-    "bias_instability",
-    "earth_rate",
-    "thermal_time_constant",
-];
+/// A key of `bench.gyro_model`: the one list of the model's parameters, their contract names
+/// and their fields.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ModelKey {
+    /// `bias`, rad/s.
+    Bias,
+    /// `scale_factor_error`, 1.
+    ScaleFactorError,
+    /// `reference_temperature`, °C.
+    ReferenceTemperature,
+    /// `temp_coeff`, rad/s per °C.
+    TempCoeff,
+    /// `temp_rate_coeff`, rad/s per (°C/s).
+    TempRateCoeff,
+    /// `arw`, rad/√s.
+    Arw,
+    /// `bias_instability`, rad/s.
+    BiasInstability,
+    /// `earth_rate`, 1 or 0.
+    EarthRate,
+    /// `thermal_time_constant`, s.
+    ThermalTimeConstant,
+}
+
+impl ModelKey {
+    /// Every key, in contract order.
+    pub const ALL: [ModelKey; 9] = [
+        ModelKey::Bias,
+        ModelKey::ScaleFactorError,
+        ModelKey::ReferenceTemperature,
+        ModelKey::TempCoeff,
+        ModelKey::TempRateCoeff,
+        ModelKey::Arw,
+        ModelKey::BiasInstability,
+        ModelKey::EarthRate,
+        ModelKey::ThermalTimeConstant,
+    ];
+
+    /// The four coefficients a thermal calibration fits, in the order every report lists them.
+    pub const CALIBRATED: [ModelKey; 4] =
+        [ModelKey::Bias, ModelKey::ScaleFactorError, ModelKey::TempCoeff, ModelKey::TempRateCoeff];
+
+    /// The contract's name.
+    pub const fn key(self) -> &'static str {
+        match self {
+            ModelKey::Bias => "bias",
+            ModelKey::ScaleFactorError => "scale_factor_error",
+            ModelKey::ReferenceTemperature => "reference_temperature",
+            ModelKey::TempCoeff => "temp_coeff",
+            ModelKey::TempRateCoeff => "temp_rate_coeff",
+            ModelKey::Arw => "arw",
+            ModelKey::BiasInstability => "bias_instability",
+            ModelKey::EarthRate => "earth_rate",
+            ModelKey::ThermalTimeConstant => "thermal_time_constant",
+        }
+    }
+
+    /// The key named `name` in the contract.
+    pub fn from_key(name: &str) -> Option<ModelKey> {
+        ModelKey::ALL.into_iter().find(|k| k.key() == name)
+    }
+
+    /// The contract's (SI) unit, for people.
+    pub fn unit(self) -> &'static str {
+        match self {
+            ModelKey::Bias | ModelKey::BiasInstability => "rad/s",
+            ModelKey::ScaleFactorError | ModelKey::EarthRate => "1",
+            ModelKey::ReferenceTemperature => "°C",
+            ModelKey::TempCoeff => "rad/s/°C",
+            ModelKey::TempRateCoeff => "rad/s/(°C/s)",
+            ModelKey::Arw => "rad/√s",
+            ModelKey::ThermalTimeConstant => "s",
+        }
+    }
+
+    /// Whether the parameter can only be zero or positive.
+    pub fn non_negative(self) -> bool {
+        matches!(self, ModelKey::Arw | ModelKey::BiasInstability | ModelKey::ThermalTimeConstant)
+    }
+}
+
+/// Names of `bench.gyro_model`'s keys, in contract order.
+pub const GYRO_MODEL_KEYS: [&str; 9] = {
+    let mut out = [""; 9];
+    let mut i = 0;
+    while i < 9 {
+        out[i] = ModelKey::ALL[i].key();
+        i += 1;
+    }
+    out
+};
 
 impl Default for GyroModel {
-    /// The seed's gyro (`shared/seed/README.md`), made concrete:
+    /// The seed's gyro (`docs/seed-method.md`), made concrete:
     ///
     /// - residual bias and scale factor zero (the seed assumes them calibrated out);
     /// - noise giving 0.002 °/h Allan deviation at 100 s at constant temperature: ARW
@@ -108,23 +187,49 @@ impl GyroModel {
         }
     }
 
+    /// The value of `key` (`earth_rate` as 1 or 0).
+    pub fn get(&self, key: ModelKey) -> f64 {
+        match key {
+            ModelKey::Bias => self.bias,
+            ModelKey::ScaleFactorError => self.scale_factor_error,
+            ModelKey::ReferenceTemperature => self.reference_temperature,
+            ModelKey::TempCoeff => self.temp_coeff,
+            ModelKey::TempRateCoeff => self.temp_rate_coeff,
+            ModelKey::Arw => self.arw,
+            ModelKey::BiasInstability => self.bias_instability,
+            ModelKey::EarthRate => f64::from(u8::from(self.earth_rate)),
+            ModelKey::ThermalTimeConstant => self.thermal_time_constant,
+        }
+    }
+
+    /// Set `key` to `value` (`earth_rate`: any non-zero value is on).
+    pub fn set(&mut self, key: ModelKey, value: f64) {
+        match key {
+            ModelKey::Bias => self.bias = value,
+            ModelKey::ScaleFactorError => self.scale_factor_error = value,
+            ModelKey::ReferenceTemperature => self.reference_temperature = value,
+            ModelKey::TempCoeff => self.temp_coeff = value,
+            ModelKey::TempRateCoeff => self.temp_rate_coeff = value,
+            ModelKey::Arw => self.arw = value,
+            ModelKey::BiasInstability => self.bias_instability = value,
+            ModelKey::EarthRate => self.earth_rate = value != 0.0,
+            ModelKey::ThermalTimeConstant => self.thermal_time_constant = value,
+        }
+    }
+
     /// As `bench.gyro_model` metadata: every key, numbers as decimal text (shortest
-    /// round-tripping form).
+    /// round-tripping form), `earth_rate` as 1 or 0.
     pub fn to_metadata(&self) -> BTreeMap<String, String> {
-        let mut m = BTreeMap::new();
-        let mut put = |k: &str, v: f64| {
-            m.insert(k.to_string(), format!("{v:e}"));
-        };
-        put("bias", self.bias);
-        put("scale_factor_error", self.scale_factor_error);
-        put("reference_temperature", self.reference_temperature);
-        put("temp_coeff", self.temp_coeff);
-        put("temp_rate_coeff", self.temp_rate_coeff);
-        put("arw", self.arw);
-        put("bias_instability", self.bias_instability);
-        put("thermal_time_constant", self.thermal_time_constant);
-        m.insert("earth_rate".into(), if self.earth_rate { "1" } else { "0" }.into());
-        m
+        ModelKey::ALL
+            .into_iter()
+            .map(|k| {
+                let text = match k {
+                    ModelKey::EarthRate => if self.earth_rate { "1" } else { "0" }.to_string(),
+                    _ => format!("{:e}", self.get(k)),
+                };
+                (k.key().to_string(), text)
+            })
+            .collect()
     }
 
     /// From `bench.gyro_model` metadata: absent keys are zero; keys this model does not know
@@ -135,24 +240,17 @@ impl GyroModel {
         let mut m = Self::zero();
         let mut extra = BTreeMap::new();
         for (k, v) in meta {
-            let num = || {
-                v.trim()
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| ModelKeyError { key: k.clone(), value: v.clone() })
-            };
-            match k.as_str() {
-                "bias" => m.bias = num()?,
-                "scale_factor_error" => m.scale_factor_error = num()?,
-                "reference_temperature" => m.reference_temperature = num()?,
-                "temp_coeff" => m.temp_coeff = num()?,
-                "temp_rate_coeff" => m.temp_rate_coeff = num()?,
-                "arw" => m.arw = num()?,
-                "bias_instability" => m.bias_instability = num()?,
-                "thermal_time_constant" => m.thermal_time_constant = num()?,
-                "earth_rate" => m.earth_rate = num()? != 0.0,
-                _ => {
+            match ModelKey::from_key(k) {
+                Some(key) => {
+                    let x = v
+                        .trim()
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .ok_or_else(|| ModelKeyError { key: k.clone(), value: v.clone() })?;
+                    m.set(key, x);
+                }
+                None => {
                     extra.insert(k.clone(), v.clone());
                 }
             }
@@ -192,6 +290,21 @@ mod tests {
         meta.insert("arw".to_string(), "lots".to_string());
         let e = GyroModel::from_metadata(&meta).expect_err("rejects");
         assert!(e.to_string().contains("`arw`") && e.to_string().contains("lots"));
+    }
+
+    #[test]
+    fn every_key_names_its_field() {
+        for (i, k) in ModelKey::ALL.into_iter().enumerate() {
+            assert_eq!(GYRO_MODEL_KEYS[i], k.key());
+            assert_eq!(ModelKey::from_key(k.key()), Some(k));
+            let mut m = GyroModel::zero();
+            m.set(k, 1.0);
+            assert_eq!(m.get(k), 1.0, "{}", k.key());
+            let changed: Vec<ModelKey> =
+                ModelKey::ALL.into_iter().filter(|o| m.get(*o) != 0.0).collect();
+            assert_eq!(changed, [k], "{}", k.key());
+        }
+        assert_eq!(ModelKey::from_key("g_sensitivity"), None);
     }
 
     #[test]

@@ -42,11 +42,6 @@ impl FirstOrderLag {
         self.y
     }
 
-    /// Advance by `dt_s` with a constant input `u`.
-    pub fn step_const(&mut self, u: f64, dt_s: f64) -> f64 {
-        self.step_linear(u, u, dt_s)
-    }
-
     /// Output derivative `dy/dt = (u − y)/τ` for the input value `u` now; for `τ = 0` the
     /// output is the input and its derivative is the input's, `input_rate`.
     pub fn rate(&self, u: f64, input_rate: f64) -> f64 {

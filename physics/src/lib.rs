@@ -22,4 +22,4 @@ pub mod noise;
 pub mod table;
 pub mod units;
 
-pub use gyro_model::GyroModel;
+pub use gyro_model::{GyroModel, ModelKey};

@@ -116,11 +116,6 @@ impl Outcome {
             text.strip_prefix("aborted:").map(|r| Outcome::Aborted(r.trim_start().to_string()))
         }
     }
-
-    /// Whether the run completed.
-    pub fn is_completed(&self) -> bool {
-        matches!(self, Outcome::Completed)
-    }
 }
 
 impl fmt::Display for Outcome {

@@ -114,7 +114,7 @@ impl Site {
         };
         let any = (f64::NEG_INFINITY, f64::INFINITY);
         let latitude = num("latitude_deg", (-90.0, 90.0), "degrees north, -90 to 90")?;
-        let longitude_deg = num("longitude_deg", (-360.0, 360.0), "degrees east")?;
+        let longitude_deg = num("longitude_deg", (-180.0, 360.0), "degrees east, -180 to 360")?;
         let height_m = num("height_m", any, "a finite number of metres")?;
         let axis = match meta.get("axis").map(|a| a.trim()) {
             None => None,

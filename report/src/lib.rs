@@ -7,7 +7,8 @@
 //! - [`calibrate`]: the gyro's thermal calibration (`bench calibrate`).
 //! - [`diagnose`]: where a recording departs from the simulation of its run, and the physics
 //!   left out (`bench diagnose`).
-//! - [`render`]: the figures and the HTML page both reports share.
+//! - [`display`]: the engineering units shown to people; [`render`]: the figures and the HTML
+//!   page both reports share.
 //!
 //! ```no_run
 //! let rec = bench_recording::Recording::load("run.mcap".as_ref())?;
@@ -20,6 +21,7 @@
 
 pub mod calibrate;
 pub mod diagnose;
+pub mod display;
 pub mod load;
 pub(crate) mod render;
 #[cfg(test)]

@@ -2,8 +2,16 @@
 //!
 //! - **Time zero**: [`Recording::time_zero_ns`] (the earliest message on the contract's four
 //!   channels); every time in [`RunSeries`] is in seconds from it.
-//! - **Gyro**: samples whose `status` is 0 and whose rate is finite, in time order; a repeated
-//!   time stamp keeps its first sample. Samples left out are counted, with their times.
+//! - **Gyro**: samples whose rate is finite and whose `status` is 0 — or exactly the
+//!   counter-gap bit (bench's `SEQ_GAP`) on a sample whose `seq` did skip: that sample is itself
+//!   valid — in time order; a repeated time stamp keeps its first sample. Samples left out are
+//!   counted, with their times.
+//! - **Time from the device where it has one** ([`bench_analysis::timebase`]): a channel whose
+//!   `publish_time` differs from `log_time` carries device stamps; the gyro's `seq` is its
+//!   sample counter. Host stamps are fitted as a line of the device clock and every sample is
+//!   placed on that line (the host's axis without its jitter); each channel's time source,
+//!   drift and jitter are reported ([`TimeBase`]). A channel with neither keeps its host
+//!   stamps.
 //! - **Gyro temperature**: the gyro's own sensor where it reads on more than half of the kept
 //!   samples (gaps filled linearly); otherwise none, and the analyses use chamber air.
 //! - **Table and chamber**: every reading with finite values, in time order.
@@ -16,11 +24,12 @@ use std::collections::BTreeMap;
 
 use bench_analysis::interp::interp_at;
 use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
+use bench_analysis::timebase::{fit_clock, unwrap_counter, ClockFit};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use bench_recording::reader::seconds_since;
 use bench_recording::schema::{META_GYRO_MODEL, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE};
-use bench_recording::{MetadataError, Recording, StepEvent};
+use bench_recording::{status, MetadataError, Recording, Stamped, StepEvent};
 
 /// Why a recording cannot be turned into arrays.
 #[derive(Debug, thiserror::Error)]
@@ -52,6 +61,40 @@ pub struct RecordedModel {
     pub unknown_keys: BTreeMap<String, String>,
 }
 
+/// Where a channel's times come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeSource {
+    /// The device's own stamps (`publish_time`), host stamps fitted to them.
+    DeviceStamps,
+    /// The device's sample counter (`seq`), host stamps fitted to it.
+    DeviceCounter,
+    /// The host's stamps (`log_time`) as they are.
+    Host,
+}
+
+impl TimeSource {
+    /// Short name, for JSON and tables.
+    pub fn key(self) -> &'static str {
+        match self {
+            TimeSource::DeviceStamps => "device_stamps",
+            TimeSource::DeviceCounter => "device_counter",
+            TimeSource::Host => "host",
+        }
+    }
+}
+
+/// One channel's time base.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimeBase {
+    /// Topic.
+    pub topic: &'static str,
+    /// Where its times come from.
+    pub source: TimeSource,
+    /// The host clock as a line of the device's (with the host's jitter), when a device clock
+    /// was used.
+    pub fit: Option<ClockFit>,
+}
+
 /// A recording as arrays.
 #[derive(Debug, Clone)]
 pub struct RunData {
@@ -65,6 +108,8 @@ pub struct RunData {
     pub bad_gyro_time_s: Vec<f64>,
     /// Median gyro sample interval, s.
     pub gyro_dt_s: f64,
+    /// Each device channel's time base (gyro, table, chamber).
+    pub time_bases: Vec<TimeBase>,
 }
 
 impl RunData {
@@ -132,16 +177,19 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
     let secs = |ns: u64| seconds_since(zero_ns, ns);
     let site = rec.site()?;
 
+    let (gyro_times, gyro_base) = channel_times(TOPIC_GYRO, &rec.gyro, zero_ns, |m| Some(m.seq));
     let mut gyro_time_s = Vec::with_capacity(rec.gyro.len());
     let mut gyro_rate = Vec::with_capacity(rec.gyro.len());
     let mut gyro_temp = Vec::with_capacity(rec.gyro.len());
     let mut bad_gyro_time_s = Vec::new();
-    for g in &rec.gyro {
-        if g.msg.status != 0 || !g.msg.rate_rad_s.is_finite() {
-            bad_gyro_time_s.push(secs(g.log_time_ns));
+    for (k, (g, &t)) in rec.gyro.iter().zip(&gyro_times).enumerate() {
+        let skipped = k > 0 && g.msg.seq != rec.gyro[k - 1].msg.seq.wrapping_add(1);
+        let valid = g.msg.status == 0 || (g.msg.status == status::gyro::SEQ_GAP && skipped);
+        if !valid || !g.msg.rate_rad_s.is_finite() {
+            bad_gyro_time_s.push(t);
             continue;
         }
-        gyro_time_s.push(secs(g.log_time_ns));
+        gyro_time_s.push(t);
         gyro_rate.push(g.msg.rate_rad_s);
         gyro_temp.push(g.msg.temperature_c.filter(|t| t.is_finite()).unwrap_or(f64::NAN));
     }
@@ -163,22 +211,27 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
     dts.sort_by(f64::total_cmp);
     let gyro_dt_s = dts[dts.len() / 2];
 
+    let (table_times, table_base) = channel_times(TOPIC_TABLE, &rec.table, zero_ns, |_| None);
     let mut table_time_s = Vec::with_capacity(rec.table.len());
     let mut angle = Vec::with_capacity(rec.table.len());
     let mut command = Vec::with_capacity(rec.table.len());
-    for t in &rec.table {
-        if t.msg.angle_rad.is_finite() && t.msg.rate_command_rad_s.is_finite() {
-            table_time_s.push(secs(t.log_time_ns));
-            angle.push(t.msg.angle_rad);
-            command.push(t.msg.rate_command_rad_s);
+    for (m, &t) in rec.table.iter().zip(&table_times) {
+        if m.msg.angle_rad.is_finite() && m.msg.rate_command_rad_s.is_finite() {
+            table_time_s.push(t);
+            angle.push(m.msg.angle_rad);
+            command.push(m.msg.rate_command_rad_s);
         }
     }
     strictly_increasing(&mut table_time_s, &mut [&mut angle, &mut command]);
+    let (chamber_times, chamber_base) =
+        channel_times(TOPIC_CHAMBER, &rec.chamber, zero_ns, |_| None);
     let mut chamber_time_s = Vec::with_capacity(rec.chamber.len());
     let mut air = Vec::with_capacity(rec.chamber.len());
-    for c in rec.chamber.iter().filter(|c| c.msg.temperature_c.is_finite()) {
-        chamber_time_s.push(secs(c.log_time_ns));
-        air.push(c.msg.temperature_c);
+    for (m, &t) in rec.chamber.iter().zip(&chamber_times) {
+        if m.msg.temperature_c.is_finite() {
+            chamber_time_s.push(t);
+            air.push(m.msg.temperature_c);
+        }
     }
     strictly_increasing(&mut chamber_time_s, &mut [&mut air]);
     need(TOPIC_TABLE, table_time_s.len())?;
@@ -229,7 +282,46 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         model: recorded_model(rec)?,
         bad_gyro_time_s,
         gyro_dt_s,
+        time_bases: vec![gyro_base, table_base, chamber_base],
     })
+}
+
+/// A channel's sample times in s from `zero_ns` (module docs): its device stamps when it has
+/// them, else its device counter (`counter` of a message, for the gyro), else its host stamps.
+/// Messages are taken in file order (non-decreasing `log_time` per the format).
+fn channel_times<T>(
+    topic: &'static str,
+    msgs: &[Stamped<T>],
+    zero_ns: u64,
+    counter: impl Fn(&T) -> Option<u64>,
+) -> (Vec<f64>, TimeBase) {
+    let host: Vec<f64> = msgs.iter().map(|m| seconds_since(zero_ns, m.log_time_ns)).collect();
+    let stamped = msgs.iter().filter(|m| m.publish_time_ns != m.log_time_ns).count();
+    let host_only = |host| (host, TimeBase { topic, source: TimeSource::Host, fit: None });
+    let stamps = (msgs.len() >= 10 && stamped * 2 > msgs.len()).then(|| {
+        let first = msgs[0].publish_time_ns;
+        msgs.iter().map(|m| seconds_since(first, m.publish_time_ns)).collect::<Vec<f64>>()
+    });
+    // Device stamps must increase with the file's order to be a clock.
+    let device = match stamps.filter(|d| d.windows(2).all(|w| w[1] > w[0])) {
+        Some(d) => Some((d, TimeSource::DeviceStamps)),
+        None => {
+            let seq: Option<Vec<u64>> = msgs.iter().map(|m| counter(&m.msg)).collect();
+            seq.filter(|s| s.len() >= 10).map(|s| (unwrap_counter(&s), TimeSource::DeviceCounter))
+        }
+    };
+    let Some((device, source)) = device else { return host_only(host) };
+    let Some(fit) = fit_clock(&device, &host) else { return host_only(host) };
+    // A clock keeps time: host stamps scatter about it by less than a quarter of the median
+    // sample interval, and it runs at a positive rate.
+    let mut dt: Vec<f64> = host.windows(2).map(|w| w[1] - w[0]).collect();
+    dt.sort_by(f64::total_cmp);
+    let period = dt.get(dt.len() / 2).copied().unwrap_or(0.0);
+    if !(fit.rate > 0.0 && fit.jitter_s < 0.25 * period && fit.outliers * 10 < msgs.len()) {
+        return host_only(host);
+    }
+    let times = device.iter().map(|&d| fit.host(d)).collect();
+    (times, TimeBase { topic, source, fit: Some(fit) })
 }
 
 #[cfg(test)]

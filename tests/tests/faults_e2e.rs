@@ -52,7 +52,7 @@ async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'stat
     let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
     let served = serve_bench(sim_config(&plan, 5), sim_clock.clone()).await.expect("served");
     let mut config =
-        for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up);
+        for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up());
     // Short wall-clock reply timeouts keep the test quick; the policy is the same.
     if let Some(table) = config.table.as_mut() {
         table.reply_timeout_s = 0.05;

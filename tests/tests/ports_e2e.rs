@@ -98,7 +98,7 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
     let served = bench_sim::serve::bench::serve_bench(sim, sim_clock).await.expect("served");
     let config =
-        for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up);
+        for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up());
     // The config round-trips through its file format.
     let config = bench::bench_config::BenchConfig::parse(
         &config.to_toml().expect("serialises"),

@@ -40,16 +40,17 @@ use bench_physics::effects::{
     RateRipple, RateSquared, ScaleFactorTemperature, TemperatureQuadratic, ThermalHysteresis,
     ThermalLag, TimeOffset, WarmUp, HYSTERESIS_THRESHOLD_C_S,
 };
-use bench_physics::GyroModel;
+use bench_physics::{GyroModel, ModelKey};
 
 use crate::calibrate::{fit_noise_spec_all_points, pooled_adev};
 use crate::error::AnalysisError;
 use crate::joint_fit::NoiseSpec;
 use crate::windows::RecordWindow;
 
+use crate::steady::TableMotion;
 use fit::Projector;
 use noise::BinNoise;
-use series::{bin_mean, make_bins, Bin, Native, RunSeries, TableMotion};
+use series::{bin_mean, make_bins, Bin, Native, RunSeries};
 
 /// Settings of a diagnosis.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,8 +74,8 @@ impl Default for DiagnoseOptions {
 /// One of the nominal model's parameters, refitted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterUpdate {
-    /// `bench.gyro_model` key.
-    pub key: &'static str,
+    /// Which parameter.
+    pub key: ModelKey,
     /// Nominal value.
     pub nominal: f64,
     /// Fitted value.
@@ -865,7 +866,7 @@ pub fn diagnose(
     let mut y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
 
     // 2. Parameter refit.
-    let base_keys = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"];
+    let base_keys = ModelKey::CALIBRATED;
     let base_proj = Projector::new(&prep.base, &all)?;
     let r_base = base_proj.residual(&y, n);
     let (noise_before, adev_segments) = noise_model(&prep)?;
@@ -1114,25 +1115,14 @@ pub fn diagnose(
             .position(|&c| c == j)
             .map_or((0.0, f64::NAN), |c| (beta[c], cov[(c, c)].sqrt()))
     };
-    let nominal_values =
-        [model.bias, model.scale_factor_error, model.temp_coeff, model.temp_rate_coeff];
     let mut parameter_updates = Vec::new();
     let mut updated = model.clone();
-    for (j, key) in base_keys.iter().enumerate() {
+    for (j, key) in base_keys.into_iter().enumerate() {
         let (d, s) = coef(j);
-        let fitted = nominal_values[j] + d;
-        parameter_updates.push(ParameterUpdate {
-            key,
-            nominal: nominal_values[j],
-            fitted,
-            sigma: s,
-        });
-        match j {
-            0 => updated.bias = fitted,
-            1 => updated.scale_factor_error = fitted,
-            2 => updated.temp_coeff = fitted,
-            _ => updated.temp_rate_coeff = fitted,
-        }
+        let nominal = model.get(key);
+        let fitted = nominal + d;
+        parameter_updates.push(ParameterUpdate { key, nominal, fitted, sigma: s });
+        updated.set(key, fitted);
     }
     // Effects' final coefficients (refitted jointly) into the findings and the model.
     let mut new_effects = *effects;

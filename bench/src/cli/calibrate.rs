@@ -8,8 +8,10 @@ use super::exit::Exit;
 use anyhow::Context as _;
 use bench_analysis::joint_fit::Estimator;
 use bench_physics::units::DEG_PER_H;
+use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_report::calibrate::{calibrate_file, json, report, CalibrateSettings};
+use bench_report::display::coefficient_unit;
 
 /// Arguments of `bench calibrate`.
 #[derive(clap::Args, Debug)]
@@ -72,7 +74,6 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value,
         );
     }
-    let truth = out.truth.as_ref().map(|t| &t.model);
     if let Ok(j) = &cal.joint {
         println!(
             "joint fit: {}{}",
@@ -84,44 +85,37 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             }
         );
     }
-    println!("| coefficient | joint fit ± 1σ | seed method | recording's model |");
-    println!("| --- | --- | --- | --- |");
+    if let Some(Ok(a)) = &cal.angle {
+        println!(
+            "angle-domain fit: GLS on {} angle misclosures over {} stretches (whitened residual \
+             RMS {:.3})",
+            a.readings, a.stretches, a.whitened_residual_rms
+        );
+    }
+    let model_label = if out.truth.is_some() { "simulator's truth" } else { "recording's model" };
+    println!(
+        "| coefficient | rate domain ± 1σ | angle domain ± 1σ | seed method | {model_label} |"
+    );
+    println!("| --- | --- | --- | --- | --- |");
     let seed = cal.seed.as_ref().ok();
-    if let Ok(j) = &cal.joint {
-        let rows = [
-            ("bias °/h", j.bias, DEG_PER_H, seed.map(|s| s.bias_rad_s), truth.map(|t| t.bias)),
-            (
-                "scale factor ppm",
-                j.scale_factor_error,
-                1e-6,
-                None,
-                truth.map(|t| t.scale_factor_error),
-            ),
-            (
-                "temp_coeff °/h/°C",
-                j.temp_coeff,
-                DEG_PER_H,
-                seed.map(|s| s.temp_coeff),
-                truth.map(|t| t.temp_coeff),
-            ),
-            (
-                "temp_rate_coeff °/h/(°C/min)",
-                j.temp_rate_coeff,
-                DEG_PER_H * 60.0,
-                seed.and_then(|s| s.temp_rate_coeff),
-                truth.map(|t| t.temp_rate_coeff),
-            ),
-        ];
-        for (label, e, unit, s, t) in rows {
-            let f = |v: Option<f64>| v.map_or("—".to_owned(), |v| format!("{:.4e}", v / unit));
-            println!(
-                "| {label} | {:.4e} ± {:.1e} | {} | {} |",
-                e.value / unit,
-                e.std_err / unit,
-                f(s),
-                f(t)
-            );
-        }
+    let joint = cal.joint.as_ref().ok();
+    let angle = cal.angle.as_ref().and_then(|a| a.as_ref().ok());
+    let recorded = out.data.run.model.as_ref().map(|m| &m.model);
+    for (j, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
+        let Some(unit) = coefficient_unit(key) else { continue };
+        let pm = |v: Option<(f64, f64)>| {
+            v.map_or("—".to_owned(), |(v, s)| format!("{:.4e} ± {:.1e}", unit.of(v), unit.of(s)))
+        };
+        let one = |v: Option<f64>| v.map_or("—".to_owned(), |v| format!("{:.4e}", unit.of(v)));
+        println!(
+            "| {} {} | {} | {} | {} | {} |",
+            key.key(),
+            unit.name,
+            pm(joint.and_then(|f| f.estimate(key)).map(|e| (e.value, e.std_err))),
+            pm(angle.map(|a| a.estimates()[j]).map(|e| (e.value, e.std_err))),
+            one(seed.and_then(|s| s.coefficient(key))),
+            one(recorded.map(|m| m.get(key))),
+        );
     }
     if let Some(t) = &out.truth {
         if let (Some(j), Some(s)) = (t.joint_removal, t.seed_removal) {

@@ -9,6 +9,7 @@ use super::exit::Exit;
 use anyhow::Context as _;
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::units::DEG_PER_H;
+use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_report::diagnose::{diagnose_file, json, report};
 
@@ -69,7 +70,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     println!("| parameter | nominal | fitted ± 1σ |");
     println!("| --- | --- | --- |");
     for u in &d.parameter_updates {
-        println!("| {} | {:.4e} | {:.4e} ± {:.1e} |", u.key, u.nominal, u.fitted, u.sigma);
+        println!("| {} | {:.4e} | {:.4e} ± {:.1e} |", u.key.key(), u.nominal, u.fitted, u.sigma);
     }
     for f in d.findings.iter().filter(|f| f.accepted) {
         let params: Vec<String> = f
@@ -104,7 +105,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let sigma = |key: &str| {
+    let sigma = |key: ModelKey| {
         d.parameter_updates.iter().find(|u| u.key == key).map(|u| u.sigma).filter(|s| s.is_finite())
     };
     let file = CalibrationFile {
@@ -115,10 +116,10 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         },
         gyro_model: ModelKeys::from(&d.model),
         uncertainty: Uncertainty {
-            bias_rad_s: sigma("bias"),
-            scale_factor_error: sigma("scale_factor_error"),
-            temp_coeff_rad_s_per_c: sigma("temp_coeff"),
-            temp_rate_coeff_rad_s_per_c_s: sigma("temp_rate_coeff"),
+            bias_rad_s: sigma(ModelKey::Bias),
+            scale_factor_error: sigma(ModelKey::ScaleFactorError),
+            temp_coeff_rad_s_per_c: sigma(ModelKey::TempCoeff),
+            temp_rate_coeff_rad_s_per_c_s: sigma(ModelKey::TempRateCoeff),
         },
         effects: d.effects,
     };

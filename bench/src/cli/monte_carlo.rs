@@ -5,8 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use bench::study;
-use bench_physics::units::DEG_PER_H;
+use bench_physics::ModelKey;
 use bench_report::calibrate::CalibrateSettings;
+use bench_report::display::coefficient_unit;
 
 /// Arguments of `bench monte-carlo`.
 #[derive(clap::Args, Debug)]
@@ -37,13 +38,11 @@ pub struct MonteCarloArgs {
     pub model: Option<PathBuf>,
 }
 
+/// Display unit (name, SI value of one unit) of a coefficient named by its key.
 fn unit(key: &str) -> (&'static str, f64) {
-    match key {
-        "bias" => ("°/h", DEG_PER_H),
-        "scale_factor_error" => ("ppm", 1e-6),
-        "temp_coeff" => ("°/h/°C", DEG_PER_H),
-        _ => ("°/h/(°C/s)", DEG_PER_H),
-    }
+    ModelKey::from_key(key)
+        .and_then(coefficient_unit)
+        .map_or(("", 1.0), |u| (u.name, 1.0 / u.per_si))
 }
 
 /// The diagnosis study (`--diagnose`).

@@ -68,8 +68,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
         if args.serve {
             let d = Arc::new(ReplayData::load(&args.recording)?);
             let s = d.serve(&clock).await?;
-            let site = d.site();
-            let (lat, up) = site.map_or((0.0, true), |s| (s.latitude_deg, s.axis_up));
+            let site = d.site;
+            let (lat, up) = site.map_or((0.0, true), |s| (s.latitude_deg, s.axis_up()));
             let cfg = for_served_bench(&s.endpoints, args.speed, lat, up);
             let e = &s.endpoints;
             super::write_served_config(

@@ -108,7 +108,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
 pub fn apply_bench_config(config: &mut SimConfig, bench: &bench::bench_config::BenchConfig) {
     if let Some(site) = bench.site() {
         config.latitude_deg = site.latitude_deg;
-        config.axis_up = site.axis_up;
+        config.axis_up = site.axis_up();
     }
     config.gyro_effects = config.gyro_effects.overridden_by(&bench.sim_effects());
 }

@@ -47,8 +47,8 @@ use bench_drivers::{
 
 use crate::run::Devices;
 use crate::scenario::Capabilities;
-use bench_recording::schema::{META_GYRO_MODEL, META_RUN, META_SITE};
-use bench_recording::{ChamberMsg, GyroMsg, Recording, RecordingError, Stamped, TableMsg};
+use bench_recording::schema::META_GYRO_MODEL;
+use bench_recording::{ChamberMsg, GyroMsg, Recording, RecordingError, Site, Stamped, TableMsg};
 
 /// A recorded table command counts as agreeing within this fraction of the command…
 const COMMAND_REL: f64 = 1e-6;
@@ -146,8 +146,8 @@ pub struct ReplayData {
     pub table: Track<TableMsg>,
     /// `/chamber/state`.
     pub chamber: Track<ChamberMsg>,
-    /// `bench.site` entries, if recorded.
-    pub site: Option<BTreeMap<String, String>>,
+    /// `bench.site`, if recorded with a latitude (checked as every reader checks it).
+    pub site: Option<Site>,
     /// `bench.gyro_model` entries, if recorded.
     pub gyro_model: Option<BTreeMap<String, String>>,
     /// Whether the file ended normally (a cut file replays up to its cut).
@@ -160,6 +160,9 @@ pub enum ReplayError {
     /// The file could not be read.
     #[error(transparent)]
     Read(#[from] RecordingError),
+    /// `bench.site` is not as the contract says.
+    #[error("{0}")]
+    Site(#[from] bench_recording::MetadataError),
     /// A required device stream has no message.
     #[error("{recording}: channel {topic} has no message: nothing to replay for the {device}")]
     Empty {
@@ -191,14 +194,15 @@ impl ReplayData {
                 return Err(ReplayError::Empty { recording: source.to_string(), topic, device });
             }
         }
-        let epoch_ns = start_epoch_ns(rec);
+        // Bench time zero of the replay is the recording's time zero.
+        let epoch_ns = rec.time_zero_ns().unwrap_or(0);
         Ok(Self {
             source: source.to_string(),
             epoch_ns,
             gyro: Track::new(&rec.gyro, epoch_ns),
             table: Track::new(&rec.table, epoch_ns),
             chamber: Track::new(&rec.chamber, epoch_ns),
-            site: rec.metadata(META_SITE).cloned(),
+            site: rec.site()?,
             gyro_model: rec.metadata(META_GYRO_MODEL).cloned(),
             complete: rec.complete,
         })
@@ -226,19 +230,6 @@ impl ReplayData {
     /// Whether the recorded gyro reports a temperature.
     pub fn gyro_has_temperature(&self) -> bool {
         self.gyro.msg.iter().any(|m| m.temperature_c.is_some())
-    }
-
-    /// The recorded site (`bench.site`), if it has a valid latitude.
-    pub fn site(&self) -> Option<crate::plan::Site> {
-        let s = self.site.as_ref()?;
-        let num = |k: &str| s.get(k).and_then(|v| v.trim().parse::<f64>().ok());
-        let latitude_deg = num("latitude_deg").filter(|l| l.is_finite() && l.abs() <= 90.0)?;
-        Some(crate::plan::Site {
-            latitude_deg,
-            longitude_deg: num("longitude_deg"),
-            height_m: num("height_m"),
-            axis_up: s.get("axis").is_none_or(|a| a != "down"),
-        })
     }
 
     /// What the replayed devices report: the simulated bench's limits, with chamber ramps up to
@@ -381,27 +372,6 @@ impl<C: Chamber + Sync> Chamber for StartOnRequest<C> {
     async fn service(&mut self) -> DeviceResult<()> {
         self.device.service().await
     }
-}
-
-/// `bench.run` `started` (RFC 3339) when present, else the earliest message on the required
-/// channels: bench time zero of the recording.
-fn start_epoch_ns(rec: &Recording) -> u64 {
-    let started = rec.metadata(META_RUN).and_then(|m| m.get("started")).and_then(|s| {
-        time::OffsetDateTime::parse(s, &time::format_description::well_known::Rfc3339).ok()
-    });
-    if let Some(ns) = started.and_then(|t| u64::try_from(t.unix_timestamp_nanos()).ok()) {
-        return ns;
-    }
-    [
-        rec.gyro.iter().map(|m| m.log_time_ns).min(),
-        rec.table.iter().map(|m| m.log_time_ns).min(),
-        rec.chamber.iter().map(|m| m.log_time_ns).min(),
-        rec.steps.iter().map(|m| m.log_time_ns).min(),
-    ]
-    .into_iter()
-    .flatten()
-    .min()
-    .unwrap_or(0)
 }
 
 /// What a replay device does once the clock passes the end of its stream.

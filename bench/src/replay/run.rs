@@ -16,7 +16,7 @@ use crate::runner::{run_info, wall_epoch_ns, RunOptions, RunReport};
 /// different scenario latitude is logged). Returns the run info: the recording's start epoch
 /// (virtual time) or `epoch_ns`, and its `bench.gyro_model` when it has one.
 pub fn prepare(plan: &mut RunPlan, data: &ReplayData, epoch_ns: u64) -> RunInfo {
-    if let Some(site) = data.site() {
+    if let Some(site) = data.site {
         if site.latitude_deg != plan.site.latitude_deg {
             tracing::warn!(
                 "replay: the recording's latitude {}° overrides the scenario's {}°",

@@ -57,7 +57,7 @@ fn the_recording_is_placed_on_the_bench_time_axis() {
     assert_eq!(d.duration(), Duration::from_secs(10));
     assert_eq!(d.gyro_rate_hz(), 10.0);
     assert!(d.gyro_has_temperature());
-    assert_eq!(d.site().map(|s| s.latitude_deg), Some(12.5));
+    assert_eq!(d.site.map(|s| s.latitude_deg), Some(12.5));
     assert_eq!(d.capabilities().gyro.capabilities.sample_rates_hz, vec![10.0]);
 }
 

@@ -6,12 +6,13 @@ use std::ops::Range;
 use std::time::Duration;
 
 use bench_physics::effects::{EffectId, Effects};
-use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel};
+use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel, ModelKey};
 
 use super::quantity::{self, fmt_num, Dim, Quantity};
 use super::Capabilities;
-use crate::plan::{Action, GyroSetup, PlannedStep, RunPlan, SimSetup, Site, TempSource};
+use crate::plan::{Action, GyroSetup, PlannedStep, RunPlan, SimSetup, TempSource};
 use bench_recording::toml_doc::{line_col, Entry, Node, Value};
+use bench_recording::{Axis, Site};
 
 /// Largest number of steps a scenario may expand to.
 pub(crate) const MAX_STEPS: usize = 100_000;
@@ -397,7 +398,7 @@ impl<'a> Builder<'a> {
 
         // [site]
         let mut site =
-            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis_up: true };
+            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis: Some(Axis::Up) };
         match self.table(top, "site") {
             Ok(Some(t)) => site = self.site(t),
             Ok(None) => {
@@ -540,7 +541,7 @@ impl<'a> Builder<'a> {
     fn site(&mut self, t: Tbl<'_>) -> Site {
         self.check_keys(t, &["latitude_deg", "longitude_deg", "height_m", "axis"], "[site]");
         let mut site =
-            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis_up: true };
+            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis: Some(Axis::Up) };
         let got = self.number(t, "latitude_deg");
         if let Some((lat, span)) =
             self.required(got, t.span, "[site] needs `latitude_deg` (degrees, north positive)")
@@ -561,8 +562,8 @@ impl<'a> Builder<'a> {
         }
         if let Ok(Some((axis, span))) = self.string(t, "axis") {
             match axis.as_str() {
-                "up" => site.axis_up = true,
-                "down" => site.axis_up = false,
+                "up" => site.axis = Some(Axis::Up),
+                "down" => site.axis = Some(Axis::Down),
                 other => {
                     self.err(&span, format!("axis must be \"up\" or \"down\", got \"{other}\""));
                 }
@@ -595,8 +596,8 @@ impl<'a> Builder<'a> {
             self.effects(et, effects, &format!("{}.effects]", what.trim_end_matches(']')));
         }
         for e in t.entries {
-            let key = e.key.as_str();
-            if key == "earth_rate" {
+            let Some(key) = ModelKey::from_key(&e.key) else { continue };
+            if key == ModelKey::EarthRate {
                 match &e.node.value {
                     Value::Bool(b) => model.earth_rate = *b,
                     Value::Num(x) if *x == 0.0 || *x == 1.0 => model.earth_rate = *x == 1.0,
@@ -606,35 +607,25 @@ impl<'a> Builder<'a> {
                 }
                 continue;
             }
-            if !GYRO_MODEL_KEYS.contains(&key) {
-                continue;
-            }
+            let name = key.key();
             let x = match &e.node.value {
                 Value::Num(x) if x.is_finite() => *x,
                 _ => {
                     self.err(
                         &e.node.span,
-                        format!("`{key}` must be a finite number in the contract's SI unit"),
+                        format!("`{name}` must be a finite number in the contract's SI unit"),
                     );
                     continue;
                 }
             };
-            let non_negative = matches!(key, "arw" | "bias_instability" | "thermal_time_constant");
-            if non_negative && x < 0.0 {
-                self.err(&e.node.span, format!("`{key}` must not be negative, got {}", fmt_num(x)));
+            if key.non_negative() && x < 0.0 {
+                self.err(
+                    &e.node.span,
+                    format!("`{name}` must not be negative, got {}", fmt_num(x)),
+                );
                 continue;
             }
-            match key {
-                "bias" => model.bias = x,
-                "scale_factor_error" => model.scale_factor_error = x,
-                "reference_temperature" => model.reference_temperature = x,
-                "temp_coeff" => model.temp_coeff = x,
-                "temp_rate_coeff" => model.temp_rate_coeff = x,
-                "arw" => model.arw = x,
-                "bias_instability" => model.bias_instability = x,
-                "thermal_time_constant" => model.thermal_time_constant = x,
-                _ => {}
-            }
+            model.set(key, x);
         }
     }
 

@@ -76,7 +76,7 @@ fn minimal_scenario_gets_the_documented_defaults() {
     assert_eq!(p.name, "t");
     assert_eq!(p.source, "t.toml");
     assert_eq!(p.site.latitude_deg, 59.94);
-    assert!(p.site.axis_up);
+    assert!(p.site.axis_up());
     assert_eq!(p.site.longitude_deg, None);
     assert_eq!(p.gyro.sample_rate_hz, 20.0);
     assert_eq!(p.gyro.model, bench_physics::GyroModel::default());
@@ -122,7 +122,7 @@ settle = false
 "#);
     assert_eq!(p.site.longitude_deg, Some(30.31));
     assert_eq!(p.site.height_m, Some(10.5));
-    assert!(!p.site.axis_up);
+    assert!(!p.site.axis_up());
     assert_eq!(p.gyro.sample_rate_hz, 100.0);
     assert_eq!(p.gyro.model.bias, 1e-6);
     assert!(!p.gyro.model.earth_rate);

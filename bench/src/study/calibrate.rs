@@ -11,7 +11,7 @@ use std::path::Path;
 use std::sync::Mutex;
 
 use anyhow::Context as _;
-use bench_physics::GyroModel;
+use bench_physics::ModelKey;
 use serde::Serialize;
 
 use bench_recording::Recording;
@@ -19,17 +19,8 @@ use bench_report::calibrate::{calibrate_recording, CalibrateSettings};
 
 use crate::simulate::{capabilities, run_plan, SimOptions};
 
-/// The coefficients compared, as `bench.gyro_model` keys.
-pub const COEFFICIENTS: [&str; 4] = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"];
-
-fn coefficient(m: &GyroModel, key: &str) -> f64 {
-    match key {
-        "bias" => m.bias,
-        "scale_factor_error" => m.scale_factor_error,
-        "temp_coeff" => m.temp_coeff,
-        _ => m.temp_rate_coeff,
-    }
-}
+/// The coefficients compared.
+pub const COEFFICIENTS: [ModelKey; 4] = ModelKey::CALIBRATED;
 
 /// One seed's result.
 #[derive(Debug, Clone, Serialize)]
@@ -180,7 +171,7 @@ fn one_seed(
             seed_cal.temp_coeff,
             seed_cal.temp_rate_coeff.unwrap_or(f64::NAN),
         ],
-        truth: COEFFICIENTS.iter().map(|k| coefficient(&truth.model, k)).collect(),
+        truth: COEFFICIENTS.iter().map(|k| truth.model.get(*k)).collect(),
         joint_removed: truth.joint_removal.map_or(f64::NAN, |r| r.removed()),
         seed_removed: truth.seed_removal.map_or(f64::NAN, |r| r.removed()),
         lag_s: match &out.calibration.lag {
@@ -221,7 +212,7 @@ pub fn summarise(scenario: String, seeds: Vec<SeedResult>) -> MonteCarlo {
                 .filter(|r| (r.joint[j].0 - r.truth[j]).abs() <= 1.959_964 * r.joint[j].1)
                 .count();
             CoefficientSummary {
-                key: (*key).to_owned(),
+                key: key.key().to_owned(),
                 joint_rms_error,
                 seed_rms_error,
                 improvement: seed_rms_error / joint_rms_error,

@@ -235,16 +235,6 @@ impl BinaryWord {
         })
     }
 
-    /// A valid incremental-angle word for `angle_deg`, rounded to the LSB.
-    pub fn from_angle_deg(angle_deg: f64, sync: u8) -> Result<Self, EncodeError> {
-        Ok(Self {
-            valid: true,
-            sync,
-            data_type: DataType::IncrementalAngle,
-            value: to_counts("angle_deg", angle_deg, ANGLE_LSB_DEG)?,
-        })
-    }
-
     /// The rate in rad/s for a rate word.
     pub fn rate_rad_s(&self) -> Option<f64> {
         (self.data_type == DataType::Rate)

@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 
 use bench_analysis::calibrate::WindowKind;
+use bench_physics::ModelKey;
 use serde::Serialize;
 
 use super::CalibrationOutcome;
@@ -127,14 +128,9 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
     let cal = &outcome.calibration;
     let mut coefficients = BTreeMap::new();
     if let Ok(j) = &cal.joint {
-        for (k, e) in [
-            ("bias", j.bias),
-            ("scale_factor_error", j.scale_factor_error),
-            ("temp_coeff", j.temp_coeff),
-            ("temp_rate_coeff", j.temp_rate_coeff),
-        ] {
+        for (k, e) in ModelKey::CALIBRATED.into_iter().filter_map(|k| Some((k, j.estimate(k)?))) {
             coefficients.insert(
-                k.to_owned(),
+                k.key().to_owned(),
                 Coefficient {
                     value: e.value,
                     sigma: e.std_err,
@@ -155,10 +151,10 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
     }
     let mut seed_method = BTreeMap::new();
     if let Ok(s) = &cal.seed {
-        seed_method.insert("bias".to_owned(), s.bias_rad_s);
-        seed_method.insert("temp_coeff".to_owned(), s.temp_coeff);
-        if let Some(k) = s.temp_rate_coeff {
-            seed_method.insert("temp_rate_coeff".to_owned(), k);
+        for k in ModelKey::CALIBRATED {
+            if let Some(v) = s.coefficient(k) {
+                seed_method.insert(k.key().to_owned(), v);
+            }
         }
     }
     let mut noise = BTreeMap::new();

@@ -152,7 +152,7 @@ pub fn calibrate_recording(
     if let Some(r) = settings.replicates {
         opts.replicates = r;
     }
-    let calibration = calibrate(&data.windows, &data.temperature, &opts);
+    let calibration = calibrate(&data.windows, &data.readings, &data.temperature, &opts);
     let base = recorded.clone().unwrap_or_else(GyroModel::zero);
     let model = calibration.model(&base);
     let seed_model = calibration.seed.as_ref().ok().map(|s| {

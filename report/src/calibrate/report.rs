@@ -115,7 +115,7 @@ mod tests {
         for v in [&bias, &tc, &sf] {
             assert!(html.contains(&format!("<td>{v} ± ")), "joint value {v} in the table");
         }
-        assert!(html.contains("°/h per °C/min"));
+        assert!(html.contains("°/h/(°C/min)"));
 
         // One PNG per figure, decodable header, the figure's pixel size.
         assert_eq!(files.pngs.len(), figs.len());

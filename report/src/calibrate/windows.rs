@@ -1,27 +1,51 @@
 //! Record windows for the calibration, from the shared loader's arrays ([`crate::load`]).
 //!
-//! - **Windows**: every `record …` step, its gyro samples in `(start, end]`.
-//! - **Table rate from the angle**: the input rate is the slope of the table's unwrapped angle
-//!   over a centred [`TABLE_RATE_WINDOW_S`] window (`local_linear_rate`) of the window's own
-//!   table samples, not the measured-rate field. A table's angle readout is its precise
-//!   quantity (1″ on an ST1300 class table: over 20 s at 10 °/min the quantisation averages over
-//!   ~12 000 steps), while its rate readout is an encoder difference whose noise (≈ 1e-6 rad/s)
-//!   is ten times the gyro's own white noise at 20 Hz and would swamp the Allan deviation of
-//!   `gyro − table`.
+//! - **Windows**: every `record …` step, cut to the table's steady motion
+//!   ([`bench_analysis::steady`]: the rule diagnosis uses too): each steady part of the step
+//!   becomes a window of the gyro samples whose whole interval lies in it. What the step holds
+//!   outside its steady parts — the reversal at its start, the table accelerating, settling or
+//!   stopping, a gap in the table's data — is excluded, each span with its cause, and reported
+//!   ([`WindowExclusion`]). A step with several steady parts gives one window per part.
+//! - **Table rate from the angle**: the input rate is the slope of the steady part's straight
+//!   line through the table's angle readings (plus the ripple the readings resolve), not the
+//!   measured-rate field. A table's angle readout is its precise quantity (1″ on an ST1300
+//!   class table: over minutes at 10 °/min the line averages thousands of steps and the host
+//!   stamps' jitter), while its rate readout is an encoder difference whose noise (≈ 1e-6
+//!   rad/s) is ten times the gyro's own white noise at 20 Hz.
 //! - **Model temperature**: the gyro's own sensor where it has one (the loader's rule);
 //!   otherwise chamber air, interpolated at the gyro's times.
 
+use bench_analysis::angle_fit::TableReadings;
 use bench_analysis::calibrate::TemperatureSeries;
-use bench_analysis::interp::{interp_at, Cursor};
+use bench_analysis::interp::interp_at;
 use bench_analysis::run::StepEnd;
+use bench_analysis::steady::{TableMotion, Unsteady};
 use bench_analysis::temperature_rate::local_linear_rate;
 use bench_analysis::RecordWindow;
 
 use super::CalibrateError;
 use crate::load::RunData;
 
-/// Window of the angle-slope filter that gives the table rate, s.
+/// Window of the angle-slope filter that gives the whole run's table rate for plots, s.
 pub const TABLE_RATE_WINDOW_S: f64 = 20.0;
+
+/// Steady parts of a record step shorter than this are not used as windows, s.
+pub const MIN_WINDOW_S: f64 = 30.0;
+
+/// A span of a record step left out, with its cause and the gyro samples in it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowExclusion {
+    /// The step's label.
+    pub label: String,
+    /// From, s.
+    pub start_s: f64,
+    /// Until, s.
+    pub end_s: f64,
+    /// Why: what the table was doing.
+    pub why: Unsteady,
+    /// Good gyro samples in it (left out).
+    pub samples: usize,
+}
 
 /// One record window as found in the recording.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,10 +71,16 @@ pub struct CalibrationData {
     pub run: RunData,
     /// Record windows, in time order, each with at least 2 good samples.
     pub windows: Vec<RecordWindow>,
+    /// The table's angle readings over each window (same order), for the angle-domain fit.
+    pub readings: Vec<TableReadings>,
     /// Where each window came from (same order as `windows`).
     pub spans: Vec<WindowSpan>,
-    /// Record steps with fewer than 2 good gyro samples (label, samples).
+    /// Record steps with no steady part long enough to use (label, good gyro samples in it).
     pub empty_windows: Vec<(String, usize)>,
+    /// What the record steps hold outside their windows, in time order.
+    pub exclusions: Vec<WindowExclusion>,
+    /// The table's steady motion over the whole run.
+    pub motion: TableMotion,
     /// The model temperature over the whole run (gyro sensor, else chamber air).
     pub temperature: TemperatureSeries,
     /// Chamber air over the whole run.
@@ -77,54 +107,117 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
         Some(t) => TemperatureSeries { time_s: s.gyro_time_s.clone(), temp_c: t.clone() },
         None => chamber.clone(),
     };
+    let motion = TableMotion::fit(&s.table_time_s, &s.table_angle_rad, &s.table_rate_command_rad_s);
+    // A gyro sample covers (t − dt, t]: its interval must lie in the steady part.
+    let dt = run.gyro_dt_s;
+    let samples_in = |a: f64, b: f64| {
+        let lo = s.gyro_time_s.partition_point(|&t| t - dt < a);
+        let hi = s.gyro_time_s.partition_point(|&t| t <= b);
+        (lo, hi.max(lo))
+    };
 
     let mut windows = Vec::new();
+    let mut readings = Vec::new();
     let mut spans = Vec::new();
     let mut empty_windows = Vec::new();
+    let mut exclusions = Vec::new();
+    let record_steps = run.record_steps().count();
     for step in run.record_steps() {
-        let span = WindowSpan {
-            label: step.label.clone(),
-            step_index: step.index,
-            start_s: step.start_s,
-            end_s: step.end_s,
-            incomplete: step.ended != StepEnd::End,
-            bad_samples: run.bad_gyro_samples_in(step.start_s, step.end_s),
-        };
-        let lo = s.gyro_time_s.partition_point(|&t| t <= span.start_s);
-        let hi = s.gyro_time_s.partition_point(|&t| t <= span.end_s);
-        if hi < lo + 2 {
-            empty_windows.push((span.label.clone(), hi.saturating_sub(lo)));
+        let parts: Vec<(f64, f64, usize)> = motion
+            .steady_within(step.start_s, step.end_s)
+            .into_iter()
+            .filter(|(a, b, _)| b - a >= MIN_WINDOW_S)
+            .collect();
+        // Exclusions: the steady-motion rule's, plus steady parts too short to use.
+        for e in motion.exclusions(step.start_s, step.end_s) {
+            let (lo, hi) = samples_in(e.start_s, e.end_s);
+            exclusions.push(WindowExclusion {
+                label: step.label.clone(),
+                start_s: e.start_s,
+                end_s: e.end_s,
+                why: e.why,
+                samples: hi - lo,
+            });
+        }
+        for (a, b, _) in motion.steady_within(step.start_s, step.end_s) {
+            if b - a < MIN_WINDOW_S {
+                let (lo, hi) = samples_in(a, b);
+                exclusions.push(WindowExclusion {
+                    label: step.label.clone(),
+                    start_s: a,
+                    end_s: b,
+                    why: Unsteady::NotSteady,
+                    samples: hi - lo,
+                });
+            }
+        }
+        if parts.is_empty() {
+            let (lo, hi) = samples_in(step.start_s, step.end_s);
+            empty_windows.push((step.label.clone(), hi - lo));
             continue;
         }
-        let time: Vec<f64> = s.gyro_time_s[lo..hi].to_vec();
-        // The angle slope from the window's own table samples: a centred filter reaching past
-        // the window's end would mix in the stop that follows it.
-        let (a, b) = (
-            s.table_time_s.partition_point(|&t| t < span.start_s),
-            s.table_time_s.partition_point(|&t| t <= span.end_s),
-        );
-        let win_rate = angle_rate(&s.table_time_s[a..b], &s.table_angle_rad[a..b])?;
-        let table = if win_rate.is_empty() {
-            let mut c = Cursor::new(&s.table_time_s, &table_rate);
-            time.iter().map(|&t| c.at(t)).collect()
-        } else {
-            interp_at(&s.table_time_s[a..b], &win_rate, &time)
-        };
-        let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
-        let sensor = s.gyro_temp_c.as_ref().map(|g| g[lo..hi].to_vec());
-        let w = RecordWindow::new(
-            span.label.clone(),
-            time,
-            s.gyro_rate_rad_s[lo..hi].to_vec(),
-            table,
-            sensor,
-            air,
-        )
-        .map_err(CalibrateError::Analysis)?;
-        windows.push(w);
-        spans.push(span);
+        let many = parts.len() > 1;
+        for (k, (a, b, seg)) in parts.iter().copied().enumerate() {
+            let label = if many {
+                format!("{} [{}/{}]", step.label, k + 1, parts.len())
+            } else {
+                step.label.clone()
+            };
+            let span = WindowSpan {
+                label: label.clone(),
+                step_index: step.index,
+                start_s: a,
+                end_s: b,
+                incomplete: step.ended != StepEnd::End,
+                bad_samples: run.bad_gyro_samples_in(a, b),
+            };
+            let (lo, hi) = samples_in(a, b);
+            if hi < lo + 2 {
+                empty_windows.push((label, hi - lo));
+                continue;
+            }
+            let time: Vec<f64> = s.gyro_time_s[lo..hi].to_vec();
+            let table: Vec<f64> = s.gyro_time_s[lo..hi]
+                .iter()
+                .map(|&t| motion.rate(t - 0.5 * dt).unwrap_or(0.0))
+                .collect();
+            let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
+            let sensor = s.gyro_temp_c.as_ref().map(|g| g[lo..hi].to_vec());
+            let w = RecordWindow::new(
+                label,
+                time,
+                s.gyro_rate_rad_s[lo..hi].to_vec(),
+                table,
+                sensor,
+                air,
+            )
+            .map_err(CalibrateError::Analysis)?;
+            let (ta, tb) = (
+                s.table_time_s.partition_point(|&t| t < a),
+                s.table_time_s.partition_point(|&t| t <= b),
+            );
+            // The angle-domain reference: the readout through the steady motion at the reading
+            // times; its slope may be off by a readout step over the part, or by what the
+            // readings' scatter allows.
+            let segment = &motion.segments[seg];
+            let time_s: Vec<f64> = s.table_time_s[ta..tb].to_vec();
+            let angle_rad: Vec<f64> =
+                time_s.iter().map(|&t| motion.angle(t).unwrap_or(f64::NAN)).collect();
+            let duration = (b - a).max(1.0);
+            let from_scatter = segment.scatter_rad * 12f64.sqrt()
+                / (duration * (segment.readings.max(1) as f64).sqrt());
+            readings.push(TableReadings {
+                time_s,
+                angle_rad,
+                sigma_rad: 1e-9,
+                drift_sigma_rad_s: (motion.quantum_rad / duration).max(from_scatter),
+            });
+            windows.push(w);
+            spans.push(span);
+        }
     }
-    if spans.is_empty() && empty_windows.is_empty() {
+    exclusions.sort_by(|x, y| x.start_s.total_cmp(&y.start_s));
+    if record_steps == 0 {
         return Err(CalibrateError::NoRecordWindows { steps: s.steps.len() });
     }
     let table_rate_rad_s =
@@ -132,8 +225,11 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
     Ok(CalibrationData {
         run,
         windows,
+        readings,
         spans,
         empty_windows,
+        exclusions,
+        motion,
         temperature,
         chamber,
         table_rate_rad_s,

@@ -61,7 +61,7 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
     let mut updates = Map::new();
     for u in &d.parameter_updates {
         updates.insert(
-            u.key.into(),
+            u.key.key().into(),
             json!({"nominal": num(u.nominal), "fitted": num(u.fitted), "sigma": num(u.sigma)}),
         );
     }

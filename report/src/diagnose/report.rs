@@ -240,7 +240,7 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
         let _ = writeln!(
             h,
             "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            u.key,
+            u.key.key(),
             sig(u.nominal, 4),
             sig(u.fitted, 4),
             sig(u.sigma, 2),

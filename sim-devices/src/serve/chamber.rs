@@ -312,11 +312,6 @@ impl ServedChamber {
         lock(&self.shared.writes).clone()
     }
 
-    /// Forget the logged writes.
-    pub fn clear_writes(&self) {
-        lock(&self.shared.writes).clear();
-    }
-
     /// The faults this server applies.
     pub fn faults(&self) -> &FaultSwitch {
         &self.shared.opts.faults

@@ -12,25 +12,13 @@ use bench_physics::GyroModel;
 
 use super::figures::Figure;
 use crate::calibrate::{CalibrationOutcome, FunctionErrors};
+use crate::display::{Unit, PPM, RATE, TEMP_COEFF, TEMP_RATE_COEFF};
 use crate::render::{escape, figures_html, sig, STYLE};
 
 /// `value ± σ`.
 fn pm(value: f64, sigma: f64) -> String {
     format!("{} ± {}", sig(value, 4), sig(sigma, 2))
 }
-
-/// Conversion from `bench.gyro_model` units to the report's, with the unit's name.
-#[derive(Clone, Copy)]
-struct Unit {
-    name: &'static str,
-    per_si: f64,
-}
-
-const RATE: Unit = Unit { name: "°/h", per_si: 1.0 / DEG_PER_H };
-const PPM: Unit = Unit { name: "ppm", per_si: 1e6 };
-const TEMP_COEFF: Unit = Unit { name: "°/h per °C", per_si: 1.0 / DEG_PER_H };
-/// rad/s per (°C/s) → °/h per (°C/min): one °C/min is 1/60 °C/s.
-const TEMP_RATE_COEFF: Unit = Unit { name: "°/h per °C/min", per_si: 1.0 / (60.0 * DEG_PER_H) };
 
 fn kind_text(k: WindowKind) -> &'static str {
     match k {

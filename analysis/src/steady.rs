@@ -1,0 +1,659 @@
+//! Where the table turns steadily, decided from the table's own data: the one rule that
+//! calibration and diagnosis share for which samples enter a fit.
+//!
+//! A record window's step events say when the procedure meant to record, not what the table
+//! did: a lab's window may start on the reversal, while the table still turns the other way,
+//! and a controller settles for a second or more after each new rate. Only the table's
+//! readings tell.
+//!
+//! # Rule
+//!
+//! 1. **Stretches.** The table stream is cut wherever `rate_command` changes: between changes
+//!    the controller holds one rate (or rest).
+//! 2. **Steady part of a stretch.** A straight line is fitted to the stretch's second half (the
+//!    acceleration and settling follow the command change, at its start). The readings'
+//!    scatter about it is measured robustly (median absolute deviation) and the readout's step
+//!    (the angle quantum, 1″ on an ST1300 class table) is read off the data; a reading belongs
+//!    to the steady motion while it stays within [`SteadyOptions::tolerance_sigma`] scatters
+//!    (and at least 1.5 quanta) of the line. The steady part runs from the first reading after
+//!    the last departure before the second half to the last reading within tolerance; the line
+//!    is then refitted over it. A departure below the readout's resolution can outlast the
+//!    first reading back on the line, so [`SteadyOptions::guard_s`] more is dropped after the
+//!    start (and two readings before the end).
+//! 3. **Leftovers.** What a stretch holds outside its steady part (a disturbance, or a stretch
+//!    whose command never changed while the table did) is searched again, as a stretch of its
+//!    own, when it is at least [`SteadyOptions::min_segment_s`] long.
+//! 4. **Too short.** Steady parts shorter than [`SteadyOptions::min_segment_s`] are dropped.
+//! 5. **Ripple.** The rotating segments' departures from their lines are searched for harmonics
+//!    of the table angle (1 to [`RIPPLE_MAX_CYCLES`] cycles per revolution) above the readings'
+//!    scatter: the table's rate ripple, where the readout resolves it.
+//!
+//! Everything between steady segments is excluded, each span with its cause
+//! ([`TableMotion::exclusions`]): a reversal, a start or stop, a change of rate, a stretch
+//! without table data, or motion that is not a straight line.
+
+/// Settings of [`TableMotion::fit`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SteadyOptions {
+    /// A reading departs from the steady line beyond this many robust scatters of the
+    /// readings about it (default 6).
+    pub tolerance_sigma: f64,
+    /// Time dropped after the detected start of a steady part, s (default 1): settling below
+    /// the readout's resolution.
+    pub guard_s: f64,
+    /// Shortest steady part kept, s (default 20).
+    pub min_segment_s: f64,
+    /// Largest gap between table readings inside a steady part, s (default 5): a longer gap
+    /// ends the part (the table may have done anything meanwhile).
+    pub max_gap_s: f64,
+}
+
+impl Default for SteadyOptions {
+    fn default() -> Self {
+        Self { tolerance_sigma: 6.0, guard_s: 1.0, min_segment_s: 20.0, max_gap_s: 5.0 }
+    }
+}
+
+/// A stretch of steady motion: a straight line of the table angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TableSegment {
+    /// Steady from, s.
+    pub start_s: f64,
+    /// Steady until, s.
+    pub end_s: f64,
+    /// Fitted angle at `start_s`, rad.
+    pub angle0_rad: f64,
+    /// Fitted rate, rad/s.
+    pub rate_rad_s: f64,
+    /// The command held, rad/s.
+    pub command_rad_s: f64,
+    /// Robust scatter of the readings about the line, rad.
+    pub scatter_rad: f64,
+    /// Readings in it.
+    pub readings: usize,
+}
+
+impl TableSegment {
+    /// The line's angle at `t`, rad.
+    pub fn angle(&self, t: f64) -> f64 {
+        self.angle0_rad + self.rate_rad_s * (t - self.start_s)
+    }
+
+    /// Duration, s.
+    pub fn duration_s(&self) -> f64 {
+        self.end_s - self.start_s
+    }
+}
+
+/// Why a span of time is left out of the steady motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Unsteady {
+    /// The command changed sign: the table reversed, then settled.
+    Reversal,
+    /// The command went from rest to a rate: the table accelerated, then settled.
+    Start,
+    /// The command went to rest: the table decelerated and stopped.
+    Stop,
+    /// The command changed magnitude with the same sign.
+    RateChange,
+    /// No table reading for longer than [`SteadyOptions::max_gap_s`].
+    NoTableData,
+    /// The table held its command but its angle departed from a straight line (a disturbance,
+    /// or a steady stretch too short to use).
+    NotSteady,
+}
+
+impl Unsteady {
+    /// Short name, for JSON and tables.
+    pub fn key(self) -> &'static str {
+        match self {
+            Unsteady::Reversal => "reversal",
+            Unsteady::Start => "start",
+            Unsteady::Stop => "stop",
+            Unsteady::RateChange => "rate_change",
+            Unsteady::NoTableData => "no_table_data",
+            Unsteady::NotSteady => "not_steady",
+        }
+    }
+}
+
+/// A span excluded from the steady motion, with its cause.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exclusion {
+    /// From, s.
+    pub start_s: f64,
+    /// Until, s.
+    pub end_s: f64,
+    /// Why.
+    pub why: Unsteady,
+}
+
+/// The table's motion as steady line segments plus its angle ripple (module docs).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TableMotion {
+    /// Segments in time order, not overlapping.
+    pub segments: Vec<TableSegment>,
+    /// Angle ripple as harmonics of the table angle: (cycles per revolution, sin and cos
+    /// amplitudes in rad).
+    pub ripple: Vec<(u32, f64, f64)>,
+    /// The readout's step read off the data, rad (0 when the readings are not on a grid).
+    pub quantum_rad: f64,
+    /// Command changes: (time of the first reading with the new command, previous command,
+    /// new command), rad/s.
+    pub command_changes: Vec<(f64, f64, f64)>,
+    /// Spans without table readings longer than [`SteadyOptions::max_gap_s`]: (from, to), s.
+    pub gaps: Vec<(f64, f64)>,
+}
+
+/// Highest ripple harmonic searched, cycles per revolution.
+pub const RIPPLE_MAX_CYCLES: u32 = 64;
+
+impl TableMotion {
+    /// Find the steady motion of the table stream `(time_s, angle_rad, command)` with the
+    /// default options (module docs).
+    pub fn fit(time_s: &[f64], angle_rad: &[f64], command: &[f64]) -> TableMotion {
+        Self::fit_with(time_s, angle_rad, command, &SteadyOptions::default())
+    }
+
+    /// [`Self::fit`] with explicit options.
+    pub fn fit_with(
+        time_s: &[f64],
+        angle_rad: &[f64],
+        command: &[f64],
+        opts: &SteadyOptions,
+    ) -> TableMotion {
+        let n = time_s.len().min(angle_rad.len()).min(command.len());
+        let (t, y, c) = (&time_s[..n], &angle_rad[..n], &command[..n]);
+        let quantum_rad = angle_quantum(y);
+        let mut segments = Vec::new();
+        let mut command_changes = Vec::new();
+        let mut gaps = Vec::new();
+        for k in 1..n {
+            if c[k] != c[k - 1] {
+                command_changes.push((t[k], c[k - 1], c[k]));
+            }
+            if t[k] - t[k - 1] > opts.max_gap_s {
+                gaps.push((t[k - 1], t[k]));
+            }
+        }
+        // Stretches: constant command and no long gap.
+        let mut i0 = 0;
+        while i0 < n {
+            let mut i1 = i0 + 1;
+            while i1 < n && c[i1] == c[i0] && t[i1] - t[i1 - 1] <= opts.max_gap_s {
+                i1 += 1;
+            }
+            steady_parts(t, y, i0, i1, c[i0], quantum_rad, opts, &mut segments);
+            i0 = i1;
+        }
+        segments.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
+        let ripple = fit_ripple(&segments, t, y);
+        TableMotion { segments, ripple, quantum_rad, command_changes, gaps }
+    }
+
+    fn ripple_angle(&self, theta: f64) -> f64 {
+        self.ripple
+            .iter()
+            .map(|&(k, a, b)| {
+                let (s, c) = (f64::from(k) * theta).sin_cos();
+                a * s + b * c
+            })
+            .sum()
+    }
+
+    fn ripple_slope(&self, theta: f64) -> f64 {
+        self.ripple
+            .iter()
+            .map(|&(k, a, b)| {
+                let kf = f64::from(k);
+                let (s, c) = (kf * theta).sin_cos();
+                kf * (a * c - b * s)
+            })
+            .sum()
+    }
+
+    /// The segment steady at `t`, if any.
+    pub fn segment_at(&self, t: f64) -> Option<&TableSegment> {
+        let k = self.segments.partition_point(|s| s.start_s <= t);
+        let s = self.segments.get(k.checked_sub(1)?)?;
+        (t <= s.end_s).then_some(s)
+    }
+
+    /// Fitted angle at `t` (rad), where the table is steady: the line plus the ripple.
+    pub fn angle(&self, t: f64) -> Option<f64> {
+        self.segment_at(t).map(|s| {
+            let line = s.angle(t);
+            if s.rate_rad_s == 0.0 {
+                line
+            } else {
+                line + self.ripple_angle(line)
+            }
+        })
+    }
+
+    /// Fitted rate at `t` (rad/s), where the table is steady, ripple included.
+    pub fn rate(&self, t: f64) -> Option<f64> {
+        self.segment_at(t).map(|s| s.rate_rad_s * (1.0 + self.ripple_slope(s.angle(t))))
+    }
+
+    /// The steady parts of `[start_s, end_s]`: (from, to, segment index), in time order.
+    pub fn steady_within(&self, start_s: f64, end_s: f64) -> Vec<(f64, f64, usize)> {
+        self.segments
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let (a, b) = (s.start_s.max(start_s), s.end_s.min(end_s));
+                (b > a).then_some((a, b, i))
+            })
+            .collect()
+    }
+
+    /// What is not steady within `[start_s, end_s]`, each span with its cause (module docs).
+    pub fn exclusions(&self, start_s: f64, end_s: f64) -> Vec<Exclusion> {
+        let mut out = Vec::new();
+        let mut cursor = start_s;
+        let steady = self.steady_within(start_s, end_s);
+        let mut push = |a: f64, b: f64| {
+            if b > a {
+                out.push(Exclusion { start_s: a, end_s: b, why: self.cause(a, b) });
+            }
+        };
+        for (a, b, _) in steady {
+            push(cursor, a);
+            cursor = b;
+        }
+        push(cursor, end_s);
+        out
+    }
+
+    /// The cause of an unsteady span `[a, b]`: a command change in or just before it (the
+    /// settling after it), else a gap in the readings, else motion off a line.
+    fn cause(&self, a: f64, b: f64) -> Unsteady {
+        // A command change up to the span's start counts when no steady motion came between.
+        let since = self
+            .segments
+            .iter()
+            .rev()
+            .find(|s| s.end_s <= a)
+            .map_or(f64::NEG_INFINITY, |s| s.end_s);
+        let change = self.command_changes.iter().rev().find(|(t, _, _)| *t >= since && *t <= b);
+        if let Some(&(_, from, to)) = change {
+            return if from == 0.0 {
+                Unsteady::Start
+            } else if to == 0.0 {
+                Unsteady::Stop
+            } else if from.signum() != to.signum() {
+                Unsteady::Reversal
+            } else {
+                Unsteady::RateChange
+            };
+        }
+        if self.gaps.iter().any(|&(g0, g1)| g0 < b && g1 > a) {
+            return Unsteady::NoTableData;
+        }
+        Unsteady::NotSteady
+    }
+}
+
+/// The readout's step: the greatest common divisor of the readings' differences, when every
+/// reading lies on that grid (within 1e-3 of a step); 0 otherwise (no grid, or steps below
+/// 1e-8 rad, finer than any table's readout).
+fn angle_quantum(y: &[f64]) -> f64 {
+    const TOL: f64 = 1e-9;
+    let gcd = |mut a: f64, mut b: f64| {
+        while b > TOL {
+            let r = a % b;
+            a = b;
+            b = if r < TOL || b - r < TOL { 0.0 } else { r };
+        }
+        a
+    };
+    let head = &y[..y.len().min(20_000)];
+    let mut q = 0.0;
+    for d in head.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > TOL).take(2_000) {
+        q = if q == 0.0 { d } else { gcd(q.max(d), q.min(d)) };
+    }
+    if q < 1e-8 {
+        return 0.0;
+    }
+    let on_grid = head.iter().all(|v| {
+        let k = (v - head[0]) / q;
+        (k - k.round()).abs() < 1e-3
+    });
+    if on_grid {
+        q
+    } else {
+        0.0
+    }
+}
+
+/// Least-squares line `a + b·(t − t0)` over `t`, `y`: (a at t0, b).
+fn line(t: &[f64], y: &[f64]) -> (f64, f64) {
+    let n = t.len() as f64;
+    let t0 = t[0];
+    let tm = t.iter().map(|v| v - t0).sum::<f64>() / n;
+    let ym = y.iter().sum::<f64>() / n;
+    let (mut sxx, mut sxy) = (0.0, 0.0);
+    for (a, b) in t.iter().zip(y) {
+        let dx = a - t0 - tm;
+        sxx += dx * dx;
+        sxy += dx * (b - ym);
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (ym - slope * tm, slope)
+}
+
+/// Robust scatter (1.4826 × median absolute deviation) of `r`.
+fn robust_scatter(r: &mut [f64]) -> f64 {
+    if r.is_empty() {
+        return 0.0;
+    }
+    r.iter_mut().for_each(|x| *x = x.abs());
+    r.sort_by(f64::total_cmp);
+    1.4826 * r[r.len() / 2]
+}
+
+/// The core of a stretch: the longest run of consecutive eighths of it whose line slopes agree
+/// (within their noise, or 1e-3 of the rate), as a range of readings. An acceleration at the
+/// start, or a reversal the command did not show, breaks the agreement.
+fn core(ts: &[f64], ys: &[f64], quantum: f64) -> (usize, usize) {
+    const BLOCKS: usize = 8;
+    let n = ts.len();
+    let edges: Vec<usize> = (0..=BLOCKS).map(|k| k * n / BLOCKS).collect();
+    let slopes: Vec<(f64, f64)> = edges
+        .windows(2)
+        .map(|e| {
+            let (a, b) = (e[0], e[1]);
+            if b < a + 3 {
+                return (f64::NAN, f64::INFINITY);
+            }
+            let (c, s) = line(&ts[a..b], &ys[a..b]);
+            let mut r: Vec<f64> = (a..b).map(|k| ys[k] - c - s * (ts[k] - ts[a])).collect();
+            let scatter = robust_scatter(&mut r).max(quantum / 12f64.sqrt());
+            let span = (ts[b - 1] - ts[a]).max(1e-9);
+            (s, scatter * 12f64.sqrt() / (span * ((b - a) as f64).sqrt()))
+        })
+        .collect();
+    let agree = |i: usize, j: usize| {
+        let ((si, ei), (sj, ej)) = (slopes[i], slopes[j]);
+        (si - sj).abs() <= (1e-3 * si.abs().max(sj.abs())).max(6.0 * (ei * ei + ej * ej).sqrt())
+    };
+    let (mut best, mut run_start) = ((0, 1), 0);
+    for k in 1..=BLOCKS {
+        if k == BLOCKS || !agree(k - 1, k) {
+            if edges[k] - edges[run_start] > edges[best.1] - edges[best.0] {
+                best = (run_start, k);
+            }
+            run_start = k;
+        }
+    }
+    (edges[best.0], edges[best.1])
+}
+
+/// The steady parts of readings `i0..i1` (one command, `command`), searched again in what is
+/// left over (module docs), pushed to `out`.
+#[allow(clippy::too_many_arguments)]
+fn steady_parts(
+    t: &[f64],
+    y: &[f64],
+    i0: usize,
+    i1: usize,
+    command: f64,
+    quantum: f64,
+    opts: &SteadyOptions,
+    out: &mut Vec<TableSegment>,
+) {
+    if i1 < i0 + 8 || t[i1 - 1] - t[i0] < opts.min_segment_s {
+        return;
+    }
+    let (ts, ys) = (&t[i0..i1], &y[i0..i1]);
+    let n = ts.len();
+    let (core0, core1) = core(ts, ys, quantum);
+    let mid = (core0 + core1) / 2;
+    // Line over the core, then the contiguous run around its middle within tolerance; once
+    // more with the line refitted over that run.
+    let (mut first, mut last) = (core0, core1 - 1);
+    for _ in 0..2 {
+        let (a, b) = line(&ts[first..=last], &ys[first..=last]);
+        let t0 = ts[first];
+        let resid = |k: usize| ys[k] - a - b * (ts[k] - t0);
+        let mut r: Vec<f64> = (first..=last).map(resid).collect();
+        let scatter = robust_scatter(&mut r);
+        let tol = (opts.tolerance_sigma * scatter).max(1.5 * quantum).max(1e-12);
+        first = mid;
+        while first > 0 && resid(first - 1).abs() <= tol {
+            first -= 1;
+        }
+        last = mid;
+        while last + 1 < n && resid(last + 1).abs() <= tol {
+            last += 1;
+        }
+        if last < first + 8 {
+            return;
+        }
+    }
+    // Settling below the resolution: drop the guard after the start, two readings before
+    // the end.
+    let start_t = ts[first] + opts.guard_s;
+    let mut s = first;
+    while s < n && ts[s] < start_t {
+        s += 1;
+    }
+    let e = last.saturating_sub(2);
+    if e > s + 8 && ts[e] - ts[s] >= opts.min_segment_s {
+        let (a, b) = line(&ts[s..=e], &ys[s..=e]);
+        let mut r: Vec<f64> = (s..=e).map(|k| ys[k] - a - b * (ts[k] - ts[s])).collect();
+        out.push(TableSegment {
+            start_s: ts[s],
+            end_s: ts[e],
+            angle0_rad: a,
+            rate_rad_s: b,
+            command_rad_s: command,
+            scatter_rad: robust_scatter(&mut r),
+            readings: e + 1 - s,
+        });
+    }
+    // What lies before the part's start and after its end, searched again.
+    if first > 0 {
+        steady_parts(t, y, i0, i0 + first, command, quantum, opts, out);
+    }
+    if last + 1 < n {
+        steady_parts(t, y, i0 + last + 1, i1, command, quantum, opts, out);
+    }
+}
+
+/// Angle ripple of the rotating segments: the harmonics of the table angle (1 to
+/// [`RIPPLE_MAX_CYCLES`] cycles per revolution) whose power in the readings' departure from
+/// the segment lines stands above the readings' scatter (χ²₂ at 1e-4 over the harmonics
+/// searched), fitted by projection (the harmonics are near-orthogonal over many turns).
+fn fit_ripple(segments: &[TableSegment], t: &[f64], y: &[f64]) -> Vec<(u32, f64, f64)> {
+    let mut theta = Vec::new();
+    let mut resid = Vec::new();
+    for s in segments.iter().filter(|s| s.rate_rad_s != 0.0) {
+        let a = t.partition_point(|x| *x < s.start_s);
+        let b = t.partition_point(|x| *x <= s.end_s);
+        for k in a..b {
+            let line = s.angle(t[k]);
+            theta.push(line);
+            resid.push(y[k] - line);
+        }
+    }
+    let n = theta.len();
+    if n < 1000 {
+        return Vec::new();
+    }
+    // A harmonic is searched only where the angles covered span two of its cycles.
+    let (lo, hi) =
+        theta.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+    let span_rad = hi - lo;
+    let var = resid.iter().map(|r| r * r).sum::<f64>() / n as f64;
+    // Power of a harmonic, a² + b², from noise alone: ≈ (2σ²/n)·χ²₂.
+    // Floor: 1e-9 rad of ripple is far below any encoder's resolution.
+    let threshold =
+        (2.0 * var / n as f64 * 2.0 * (f64::from(RIPPLE_MAX_CYCLES) / 1e-4).ln()).max(1e-18);
+    // Σ r·sin kθ and Σ r·cos kθ for every k at once: e^{ikθ} by repeated rotation.
+    let kmax = RIPPLE_MAX_CYCLES as usize;
+    let mut ss = vec![0.0; kmax + 1];
+    let mut sc = vec![0.0; kmax + 1];
+    for (th, r) in theta.iter().zip(&resid) {
+        let (s1, c1) = th.sin_cos();
+        let (mut s, mut c) = (s1, c1);
+        for k in 1..=kmax {
+            ss[k] += r * s;
+            sc[k] += r * c;
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+        }
+    }
+    let mut out = Vec::new();
+    for k in 1..=RIPPLE_MAX_CYCLES {
+        let kf = f64::from(k);
+        if kf * span_rad < 2.0 * std::f64::consts::TAU {
+            continue;
+        }
+        let (a, b) = (2.0 * ss[k as usize] / n as f64, 2.0 * sc[k as usize] / n as f64);
+        if a * a + b * b > threshold {
+            out.push((k, a, b));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ARCSEC: f64 = 4.848_136_811_095_36e-6;
+
+    /// A table at 10 Hz, angle on the 1″ grid: rest 60 s, then +ω for 300 s, a reversal to −ω
+    /// at `accel`, −ω for 300 s; the servo overshoots by 10 % and settles in about 1 s.
+    fn reversal_run(command_follows: bool) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let w = 10f64.to_radians() / 60.0;
+        let accel = 1f64.to_radians();
+        let dt = 0.1;
+        let (mut t, mut a, mut c) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut rate, mut angle) = (0.0f64, 0.0f64);
+        let mut x = 0.0f64;
+        while x < 660.0 {
+            let target = if x < 60.0 {
+                0.0
+            } else if x < 360.0 {
+                w
+            } else {
+                -w
+            };
+            // Rate-limited approach plus a decaying overshoot after the ramp.
+            let step = (target - rate).clamp(-accel * dt, accel * dt);
+            rate += step;
+            let since = if x >= 360.0 {
+                x - 360.0
+            } else if x >= 60.0 {
+                x - 60.0
+            } else {
+                -1.0
+            };
+            let over = if since > 0.3 {
+                0.1 * target * (-(since - 0.3) / 0.25).exp() * (since * 12.0).cos()
+            } else {
+                0.0
+            };
+            angle += (rate + over) * dt;
+            x += dt;
+            t.push(x);
+            a.push((angle / ARCSEC).round() * ARCSEC);
+            c.push(if command_follows { target } else { w });
+        }
+        (t, a, c)
+    }
+
+    #[test]
+    fn steady_segments_and_their_causes_through_a_reversal() {
+        let (t, a, c) = reversal_run(true);
+        let m = TableMotion::fit(&t, &a, &c);
+        assert!((m.quantum_rad / ARCSEC - 1.0).abs() < 1e-6, "{}", m.quantum_rad);
+        assert_eq!(m.segments.len(), 3, "{:?}", m.segments);
+        let w = 10f64.to_radians() / 60.0;
+        assert!(m.segments[0].rate_rad_s.abs() < 1e-9);
+        assert!((m.segments[1].rate_rad_s - w).abs() < 2e-8, "{:?}", m.segments[1]);
+        assert!((m.segments[2].rate_rad_s + w).abs() < 2e-8, "{:?}", m.segments[2]);
+        // The reversal (command change at 360 s; the table at −ω after ~0.6 s, settled ~1.5 s
+        // later) is excluded; steady again within a few seconds.
+        let s2 = &m.segments[2];
+        assert!(s2.start_s > 360.6 && s2.start_s < 366.0, "{s2:?}");
+        assert!(m.segment_at(361.0).is_none());
+        // A record window from 300 s to 660 s: the reversal in it is named.
+        let ex = m.exclusions(300.0, 660.0);
+        assert_eq!(ex.len(), 2, "{ex:?}");
+        assert_eq!(ex[0].why, Unsteady::Reversal);
+        assert!(ex[0].start_s > 355.0 && ex[0].end_s == s2.start_s, "{ex:?}");
+        // The tail: the last readings of the run.
+        assert!(ex[1].end_s - ex[1].start_s < 1.0, "{ex:?}");
+        // The start from rest is named too.
+        let ex = m.exclusions(0.0, 100.0);
+        assert!(ex.iter().any(|e| e.why == Unsteady::Start), "{ex:?}");
+    }
+
+    #[test]
+    fn a_reversal_without_a_command_change_is_still_found() {
+        let (t, a, c) = reversal_run(false);
+        let m = TableMotion::fit(&t, &a, &c);
+        let w = 10f64.to_radians() / 60.0;
+        let rates: Vec<f64> = m.segments.iter().map(|s| s.rate_rad_s / w).collect();
+        assert!(
+            rates.iter().any(|r| (r - 1.0).abs() < 1e-4)
+                && rates.iter().any(|r| (r + 1.0).abs() < 1e-4),
+            "{rates:?}"
+        );
+        assert!(m.segment_at(360.5).is_none());
+        let ex = m.exclusions(300.0, 660.0);
+        assert!(
+            ex.iter().any(|e| e.why == Unsteady::NotSteady && e.start_s < 361.0 && e.end_s > 360.5),
+            "{ex:?}"
+        );
+    }
+
+    #[test]
+    fn a_gap_in_the_readings_is_named() {
+        let (mut t, mut a, mut c) = reversal_run(true);
+        // Drop 100..130 s.
+        let keep: Vec<usize> = (0..t.len()).filter(|&k| !(100.0..130.0).contains(&t[k])).collect();
+        t = keep.iter().map(|&k| t[k]).collect();
+        a = keep.iter().map(|&k| a[k]).collect();
+        c = keep.iter().map(|&k| c[k]).collect();
+        let m = TableMotion::fit(&t, &a, &c);
+        let ex = m.exclusions(90.0, 200.0);
+        assert!(ex.iter().any(|e| e.why == Unsteady::NoTableData), "{ex:?}");
+    }
+
+    #[test]
+    fn table_lines_recover_rates_and_settled_spans_through_quantisation() {
+        // 0 → 0.01 rad/s at 0.02 rad/s² from t = 10 s; readings quantised to 1″.
+        let q = ARCSEC;
+        let dt = 0.05;
+        let mut t = Vec::new();
+        let mut a = Vec::new();
+        let mut c = Vec::new();
+        for k in 0..4000 {
+            let x = k as f64 * dt;
+            let angle = if x < 10.0 {
+                0.0
+            } else if x < 10.5 {
+                0.01 * (x - 10.0).powi(2)
+            } else {
+                0.0025 + 0.01 * (x - 10.5)
+            };
+            t.push(x);
+            a.push((angle / q).round() * q);
+            c.push(if x < 10.0 { 0.0 } else { 0.01 });
+        }
+        let opts = SteadyOptions { min_segment_s: 5.0, ..SteadyOptions::default() };
+        let m = TableMotion::fit_with(&t, &a, &c, &opts);
+        assert_eq!(m.segments.len(), 2);
+        assert!(m.segments[0].rate_rad_s.abs() < 1e-12);
+        assert!((m.segments[1].rate_rad_s - 0.01).abs() < 1e-7, "{:?}", m.segments[1]);
+        // Steady after the acceleration ends, plus the guard.
+        assert!(m.segments[1].start_s >= 11.45 && m.segments[1].start_s < 11.8);
+        // Fitted angle in the acceleration is undefined; after it, the line.
+        assert!(m.angle(10.2).is_none());
+        assert!((m.angle(100.0).unwrap_or(f64::NAN) - (0.0025 + 0.01 * 89.5)).abs() < 1e-6);
+    }
+}
