@@ -39,6 +39,8 @@ enum Command {
     Export(cli::export::ExportArgs),
     /// Where a recording departs from the simulation of its run: missing physics named and fitted.
     Diagnose(cli::diagnose::DiagnoseArgs),
+    /// Write a recording's nominal gyro model (`bench.gyro_model`) out as a model TOML file.
+    Model(cli::model::ModelArgs),
     /// List the serial ports of this machine.
     Ports,
     /// The simulated bench behind virtual ports.
@@ -58,6 +60,7 @@ fn main() -> ExitCode {
         Command::Recover(a) => cli::recover::run(a),
         Command::Export(a) => cli::export::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
+        Command::Model(a) => cli::model::run(a),
         Command::Ports => cli::ports::run(),
         Command::Sim(c) => cli::sim::run(c),
     };

@@ -744,6 +744,11 @@ impl Recording {
         Self::from_items(RecordingReader::open(path)?)
     }
 
+    /// Read a recording from any reader, e.g. one that counts the bytes for a progress bar.
+    pub fn from_reader<R: Read>(source: R) -> Result<Self, RecordingError> {
+        Self::from_items(RecordingReader::new(source))
+    }
+
     /// Read a recording from memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, RecordingError> {
         Self::from_items(RecordingReader::with_limit(bytes, bytes.len()))

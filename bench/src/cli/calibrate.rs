@@ -9,7 +9,7 @@ use anyhow::Context as _;
 use bench_analysis::joint_fit::Estimator;
 use bench_physics::units::DEG_PER_H;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench_report::calibrate::{calibrate_file, json, report, CalibrateSettings};
+use bench_report::calibrate::{calibrate_recording, json, report, CalibrateSettings};
 
 /// Arguments of `bench calibrate`.
 #[derive(clap::Args, Debug)]
@@ -17,7 +17,7 @@ pub struct CalibrateArgs {
     /// Recording (MCAP, per the recording contract).
     pub recording: PathBuf,
     /// Directory for `calibration.toml`, `report.html` and the PNG figures.
-    #[arg(long, default_value = "calibration")]
+    #[arg(long, short, default_value = "calibration")]
     pub out: PathBuf,
     /// Also write the machine-readable result here (docs/calibrate.md).
     #[arg(long)]
@@ -34,6 +34,9 @@ pub struct CalibrateArgs {
     /// Skip the HTML/PNG report.
     #[arg(long)]
     pub no_report: bool,
+    /// No progress bar and no timing line.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Calibrate and write the outputs.
@@ -44,7 +47,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         no_lag: args.no_lag,
     };
     let started = std::time::Instant::now();
-    let out = calibrate_file(&args.recording, &settings)
+    let rec = super::load_recording(&args.recording, args.quiet)?;
+    let out = calibrate_recording(&rec, &settings)
         .with_context(|| format!("cannot calibrate {}", args.recording.display()))?;
     let name = args
         .recording
@@ -172,6 +176,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         let files = report::write_report(&out, &name, &args.out)?;
         println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
-    eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    if !args.quiet {
+        eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    }
     Ok(if out.model.is_some() { Exit::Success } else { Exit::Incomplete }.into())
 }

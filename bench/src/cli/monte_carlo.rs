@@ -49,13 +49,7 @@ fn unit(key: &str) -> (&'static str, f64) {
 /// The diagnosis study (`--diagnose`).
 fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
-    let nominal = match &args.model {
-        Some(path) => {
-            let file = bench_recording::model_file::CalibrationFile::load(path)?;
-            Some((file.model(), file.effects, path.display().to_string()))
-        }
-        None => None,
-    };
+    let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,
