@@ -7,6 +7,7 @@
 //! - [`calibrate`]: the gyro's thermal calibration (`bench calibrate`).
 //! - [`diagnose`]: where a recording departs from the simulation of its run, and the physics
 //!   left out (`bench diagnose`).
+//! - [`acceptance`]: a calibration's coefficients against the recording's acceptance limits.
 //! - [`render`]: the figures and the HTML page both reports share.
 //!
 //! ```no_run
@@ -18,6 +19,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod acceptance;
 pub mod calibrate;
 pub mod diagnose;
 pub mod load;

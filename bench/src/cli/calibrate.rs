@@ -137,6 +137,10 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    if let Some(a) = bench_report::acceptance::judge_calibration(&out) {
+        print_acceptance(&a);
+    }
+
     if let Some(model) = &out.model {
         let j = cal.joint.as_ref().ok();
         let file = CalibrationFile {
@@ -180,4 +184,28 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
     }
     Ok(if out.model.is_some() { Exit::Success } else { Exit::Incomplete }.into())
+}
+
+/// The pass/fail lines: the unit, each limit, the result.
+fn print_acceptance(a: &bench_report::acceptance::Acceptance) {
+    let who: Vec<String> = ["unit_serial", "operator", "station"]
+        .iter()
+        .filter_map(|k| a.station.get(*k).map(|v| format!("{} {v}", k.replace('_', " "))))
+        .collect();
+    if !who.is_empty() {
+        println!("{}", who.join(", "));
+    }
+    for p in &a.problems {
+        eprintln!("note: {p}");
+    }
+    for c in &a.checks {
+        let shown = match (c.value, c.interval) {
+            (Some(v), Some((lo, hi))) => {
+                format!("{v:.3e} (|·| within {lo:.3e}..{hi:.3e} at ≈95 %)")
+            }
+            _ => "not estimated".to_string(),
+        };
+        println!("acceptance {}: {shown} vs limit {:.3e}: {}", c.key, c.limit, c.judgement.key());
+    }
+    println!("acceptance: {}", a.result.key().to_uppercase());
 }
