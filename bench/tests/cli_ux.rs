@@ -151,3 +151,105 @@ fn a_pure_simulation_has_no_missing_physics_and_its_model_is_a_nominal_for_anoth
     assert_eq!(r.status.code(), Some(1));
     assert!(text(&r.stderr).contains("junk.bin"), "{}", text(&r.stderr));
 }
+
+#[test]
+fn station_metadata_is_recorded_and_the_calibration_judged_against_its_limits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let seed = std::fs::read_to_string(scenario("seed.toml")).expect("seed");
+    // A generous bias limit passes; an impossible temp_coeff limit fails.
+    let st = format!(
+        "{seed}\n[station]\nstation = \"bench 3\"\noperator = \"A. Tester\"\n\
+         [acceptance]\nbias_rad_s = 4.8e-6\ntemp_coeff_rad_s_per_c = 1e-12\n"
+    );
+    std::fs::write(d.join("st.toml"), st).expect("scenario");
+    let r = bench(&["run", "st.toml", "-q", "-o", "st.mcap", "--unit-serial", "FOG-0042"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let r = bench(&["info", "st.mcap", "--json", "i.json", "-q"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    assert!(r.stdout.is_empty(), "-q: no text");
+    let i = json(&d.join("i.json"));
+    assert_eq!(i["metadata"]["bench.station"]["unit_serial"], "FOG-0042");
+    assert_eq!(i["metadata"]["bench.station"]["operator"], "A. Tester");
+    assert_eq!(i["metadata"]["bench.acceptance"]["bias_rad_s"], "4.8e-6");
+    assert_eq!(i["container"]["library"].as_str().map(|l| l.starts_with("mcap")), Some(true));
+    assert!(i["container"]["chunks_by_compression"]["zstd"].as_u64() > Some(0));
+    assert_eq!(i["duration"], "1 h 18 min 16 s");
+    assert_eq!(i["channels"][0]["timing_from"], "log_time");
+
+    let r =
+        bench(&["calibrate", "st.mcap", "-q", "--no-report", "-o", "cal", "--json", "c.json"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let out = text(&r.stdout);
+    assert!(out.contains("unit serial FOG-0042, operator A. Tester, station bench 3"), "{out}");
+    assert!(out.contains("acceptance bias_rad_s:") && out.contains(": pass"), "{out}");
+    assert!(out.contains("acceptance: FAIL"), "{out}");
+    let c = json(&d.join("c.json"));
+    let a = &c["acceptance"];
+    assert_eq!(a["result"], "fail");
+    let check = |key: &str| {
+        a["checks"].as_array().and_then(|v| v.iter().find(|c| c["key"] == key)).cloned()
+    };
+    assert_eq!(check("bias_rad_s").map(|c| c["judgement"].clone()), Some("pass".into()));
+    let tc = check("temp_coeff_rad_s_per_c").expect("checked");
+    assert_eq!(tc["judgement"], "fail");
+    assert!(tc["sigma"].as_f64().is_some_and(|s| s > 0.0));
+}
+
+#[test]
+fn allan_of_a_rotating_record_window_with_its_curve() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["run", "short.toml", "-q", "-o", "s.mcap"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let r = bench(
+        &["allan", "s.mcap", "--window", "record cw", "--json", "a.json", "--csv", "a.csv", "-q"],
+        d,
+    );
+    assert!(r.status.success(), "{}", text_of(&r));
+    let a = json(&d.join("a.json"));
+    // The table's 10 °/min is taken out; the default gyro's ARW is 2.9e-8 rad/√s.
+    let rate = a["table_rate_rad_s"].as_f64().expect("rate");
+    assert!((rate + 10f64.to_radians() / 60.0).abs() < 1e-6, "{rate}");
+    let n = a["arw_rad_per_sqrt_s"]["value"].as_f64().expect("N");
+    assert!((n / 2.9089e-8 - 1.0).abs() < 0.2, "{n}");
+    let curve = a["curve"].as_array().expect("curve");
+    let csv = std::fs::read_to_string(d.join("a.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), curve.len() + 1);
+    let r = bench(&["allan", "s.mcap", "--window", "no such", "-q"], d);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(text(&r.stderr).contains("record windows: record cw"), "{}", text_of(&r));
+}
+
+#[test]
+fn completions_exit_codes_and_no_ansi_off_a_terminal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let r = bench(&["completions", "bash"], d);
+    assert!(r.status.success());
+    assert!(text(&r.stdout).contains("complete -F _bench"), "{}", text_of(&r));
+    // A usage error is 2 (clap), an invalid scenario 3.
+    assert_eq!(bench(&["run"], d).status.code(), Some(2));
+    std::fs::write(d.join("bad.toml"), "[scenario]\nname = \"x\"\n").expect("scenario");
+    let r = bench(&["validate", "bad.toml"], d);
+    assert_eq!(r.status.code(), Some(3));
+    let r = bench(&["run", "bad.toml", "-o", "x.mcap"], d);
+    assert_eq!(r.status.code(), Some(3));
+    // stderr is a pipe here: no escape codes, even with -v log lines.
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["-v", "run", "short.toml", "-o", "v.mcap"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    assert!(!r.stderr.contains(&0x1b), "{}", text(&r.stderr));
+    // The model file of a recording that has none is a clear error.
+    let r = bench(&["model", "bad.toml"], d);
+    assert_eq!(r.status.code(), Some(1));
+}
+
+fn text_of(r: &Output) -> String {
+    format!("{}{}", text(&r.stdout), text(&r.stderr))
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("json written")).expect("json")
+}

@@ -1,5 +1,6 @@
 //! One file per subcommand; [`exit`] holds the exit codes of all of them.
 
+pub mod allan;
 pub mod calibrate;
 pub mod diagnose;
 pub mod exit;

@@ -11,8 +11,8 @@ use bench_report::calibrate::CalibrateSettings;
 /// Arguments of `bench monte-carlo`.
 #[derive(clap::Args, Debug)]
 pub struct MonteCarloArgs {
-    /// Scenario to simulate (its `[simulation.truth]` is the truth).
-    #[arg(default_value = "scenarios/thermal-full.toml")]
+    /// Scenario to simulate (its `[simulation.truth]` is the truth), e.g.
+    /// `scenarios/thermal-full.toml` of the bench repository.
     pub scenario: PathBuf,
     /// Number of seeds.
     #[arg(long, default_value_t = 50)]
