@@ -23,7 +23,7 @@ variant() { # name, effects TOML (may be empty), seed
       -e "s/^\[table\]$/[table]\npoll_rate = \"$rate Hz\"/" scenarios/diagnose-demo.toml > "$f"
   printf '\n[chamber]\npoll_rate = "%s Hz"\n' "$chamber" >> "$f"
   if [ -n "$2" ]; then printf '\n[simulation.truth.effects]\n%s\n' "$2" >> "$f"; fi
-  "$bench" run "$f" --seed "$3" --quiet --out "$out/$1.mcap"
+  "$bench" run "$f" --seed "$3" --quiet --force --out "$out/$1.mcap"
 }
 variant demo-null "" 1
 variant demo-once-per-revolution 'once_per_revolution = { amplitude_rad_s = 8e-8, phase_rad = 0.5 }' 2

@@ -8,7 +8,7 @@ cargo build --release -p bench --quiet
 out=$(mktemp -d)
 for s in seed thermal-full; do
   for seed in 1 2 3; do
-    ./target/release/bench run "scenarios/$s.toml" --seed "$seed" --quiet --out "$out/$s-$seed.mcap"
+    ./target/release/bench run "scenarios/$s.toml" --seed "$seed" --quiet --force --out "$out/$s-$seed.mcap"
   done
 done
 rm -rf "$out"

@@ -62,6 +62,109 @@ pub struct BenchConfig {
     /// Settings of the simulated bench (embedded, or served by `bench sim serve --bench`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub simulation: Option<SimulationSettings>,
+    /// The test station (`bench.station`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub station: Option<StationConfig>,
+    /// Acceptance limits on |coefficient|, SI, per coefficient key (`bench.acceptance`).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub acceptance: std::collections::BTreeMap<String, f64>,
+    /// The lab's own limits, for `bench validate --bench` without connecting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limits: Option<LimitsConfig>,
+}
+
+/// `[station]`: which test station and who runs it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StationConfig {
+    /// The station's name.
+    #[serde(default)]
+    pub station: Option<String>,
+    /// The operator.
+    #[serde(default)]
+    pub operator: Option<String>,
+}
+
+/// `[limits]`: the lab devices' limits, units in the key names; each absent key is the
+/// simulated bench's.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsConfig {
+    /// Largest table rate, °/s.
+    #[serde(default)]
+    pub table_max_rate_deg_s: Option<f64>,
+    /// Largest table acceleration, °/s².
+    #[serde(default)]
+    pub table_max_accel_deg_s2: Option<f64>,
+    /// Lowest chamber temperature, °C.
+    #[serde(default)]
+    pub chamber_min_temp_c: Option<f64>,
+    /// Highest chamber temperature, °C.
+    #[serde(default)]
+    pub chamber_max_temp_c: Option<f64>,
+    /// Fastest heating ramp, °C/min.
+    #[serde(default)]
+    pub chamber_max_heat_rate_c_min: Option<f64>,
+    /// Fastest cooling ramp, °C/min.
+    #[serde(default)]
+    pub chamber_max_cool_rate_c_min: Option<f64>,
+    /// The gyro's output rates, Hz.
+    #[serde(default)]
+    pub gyro_sample_rates_hz: Option<Vec<f64>>,
+    /// The gyro's lowest operating temperature, °C.
+    #[serde(default)]
+    pub gyro_min_temp_c: Option<f64>,
+    /// The gyro's highest operating temperature, °C.
+    #[serde(default)]
+    pub gyro_max_temp_c: Option<f64>,
+    /// Whether the gyro reports its temperature.
+    #[serde(default)]
+    pub gyro_has_temperature: Option<bool>,
+}
+
+impl LimitsConfig {
+    /// Every value that is not a usable limit: (problem, key).
+    fn problems(&self) -> Vec<(String, &'static str)> {
+        let mut out = Vec::new();
+        for (key, v) in [
+            ("table_max_rate_deg_s", self.table_max_rate_deg_s),
+            ("table_max_accel_deg_s2", self.table_max_accel_deg_s2),
+            ("chamber_max_heat_rate_c_min", self.chamber_max_heat_rate_c_min),
+            ("chamber_max_cool_rate_c_min", self.chamber_max_cool_rate_c_min),
+        ] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    out.push((format!("must be a positive number, got {v}"), key));
+                }
+            }
+        }
+        for (key, v) in [
+            ("chamber_min_temp_c", self.chamber_min_temp_c),
+            ("chamber_max_temp_c", self.chamber_max_temp_c),
+            ("gyro_min_temp_c", self.gyro_min_temp_c),
+            ("gyro_max_temp_c", self.gyro_max_temp_c),
+        ] {
+            if let Some(v) = v {
+                if !v.is_finite() || v < -273.15 {
+                    out.push((format!("must be a temperature above -273.15 °C, got {v}"), key));
+                }
+            }
+        }
+        if let (Some(lo), Some(hi)) = (self.chamber_min_temp_c, self.chamber_max_temp_c) {
+            if lo >= hi {
+                out.push((
+                    format!("must be above chamber_min_temp_c ({lo}), got {hi}"),
+                    "chamber_max_temp_c",
+                ));
+            }
+        }
+        if let Some(r) = &self.gyro_sample_rates_hz {
+            if r.is_empty() || r.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                out.push(("must list positive rates".to_string(), "gyro_sample_rates_hz"));
+            }
+        }
+        out
+    }
 }
 
 /// `[simulation]`: settings that only a simulated bench uses.
@@ -170,6 +273,9 @@ pub enum ConfigError {
         /// What is wrong.
         message: String,
     },
+    /// Several problems, each located.
+    #[error("{}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n"))]
+    Several(Vec<ConfigError>),
     /// `connect` on a config without drivers (the embedded simulated bench).
     #[error(
         "the bench config names no drivers ([table], [chamber], [gyro]): it describes the \
@@ -194,33 +300,43 @@ impl BenchConfig {
         Self::parse(&text, &path.display().to_string())
     }
 
-    /// Parse bench config `text`; errors name `file:line:column`.
+    /// Parse bench config `text`; errors name `file:line:column`. A file that is not valid
+    /// TOML or has a wrong key stops at that first error (the TOML reader's); every problem
+    /// of the values is listed ([`ConfigError::Several`]).
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
         let cfg: Self = toml::from_str(text).map_err(|e| toml_error(text, file, &e))?;
-        let bad = |message: String| ConfigError::Invalid {
-            file: file.to_string(),
-            line: 1,
-            column: 1,
-            message,
+        let mut errors = Vec::new();
+        let mut located = Vec::new();
+        let mut bad = |path: &[&str], message: String| {
+            let at = bench_recording::toml_doc::value_span(text, path).map_or(0, |s| s.start);
+            let (line, column) = bench_recording::toml_doc::line_col(text, at);
+            errors.push(ConfigError::Invalid { file: file.to_string(), line, column, message });
         };
         if !(cfg.bench.time_scale.is_finite() && cfg.bench.time_scale > 0.0) {
-            return Err(bad(format!(
-                "[bench] time_scale must be a positive number, got {}",
-                cfg.bench.time_scale
-            )));
+            bad(
+                &["bench", "time_scale"],
+                format!(
+                    "[bench] time_scale must be a positive number, got {}",
+                    cfg.bench.time_scale
+                ),
+            );
         }
         let b = &cfg.bench;
         for (key, v) in
             [("stale_after_s", b.stale_after_s), ("safe_state_timeout_s", b.safe_state_timeout_s)]
         {
             if !(v.is_finite() && v > 0.0 && v < 1e9) {
-                return Err(bad(format!(
-                    "[bench] {key} must be a positive number of seconds, got {v}"
-                )));
+                bad(
+                    &["bench", key],
+                    format!("[bench] {key} must be a positive number of seconds, got {v}"),
+                );
             }
         }
         if b.max_consecutive_errors == 0 {
-            return Err(bad("[bench] max_consecutive_errors must be at least 1".into()));
+            bad(
+                &["bench", "max_consecutive_errors"],
+                "[bench] max_consecutive_errors must be at least 1".into(),
+            );
         }
         let given = [cfg.table.is_some(), cfg.chamber.is_some(), cfg.gyro.is_some()];
         if given.contains(&true) && given.contains(&false) {
@@ -230,40 +346,120 @@ impl BenchConfig {
                 .filter(|(_, g)| !g)
                 .map(|(n, _)| n)
                 .collect();
-            return Err(bad(format!(
-                "give all three device sections [table], [chamber], [gyro] (real drivers), or \
-                 none (the embedded simulated bench); missing: {}",
-                missing.join(", ")
-            )));
+            bad(
+                &[],
+                format!(
+                    "give all three device sections [table], [chamber], [gyro] (real drivers), \
+                     or none (the embedded simulated bench); missing: {}",
+                    missing.join(", ")
+                ),
+            );
         }
         if let Some(sim) = &cfg.simulation {
-            bench_recording::effects_toml::check_located(
+            if let Err((line, column, message)) = bench_recording::effects_toml::check_located(
                 &sim.effects,
                 text,
                 &["simulation", "effects"],
-            )
-            .map_err(|(line, column, message)| ConfigError::Invalid {
-                file: file.to_string(),
-                line,
-                column,
-                message,
-            })?;
+            ) {
+                located.push(ConfigError::Invalid {
+                    file: file.to_string(),
+                    line,
+                    column,
+                    message,
+                });
+            }
         }
         if let Some(site) = &cfg.site {
             if !(-90.0..=90.0).contains(&site.latitude_deg) {
-                return Err(bad(format!(
-                    "[site] latitude_deg {} is outside -90..90",
-                    site.latitude_deg
-                )));
+                bad(
+                    &["site", "latitude_deg"],
+                    format!("[site] latitude_deg {} is outside -90..90", site.latitude_deg),
+                );
             }
             if site.axis != "up" && site.axis != "down" {
-                return Err(bad(format!(
-                    "[site] axis must be \"up\" or \"down\", got \"{}\"",
-                    site.axis
-                )));
+                bad(
+                    &["site", "axis"],
+                    format!("[site] axis must be \"up\" or \"down\", got \"{}\"", site.axis),
+                );
             }
         }
-        Ok(cfg)
+        for (key, v) in &cfg.acceptance {
+            if !crate::plan::ACCEPTANCE_KEYS.contains(&key.as_str()) {
+                bad(
+                    &["acceptance", key],
+                    format!(
+                        "[acceptance] unknown coefficient `{key}`; allowed: {}",
+                        crate::plan::ACCEPTANCE_KEYS.join(", ")
+                    ),
+                );
+            } else if !(v.is_finite() && *v > 0.0) {
+                bad(
+                    &["acceptance", key],
+                    format!("[acceptance] {key} is a limit on |coefficient|: it must be positive, got {v}"),
+                );
+            }
+        }
+        if let Some(l) = &cfg.limits {
+            for (problem, path) in l.problems() {
+                bad(&["limits", path], format!("[limits] {path} {problem}"));
+            }
+        }
+        errors.extend(located);
+        match errors.len() {
+            0 => Ok(cfg),
+            1 => Err(errors.remove(0)),
+            _ => Err(ConfigError::Several(errors)),
+        }
+    }
+
+    /// The test-station metadata this config gives (`[station]`, `[acceptance]`).
+    pub fn station(&self) -> crate::plan::Station {
+        let mut s = crate::plan::Station::default();
+        if let Some(st) = &self.station {
+            for (k, v) in [("station", &st.station), ("operator", &st.operator)] {
+                if let Some(v) = v {
+                    s.info.insert(k.to_string(), v.clone());
+                }
+            }
+        }
+        s.acceptance = self.acceptance.clone();
+        s
+    }
+
+    /// The capabilities to validate a scenario against without connecting: the simulated
+    /// bench's, each replaced by the config's `[limits]` where it gives one; with whether any
+    /// limit was given.
+    pub fn limits(&self) -> (Capabilities, bool) {
+        let mut caps = crate::simulate::capabilities();
+        let Some(l) = &self.limits else { return (caps, false) };
+        let t = &mut caps.table.capabilities;
+        let c = &mut caps.chamber.capabilities;
+        let g = &mut caps.gyro.capabilities;
+        let deg = bench_physics::units::DEG;
+        let set = |v: Option<f64>, to: &mut f64, factor: f64| {
+            if let Some(v) = v {
+                *to = v * factor;
+            }
+        };
+        set(l.table_max_rate_deg_s, &mut t.max_rate_rad_s, deg);
+        set(l.table_max_accel_deg_s2, &mut t.max_accel_rad_s2, deg);
+        set(l.chamber_min_temp_c, &mut c.min_temp_c, 1.0);
+        set(l.chamber_max_temp_c, &mut c.max_temp_c, 1.0);
+        set(l.chamber_max_heat_rate_c_min, &mut c.max_heat_rate_c_s, 1.0 / 60.0);
+        set(l.chamber_max_cool_rate_c_min, &mut c.max_cool_rate_c_s, 1.0 / 60.0);
+        if let Some(r) = &l.gyro_sample_rates_hz {
+            g.sample_rates_hz = r.clone();
+        }
+        if let (Some(lo), Some(hi)) = (l.gyro_min_temp_c, l.gyro_max_temp_c) {
+            g.operating_temp_c = (lo, hi);
+        } else {
+            set(l.gyro_min_temp_c, &mut g.operating_temp_c.0, 1.0);
+            set(l.gyro_max_temp_c, &mut g.operating_temp_c.1, 1.0);
+        }
+        if let Some(h) = l.gyro_has_temperature {
+            g.has_temperature = h;
+        }
+        (caps, true)
     }
 
     /// Whether the config describes the embedded simulated bench (no device sections).
@@ -466,6 +662,9 @@ pub fn for_served_bench(
         )),
         gyro: Some(GyroConfig::Can(gyro)),
         simulation: None,
+        station: None,
+        acceptance: Default::default(),
+        limits: None,
     }
 }
 

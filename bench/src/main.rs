@@ -39,8 +39,17 @@ enum Command {
     Export(cli::export::ExportArgs),
     /// Where a recording departs from the simulation of its run: missing physics named and fitted.
     Diagnose(cli::diagnose::DiagnoseArgs),
-    /// List the serial ports of this machine.
-    Ports,
+    /// Write a recording's nominal gyro model (`bench.gyro_model`) out as a model TOML file.
+    Model(cli::model::ModelArgs),
+    /// List the serial ports of this machine (USB VID:PID, serial number, product).
+    Ports(cli::ports::PortsArgs),
+    /// Allan deviation of a recording's gyro (static or rotating record) with N, B, K.
+    Allan(cli::allan::AllanArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) on stdout.
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
     /// The simulated bench behind virtual ports.
     #[command(subcommand)]
     Sim(cli::sim::SimCommand),
@@ -58,14 +67,21 @@ fn main() -> ExitCode {
         Command::Recover(a) => cli::recover::run(a),
         Command::Export(a) => cli::export::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
-        Command::Ports => cli::ports::run(),
+        Command::Model(a) => cli::model::run(a),
+        Command::Ports(a) => cli::ports::run(a),
         Command::Sim(c) => cli::sim::run(c),
+        Command::Allan(a) => cli::allan::run(a),
+        Command::Completions { shell } => {
+            use clap::CommandFactory as _;
+            clap_complete::generate(shell, &mut Args::command(), "bench", &mut std::io::stdout());
+            Ok(ExitCode::SUCCESS)
+        }
     };
     match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            cli::exit::Exit::Error.into()
+            cli::exit::Exit::of_error(&e).into()
         }
     }
 }

@@ -6,7 +6,11 @@
 
 use std::time::Duration;
 
+use bench_physics::chamber::{ChamberModel, ChamberParams};
 use bench_physics::effects::Effects;
+use bench_physics::gyro::GyroSampler;
+use bench_physics::table::{RateTableModel, TableParams};
+use bench_physics::units::quantise;
 use bench_physics::GyroModel;
 
 /// A validated, fully expanded scenario.
@@ -32,8 +36,50 @@ pub struct RunPlan {
     pub safe_decel_rad_s2: f64,
     /// Chamber set point of the safe state, °C.
     pub safe_temp_c: f64,
+    /// The unit under test, operator, station and acceptance limits (`bench.station`,
+    /// `bench.acceptance`).
+    pub station: Station,
     /// The steps, loops expanded, in execution order.
     pub steps: Vec<PlannedStep>,
+}
+
+/// Keys of `[station]` / `bench.station`.
+pub const STATION_KEYS: &[&str] = &["unit_serial", "operator", "station"];
+
+/// Keys of `[acceptance]` / `bench.acceptance`: the coefficients a calibration reports, SI,
+/// units in the names (those of the model file).
+pub const ACCEPTANCE_KEYS: &[&str] = &[
+    "bias_rad_s",
+    "scale_factor_error",
+    "temp_coeff_rad_s_per_c",
+    "temp_rate_coeff_rad_s_per_c_s",
+    "arw_rad_per_sqrt_s",
+    "bias_instability_rad_s",
+];
+
+/// Test-station metadata of a run: what a test record says about the unit and its test.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Station {
+    /// `unit_serial`, `operator`, `station` as given ([`STATION_KEYS`]).
+    pub info: std::collections::BTreeMap<String, String>,
+    /// Acceptance limit on |coefficient| per [`ACCEPTANCE_KEYS`] key, SI.
+    pub acceptance: std::collections::BTreeMap<String, f64>,
+}
+
+impl Station {
+    /// `bench.acceptance` entries: each limit as decimal text (shortest exact form).
+    pub fn acceptance_metadata(&self) -> std::collections::BTreeMap<String, String> {
+        self.acceptance.iter().map(|(k, v)| (k.clone(), format!("{v:e}"))).collect()
+    }
+
+    /// `other`'s entries over these (a bench config's or the command line's over the
+    /// scenario's).
+    pub fn overridden_by(&self, other: &Station) -> Station {
+        let mut s = self.clone();
+        s.info.extend(other.info.iter().map(|(k, v)| (k.clone(), v.clone())));
+        s.acceptance.extend(other.acceptance.iter().map(|(k, v)| (k.clone(), *v)));
+        s
+    }
 }
 
 /// Gyro settings.
@@ -149,36 +195,272 @@ pub enum Action {
     },
 }
 
+/// How the plan is expected to unfold in bench time: [`RunPlan::estimate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    /// Expected bench time at each step's start, s (one per step).
+    pub step_start_s: Vec<f64>,
+    /// Expected bench time at each step's end, s.
+    pub step_end_s: Vec<f64>,
+    /// Expected bench time of the whole run (safe state and its tail included).
+    pub total: Duration,
+    /// The first step whose condition the physics says is not met within its timeout (the
+    /// run would abort there), if any.
+    pub timeout_step: Option<usize>,
+}
+
+impl Estimate {
+    /// Expected bench time still to go when step `step` has run for `in_step_s`, s: the rest of
+    /// this step (at least nothing, when it overruns its estimate) and every later step.
+    pub fn remaining_s(&self, step: usize, in_step_s: f64) -> f64 {
+        let total = self.total.as_secs_f64();
+        match (self.step_start_s.get(step), self.step_end_s.get(step)) {
+            (Some(&start), Some(&end)) => {
+                let left_in_step = (end - start - in_step_s.max(0.0)).max(0.0);
+                left_in_step + (total - end).max(0.0)
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// The sequencer's rules that the estimate follows (`run::sequencer`): a settled table rate is
+/// within 1e-3 of the command or 1e-6 rad/s; a ramp has ended when the displayed working set
+/// point is within 0.05 °C of the target; a temperature band edge gets 1e-9 °C.
+const SETTLE_REL: f64 = 1e-3;
+const SETTLE_ABS_RAD_S: f64 = 1e-6;
+const RAMP_END_TOL_C: f64 = 0.05;
+const BAND_EDGE_C: f64 = 1e-9;
+/// Bench time recorded after the safe-state commands (`run::SAFE_STATE_TAIL`).
+const SAFE_STATE_TAIL_S: f64 = 1.0;
+
 impl RunPlan {
-    /// Nominal bench time the plan needs, assuming every wait condition is met as soon as the
-    /// physics allows is unknown in advance; this sums the fixed durations and the ramp times
-    /// implied by chamber steps, for progress/ETA estimates only.
+    /// Expected bench time of the run, for `bench validate` and the progress display:
+    /// [`Self::estimate`] on the simulated bench's chamber and table.
     pub fn estimated_duration(&self) -> Duration {
-        let mut total = 0.0f64;
-        let mut setpoint = self.sim.initial_temp_c;
-        let mut ramp_end = 0.0f64;
+        self.estimate().total
+    }
+
+    /// How the plan unfolds on the simulated bench's chamber ([`ChamberParams::default`]) and
+    /// table ([`TableParams::default`]): [`Self::estimate_with`].
+    pub fn estimate(&self) -> Estimate {
+        self.estimate_with(&ChamberParams::default(), &TableParams::default())
+    }
+
+    /// Run the plan's steps through the same physics the simulated bench follows — the
+    /// chamber's set-point ramp, air lag and slew limits, the gyro's thermal lag behind the air
+    /// (`sim.truth.thermal_time_constant`), the table's acceleration-limited slews — checking
+    /// each wait condition as the sequencer does (readings at the polling rate, displayed
+    /// temperatures at their resolution), without noise. A wait whose condition is never met
+    /// ends at its timeout, where the run would abort.
+    pub fn estimate_with(&self, chamber: &ChamberParams, table: &TableParams) -> Estimate {
+        let poll_s = 1.0 / self.chamber_poll_hz.max(self.table_poll_hz).max(1e-3);
+        let chamber_dt = 1.0 / self.chamber_poll_hz.max(1e-3);
+        let gyro_dt = 1.0 / self.gyro.sample_rate_hz.max(1e-3);
+        let mut air = ChamberModel::new(
+            chamber.clone(),
+            self.sim.initial_temp_c,
+            self.sim.truth.thermal_time_constant,
+        );
+        let table_params = TableParams { ripple_rel: 0.0, rate_noise_rad_s: 0.0, ..table.clone() };
+        let mut rot = RateTableModel::new(table_params);
+        // The latest reading at `t`: the chamber's at its last poll, the gyro's at its last
+        // sample; the sequencer sees them one poll later at the latest.
+        let last = |t: f64, dt: f64| (t / dt).floor() * dt;
+        let mut commanded_target = f64::NAN;
+        let mut t = 0.0f64;
+        let (mut starts, mut ends) = (Vec::new(), Vec::new());
+        let mut timeout_step = None;
         for s in &self.steps {
+            starts.push(t);
+            let mut timed_out = false;
             match &s.action {
                 Action::Chamber { target_c, ramp_c_s } => {
-                    let d = (target_c - setpoint).abs();
-                    ramp_end = total + ramp_c_s.map_or(0.0, |r| if r > 0.0 { d / r } else { 0.0 });
-                    setpoint = *target_c;
-                }
-                Action::Wait { duration } => total += duration.as_secs_f64(),
-                Action::WaitTemperature { hold, .. } => {
-                    total = total.max(ramp_end) + hold.as_secs_f64();
-                }
-                Action::WaitRampEnd { .. } => total = total.max(ramp_end),
-                Action::Record { duration, until_ramp_end } => {
-                    if *until_ramp_end {
-                        total = total.max(ramp_end);
-                    } else {
-                        total += duration.as_secs_f64();
+                    if air.set_target(t, *target_c, *ramp_c_s).is_ok() {
+                        commanded_target = *target_c;
                     }
                 }
-                Action::Table { .. } | Action::TableStop { .. } => {}
+                Action::Table { rate_rad_s, accel_rad_s2, settle } => {
+                    let _ = rot.command_rate(t, *rate_rad_s, *accel_rad_s2);
+                    if *settle {
+                        (t, timed_out) = settle_time(&rot, t, *rate_rad_s, *accel_rad_s2, poll_s);
+                    }
+                }
+                Action::TableStop { decel_rad_s2 } => {
+                    let _ = rot.stop(t, *decel_rad_s2);
+                    (t, timed_out) = settle_time(&rot, t, 0.0, *decel_rad_s2, poll_s);
+                }
+                Action::Wait { duration } => t += duration.as_secs_f64(),
+                Action::WaitTemperature { source, target_c, band_c, hold, timeout } => {
+                    let start = t;
+                    let mut in_band_since: Option<f64> = None;
+                    loop {
+                        let temp = match source {
+                            TempSource::Air => {
+                                quantise(air.state(last(t, chamber_dt)).air_c, chamber.resolution_c)
+                            }
+                            TempSource::Gyro => GyroSampler::temperature_readout(
+                                air.state(last(t, gyro_dt)).payload_c,
+                            ),
+                        };
+                        if (temp - target_c).abs() <= band_c + BAND_EDGE_C {
+                            let since = *in_band_since.get_or_insert(t);
+                            if t - since >= hold.as_secs_f64() {
+                                break;
+                            }
+                        } else {
+                            in_band_since = None;
+                        }
+                        if t - start >= timeout.as_secs_f64() {
+                            timed_out = true;
+                            break;
+                        }
+                        t += poll_s;
+                    }
+                }
+                Action::WaitRampEnd { timeout } => {
+                    (t, timed_out) = ramp_end(
+                        &mut air,
+                        t,
+                        commanded_target,
+                        timeout,
+                        chamber,
+                        chamber_dt,
+                        poll_s,
+                    )
+                }
+                Action::Record { duration, until_ramp_end } => {
+                    if *until_ramp_end {
+                        (t, timed_out) = ramp_end(
+                            &mut air,
+                            t,
+                            commanded_target,
+                            duration,
+                            chamber,
+                            chamber_dt,
+                            poll_s,
+                        );
+                    } else {
+                        t += duration.as_secs_f64();
+                    }
+                }
+            }
+            ends.push(t);
+            if timed_out {
+                timeout_step = Some(s.index);
+                break;
             }
         }
-        Duration::from_secs_f64(total.max(0.0))
+        // Steps after an abort do not run.
+        while starts.len() < self.steps.len() {
+            starts.push(t);
+            ends.push(t);
+        }
+        Estimate {
+            step_start_s: starts,
+            step_end_s: ends,
+            total: Duration::from_secs_f64((t + SAFE_STATE_TAIL_S).max(0.0)),
+            timeout_step,
+        }
+    }
+}
+
+/// When the table's rate settles on `rate_rad_s` (the sequencer's rule: first look one poll
+/// after the command, timeout twice the slew plus 10 s); whether it timed out.
+fn settle_time(
+    table: &RateTableModel,
+    t0: f64,
+    rate_rad_s: f64,
+    accel_rad_s2: f64,
+    poll_s: f64,
+) -> (f64, bool) {
+    let tol = (rate_rad_s.abs() * SETTLE_REL).max(SETTLE_ABS_RAD_S);
+    let span = (rate_rad_s - table.state(t0).rate_rad_s).abs();
+    let slew_s = if accel_rad_s2 > 0.0 && span.is_finite() { span / accel_rad_s2 } else { 0.0 };
+    let timeout = 2.0 * slew_s + 10.0;
+    let mut t = t0 + poll_s;
+    loop {
+        // The reading the sequencer sees was taken at the previous poll.
+        if (table.state(t - poll_s).rate_rad_s - rate_rad_s).abs() <= tol {
+            return (t, false);
+        }
+        if t - t0 >= timeout {
+            return (t, true);
+        }
+        t += poll_s;
+    }
+}
+
+/// When the chamber's displayed working set point reaches `target_c` (else the controller's
+/// own target); whether `timeout` ran out first.
+fn ramp_end(
+    air: &mut ChamberModel,
+    t0: f64,
+    target_c: f64,
+    timeout: &Duration,
+    chamber: &ChamberParams,
+    chamber_dt: f64,
+    poll_s: f64,
+) -> (f64, bool) {
+    let mut t = t0;
+    loop {
+        let st = air.state((t / chamber_dt).floor() * chamber_dt);
+        let target = if target_c.is_finite() { target_c } else { st.target_c };
+        if (quantise(st.setpoint_c, chamber.resolution_c) - target).abs() <= RAMP_END_TOL_C {
+            return (t, false);
+        }
+        if t - t0 >= timeout.as_secs_f64() {
+            return (t, true);
+        }
+        t += poll_s;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(steps: &str) -> RunPlan {
+        let text = format!("[scenario]\nname = \"t\"\n[site]\nlatitude_deg = 45\n{steps}");
+        crate::scenario::parse(&text, "t.toml", &crate::simulate::capabilities()).expect("valid")
+    }
+
+    #[test]
+    fn a_soak_waits_for_the_gyros_lag_behind_the_air() {
+        // The gyro lags the air by 300 s (default model): after a 20 °C step of the chamber it
+        // needs ≈ τ_air + τ_gyro·ln(20/0.2) ≈ 120 + 1380 s to come within 0.2 °C, then holds.
+        let p = plan(
+            "[[step]]\nchamber = \"40 °C\"\n[[step]]\nwait_temperature = \"40 °C\"\n\
+             source = \"gyro\"\nband = \"0.2 °C\"\nhold = \"5 min\"\ntimeout = \"3 h\"\n",
+        );
+        let e = p.estimate();
+        assert_eq!(e.timeout_step, None);
+        let soak = e.step_end_s[1] - e.step_start_s[1];
+        assert!((1500.0..2400.0).contains(&soak), "{soak} s");
+        assert!((e.total.as_secs_f64() - e.step_end_s[1] - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_condition_never_met_ends_at_its_timeout() {
+        let p = plan(
+            "[[step]]\nchamber = \"40 °C\"\n[[step]]\nwait_temperature = \"40 °C\"\n\
+             source = \"gyro\"\nband = \"0.2 °C\"\nhold = \"1 min\"\ntimeout = \"10 min\"\n\
+             [[step]]\nwait = \"1 h\"\n",
+        );
+        let e = p.estimate();
+        assert_eq!(e.timeout_step, Some(1));
+        assert!((e.step_end_s[1] - 600.0).abs() < 0.1, "{}", e.step_end_s[1]);
+        assert_eq!(e.step_start_s[2], e.step_end_s[1], "the later step does not run");
+    }
+
+    #[test]
+    fn remaining_time_counts_down_through_the_steps() {
+        let p = plan("[[step]]\nwait = \"10 min\"\n[[step]]\nwait = \"20 min\"\n");
+        let e = p.estimate();
+        assert_eq!(e.remaining_s(0, 0.0), 1801.0);
+        assert_eq!(e.remaining_s(1, 600.0), 601.0);
+        // A step overrunning its estimate leaves only the later steps.
+        assert_eq!(e.remaining_s(0, 900.0), 1201.0);
+        assert_eq!(e.remaining_s(5, 0.0), 0.0);
     }
 }

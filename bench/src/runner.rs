@@ -91,9 +91,7 @@ fn start<W: Write + Seek + Send + 'static>(
     let sink = ThreadedSink::new(recorder, batch).context("cannot start the recorder thread")?;
     let sink = LiveTee::new(sink, opts.live.clone(), epoch_ns);
     let live = Arc::new(Live::default());
-    let progress = opts.progress.then(|| {
-        crate::progress::Progress::start(live.clone(), plan.estimated_duration(), plan.steps.len())
-    });
+    let progress = opts.progress.then(|| crate::progress::Progress::start(live.clone(), plan));
     Ok(Session { sink, live, progress, wall: Instant::now() })
 }
 
@@ -207,6 +205,8 @@ pub fn run_info(plan: &RunPlan, epoch_ns: u64) -> RunInfo {
         plan.site,
         gyro_model_metadata(&plan.gyro.model, &plan.gyro.effects),
     );
+    info.station = plan.station.info.clone();
+    info.acceptance = plan.station.acceptance_metadata();
     info.scenario_attachment = Path::new(&plan.source)
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

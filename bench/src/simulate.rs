@@ -9,6 +9,7 @@ use std::sync::Arc;
 use anyhow::Context as _;
 use bench_drivers::clock::VirtualClock;
 use bench_drivers::Clock;
+use bench_physics::effects::{Effects, RateRipple};
 use bench_sim::{SimBench, SimConfig};
 
 use crate::plan::RunPlan;
@@ -71,6 +72,25 @@ pub fn sim_config(plan: &RunPlan, seed: u64) -> SimConfig {
     }
 }
 
+/// The effects a simulated run records in `bench.gyro_model` (the contract's "model the
+/// simulator used"): the nominal effects (what the lab believes, `[gyro.model.effects]`) and,
+/// when the simulated table ripples and the nominal effects say nothing of it, the table's own
+/// ripple as `rate_ripple` — physics the simulator simulates, so a diagnosis takes it as
+/// nominal. The truth's own effects (`[simulation.truth.effects]`, a concealed `rate_ripple`
+/// included) stay concealed.
+pub fn recorded_effects(plan: &RunPlan, config: &SimConfig) -> Effects {
+    let mut effects = plan.gyro.effects;
+    let table = &config.table;
+    if effects.rate_ripple.is_none() && table.ripple_rel > 0.0 && table.ripple_cycles_per_rev > 0 {
+        effects.rate_ripple = Some(RateRipple {
+            relative_amplitude: table.ripple_rel,
+            cycles_per_rev: f64::from(table.ripple_cycles_per_rev),
+            phase_rad: table.ripple_phase_rad,
+        });
+    }
+    effects
+}
+
 /// Load the scenario at `scenario`, validate it against the simulated bench, run it and write
 /// the recording to `out`.
 pub fn run_scenario_file(
@@ -111,15 +131,13 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
 ) -> anyhow::Result<(RunReport, W)> {
     let clock = VirtualClock::new();
     let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let recorded = recorded_effects(plan, &config);
     let sim = SimBench::new(config, shared.clone())
         .context("the scenario asks for a simulator configuration it cannot run")?;
     let (table, chamber, gyro) = sim.into_parts();
     let devices =
         Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
-    // The contract's `bench.gyro_model` is "the model the simulator used": the truth's base
-    // keys, plus the nominal effects (what the lab believes). The truth's own effects stay
-    // concealed.
     let mut info = run_info(plan, opts.epoch_ns);
-    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &plan.gyro.effects);
+    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
     run_virtual(plan, devices, &clock, info, writer, opts.run_options(console))
 }

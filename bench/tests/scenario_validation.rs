@@ -141,7 +141,7 @@ fn seed_scenario_is_the_seeds_procedure() {
 }
 
 #[test]
-fn thermal_full_covers_the_working_range_in_about_12_hours() {
+fn thermal_full_covers_the_working_range_in_about_14_hours() {
     let p = load_ok("thermal-full.toml", &st1300());
     let recs = records(&p);
     let plateau: Vec<&str> = recs.iter().filter(|r| !r.2).map(|r| r.0.as_str()).collect();
@@ -177,10 +177,10 @@ fn thermal_full_covers_the_working_range_in_about_12_hours() {
     for pair in rates.chunks(2) {
         assert!(pair[0] < 0.0 && pair[1] > 0.0 && (pair[0] + pair[1]).abs() < 1e-18);
     }
-    // Nominal time ≈ 10.2 h (fixed waits, holds, ramps); the gyro's 300 s thermal lag adds
-    // ≈ 2.5 h of soaking.
+    // Fixed waits, holds and ramps ≈ 10.2 h; the chamber air's lag and the gyro's 300 s
+    // thermal lag behind it add ≈ 3.5 h of soaking (the estimate simulates both).
     let h = p.estimated_duration().as_secs_f64() / 3600.0;
-    assert!((9.0..=12.5).contains(&h), "{h} h");
+    assert!((13.0..=14.5).contains(&h), "{h} h");
 }
 
 #[test]

@@ -46,6 +46,23 @@ pub struct ChannelReport {
     /// Whether the channel is a periodic stream (nine in ten periods within 10 % of the
     /// median); gaps are only looked for in periodic channels.
     pub periodic: bool,
+    /// The same judged by the device's own time stamps (`publish_time`), when they differ
+    /// from the log times: a real-time stream's rate and gaps without the host's jitter.
+    pub device_time: Option<DeviceTiming>,
+}
+
+/// A channel's rate and gaps by its device time stamps (times in s from the recording's first
+/// log time).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeviceTiming {
+    /// Mean rate, Hz.
+    pub mean_rate_hz: Option<f64>,
+    /// Median interval, s.
+    pub median_period_s: Option<f64>,
+    /// Intervals longer than 1.5 × the median.
+    pub gaps: Vec<Gap>,
+    /// Whether the device times are periodic.
+    pub periodic: bool,
 }
 
 /// A step as its events record it (times in s from the recording's first message).
@@ -89,12 +106,16 @@ pub struct RecordingInfo {
     pub outcome: Option<String>,
     /// How the file ended.
     pub end: End,
+    /// The container's own description (header, summary), when read from a file.
+    pub container: Option<ContainerInfo>,
 }
 
 /// Report on a recording file.
 pub fn info(path: &Path) -> Result<RecordingInfo, RecordingError> {
     let mut info = info_from_reader(RecordingReader::open(path)?)?;
     info.path = Some(path.to_path_buf());
+    // A damaged summary must not hide what the linear read found.
+    info.container = container_info(path).ok();
     Ok(info)
 }
 
@@ -104,6 +125,8 @@ pub fn info_from_reader<R: Read>(
     mut reader: RecordingReader<R>,
 ) -> Result<RecordingInfo, RecordingError> {
     let mut times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
+    // Device time stamps (publish_time) per topic, and whether any differs from log_time.
+    let mut device: BTreeMap<String, (Vec<u64>, bool)> = BTreeMap::new();
     // (index, name, label, start, end, abort) in ns.
     type StepNs = (u64, String, String, Option<u64>, Option<u64>, Option<u64>);
     let mut steps: Vec<StepNs> = Vec::new();
@@ -111,9 +134,18 @@ pub fn info_from_reader<R: Read>(
     let mut attachments = Vec::new();
     for item in reader.by_ref() {
         let (channel, t) = match item? {
-            Item::Gyro(m) => (TOPIC_GYRO, m.log_time_ns),
-            Item::Table(m) => (TOPIC_TABLE, m.log_time_ns),
-            Item::Chamber(m) => (TOPIC_CHAMBER, m.log_time_ns),
+            Item::Gyro(m) => {
+                note_device(&mut device, TOPIC_GYRO, m.log_time_ns, m.publish_time_ns);
+                (TOPIC_GYRO, m.log_time_ns)
+            }
+            Item::Table(m) => {
+                note_device(&mut device, TOPIC_TABLE, m.log_time_ns, m.publish_time_ns);
+                (TOPIC_TABLE, m.log_time_ns)
+            }
+            Item::Chamber(m) => {
+                note_device(&mut device, TOPIC_CHAMBER, m.log_time_ns, m.publish_time_ns);
+                (TOPIC_CHAMBER, m.log_time_ns)
+            }
             Item::Step(m) => {
                 let t = m.log_time_ns;
                 let s = m.msg;
@@ -137,6 +169,7 @@ pub fn info_from_reader<R: Read>(
                 (TOPIC_STEP, t)
             }
             Item::Other(m) => {
+                note_device(&mut device, &m.channel.topic, m.log_time_ns, m.publish_time_ns);
                 match times.get_mut(&m.channel.topic) {
                     Some(v) => v.push(m.log_time_ns),
                     None => {
@@ -175,7 +208,18 @@ pub fn info_from_reader<R: Read>(
         .map(|c| {
             // Two channels on one topic: the first (lowest id) gets the topic's messages.
             let ts = times.remove(&c.topic).unwrap_or_default();
-            channel_report(c.topic, c.schema_name, c.message_encoding, &ts, t0)
+            let mut report = channel_report(c.topic, c.schema_name, c.message_encoding, &ts, t0);
+            if let Some((mut pt, true)) = device.remove(&report.topic) {
+                pt.sort_unstable();
+                let d = channel_report(String::new(), String::new(), String::new(), &pt, t0);
+                report.device_time = Some(DeviceTiming {
+                    mean_rate_hz: d.mean_rate_hz,
+                    median_period_s: d.median_period_s,
+                    gaps: d.gaps,
+                    periodic: d.periodic,
+                });
+            }
+            report
         })
         .collect();
     let outcome = metadata
@@ -207,7 +251,144 @@ pub fn info_from_reader<R: Read>(
         attachments,
         outcome,
         end: reader.end().clone(),
+        container: None,
     })
+}
+
+/// Keep a message's device time stamp, noting whether it differs from its log time.
+fn note_device(
+    device: &mut BTreeMap<String, (Vec<u64>, bool)>,
+    topic: &str,
+    log_ns: u64,
+    publish_ns: u64,
+) {
+    let entry = match device.get_mut(topic) {
+        Some(e) => e,
+        None => device.entry(topic.to_string()).or_default(),
+    };
+    entry.0.push(publish_ns);
+    entry.1 |= publish_ns != log_ns;
+}
+
+/// What the MCAP container says of itself: the header's library and profile, and, from the
+/// summary section when the file has one, chunk counts by compression, message, schema and
+/// channel counts, encodings, and the first and last message times.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ContainerInfo {
+    /// The header's `library` (the writer), if the header could be read.
+    pub library: Option<String>,
+    /// The header's `profile`.
+    pub profile: Option<String>,
+    /// Whether the file has a summary section (the rest is from it).
+    pub summary: bool,
+    /// Chunks per compression (`zstd`, `lz4`, `""` for none).
+    pub chunks_by_compression: BTreeMap<String, u64>,
+    /// Chunks in all.
+    pub chunk_count: Option<u64>,
+    /// Messages in all.
+    pub message_count: Option<u64>,
+    /// Schemas.
+    pub schema_count: Option<u64>,
+    /// Channels.
+    pub channel_count: Option<u64>,
+    /// Attachments.
+    pub attachment_count: Option<u64>,
+    /// Metadata records.
+    pub metadata_count: Option<u64>,
+    /// Message encodings of the channels.
+    pub message_encodings: Vec<String>,
+    /// Schema encodings.
+    pub schema_encodings: Vec<String>,
+    /// Earliest message log time, ns since the Unix epoch.
+    pub message_start_ns: Option<u64>,
+    /// Latest message log time, ns.
+    pub message_end_ns: Option<u64>,
+}
+
+/// The header's profile and library: magic, opcode 0x01, record length, then two strings
+/// (u32 length + bytes, little-endian).
+fn read_header(file: &mut std::fs::File) -> Option<(String, String)> {
+    use std::io::{Seek, SeekFrom};
+    file.seek(SeekFrom::Start(0)).ok()?;
+    let mut head = [0u8; 17];
+    file.read_exact(&mut head).ok()?;
+    if head[..8] != mcap::MAGIC[..] || head[8] != 0x01 {
+        return None;
+    }
+    let len = u64::from_le_bytes(head[9..17].try_into().ok()?);
+    if len > 1 << 20 {
+        return None;
+    }
+    let mut body = vec![0u8; usize::try_from(len).ok()?];
+    file.read_exact(&mut body).ok()?;
+    let mut at = 0usize;
+    let mut string = || -> Option<String> {
+        let n = u32::from_le_bytes(body.get(at..at + 4)?.try_into().ok()?) as usize;
+        let s = String::from_utf8_lossy(body.get(at + 4..at + 4 + n)?).into_owned();
+        at += 4 + n;
+        Some(s)
+    };
+    let profile = string()?;
+    let library = string()?;
+    Some((profile, library))
+}
+
+/// [`ContainerInfo`] of the file at `path`.
+pub fn container_info(path: &Path) -> Result<ContainerInfo, RecordingError> {
+    let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
+    let mut file = std::fs::File::open(path).map_err(open)?;
+    let mut out = ContainerInfo::default();
+    if let Some((profile, library)) = read_header(&mut file) {
+        out.profile = Some(profile);
+        out.library = Some(library);
+    }
+    let Some(summary) = crate::reader::read_summary(path)? else { return Ok(out) };
+    out.summary = true;
+    for c in &summary.chunk_indexes {
+        *out.chunks_by_compression.entry(c.compression.clone()).or_default() += 1;
+    }
+    let mut enc: Vec<String> =
+        summary.channels.values().map(|c| c.message_encoding.clone()).collect();
+    enc.sort();
+    enc.dedup();
+    out.message_encodings = enc;
+    let mut enc: Vec<String> = summary.schemas.values().map(|s| s.encoding.clone()).collect();
+    enc.sort();
+    enc.dedup();
+    out.schema_encodings = enc;
+    if let Some(st) = &summary.stats {
+        out.chunk_count = Some(u64::from(st.chunk_count));
+        out.message_count = Some(st.message_count);
+        out.schema_count = Some(u64::from(st.schema_count));
+        out.channel_count = Some(u64::from(st.channel_count));
+        out.attachment_count = Some(u64::from(st.attachment_count));
+        out.metadata_count = Some(u64::from(st.metadata_count));
+        if st.message_count > 0 {
+            out.message_start_ns = Some(st.message_start_time);
+            out.message_end_ns = Some(st.message_end_time);
+        }
+    } else {
+        out.chunk_count = Some(summary.chunk_indexes.len() as u64);
+    }
+    Ok(out)
+}
+
+/// Seconds as a human duration: `13 h 42 min 49 s`, `2 min 0 s`, `0.500 s`.
+pub fn human_duration(s: f64) -> String {
+    if !s.is_finite() || s < 0.0 {
+        return "-".to_string();
+    }
+    if s < 60.0 {
+        return format!("{s:.3} s");
+    }
+    let t = s.round() as u64;
+    let (h, m, sec) = (t / 3600, (t / 60) % 60, t % 60);
+    let days = h / 24;
+    match (days, h) {
+        (d, _) if d > 0 => format!("{d} d {} h {m} min {sec} s", h % 24),
+        (_, 0) => format!("{m} min {sec} s"),
+        _ => format!("{h} h {m} min {sec} s"),
+    }
 }
 
 fn channel_report(
@@ -258,6 +439,7 @@ fn channel_report(
         median_period_s: median.map(|m| m as f64 * 1e-9),
         periodic,
         gaps,
+        device_time: None,
     }
 }
 
@@ -274,13 +456,49 @@ impl fmt::Display for RecordingInfo {
             writeln!(f, "recording {}", p.display())?;
         }
         let started = self.start_ns.map(crate::writer::rfc3339_utc);
+        let last = self.start_ns.map(|t| {
+            crate::writer::rfc3339_utc(t.saturating_add((self.duration_s * 1e9).round() as u64))
+        });
         writeln!(
             f,
-            "  first message {}, duration {:.3} s, {} bytes",
+            "  first message {}, last {}, duration {:.3} s ({}), {} bytes",
             started.as_deref().unwrap_or("-"),
+            last.as_deref().unwrap_or("-"),
             self.duration_s,
+            human_duration(self.duration_s),
             self.bytes
         )?;
+        if let Some(c) = &self.container {
+            writeln!(
+                f,
+                "  container: library {}, profile {:?}",
+                c.library.as_deref().unwrap_or("-"),
+                c.profile.as_deref().unwrap_or("")
+            )?;
+            if c.summary {
+                let chunks: Vec<String> = c
+                    .chunks_by_compression
+                    .iter()
+                    .map(|(k, n)| format!("{n} {}", if k.is_empty() { "uncompressed" } else { k }))
+                    .collect();
+                writeln!(
+                    f,
+                    "  summary: {} chunk(s) ({}), {} messages, {} schemas, {} channels, {} \
+                     attachments, {} metadata; message encodings {}, schema encodings {}",
+                    c.chunk_count.unwrap_or(0),
+                    if chunks.is_empty() { "unchunked".to_string() } else { chunks.join(", ") },
+                    c.message_count.map_or("-".into(), |n| n.to_string()),
+                    c.schema_count.map_or("-".into(), |n| n.to_string()),
+                    c.channel_count.map_or("-".into(), |n| n.to_string()),
+                    c.attachment_count.map_or("-".into(), |n| n.to_string()),
+                    c.metadata_count.map_or("-".into(), |n| n.to_string()),
+                    c.message_encodings.join(", "),
+                    c.schema_encodings.join(", "),
+                )?;
+            } else {
+                writeln!(f, "  summary: none (counts below are from reading the whole file)")?;
+            }
+        }
         match &self.end {
             End::Complete => writeln!(f, "  file complete (summary and footer present)")?,
             End::Cut { at_byte, reason } => writeln!(
@@ -315,6 +533,15 @@ impl fmt::Display for RecordingInfo {
                 opt_s(c.median_period_s),
                 c.gaps.len()
             )?;
+            if let Some(d) = &c.device_time {
+                writeln!(
+                    f,
+                    "      by device time (publish_time): {} median period {} {} gap(s)",
+                    d.mean_rate_hz.map(|r| format!("{r:.3} Hz")).unwrap_or_else(|| "- Hz".into()),
+                    opt_s(d.median_period_s),
+                    d.gaps.len()
+                )?;
+            }
             for g in c.gaps.iter().take(10) {
                 writeln!(
                     f,
@@ -361,5 +588,44 @@ impl fmt::Display for RecordingInfo {
             writeln!(f, "  {name} ({media}, {size} bytes)")?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod device_time_tests {
+    use std::io::Cursor;
+    use std::time::Duration;
+
+    use super::*;
+    use crate::{GyroMsg, Outcome, Recorder, RunInfo, Site};
+
+    /// Host stamps jitter (a sample every 40 or 60 ms, and one 300 ms late); the device's
+    /// stamps are a steady 50 ms with one lost sample. By log time the stream is not even
+    /// periodic; by device time it is 20 Hz with one gap.
+    #[test]
+    fn rate_and_gaps_are_judged_by_device_time_when_it_differs() {
+        let info = RunInfo::new(1_000_000_000, "t", "", Site::at_latitude(45.0), BTreeMap::new());
+        let mut rec = Recorder::new(Cursor::new(Vec::new()), info).expect("recorder");
+        let mut host_ms = 0u64;
+        for k in 1..=200u64 {
+            if k == 100 {
+                continue; // lost
+            }
+            host_ms += if k % 2 == 0 { 40 } else { 60 };
+            let msg = GyroMsg { rate_rad_s: 0.0, temperature_c: None, seq: k, status: 0 };
+            rec.gyro(Duration::from_millis(host_ms), Some(Duration::from_millis(50 * k)), &msg)
+                .expect("writes");
+        }
+        let bytes = rec.finish(&Outcome::Completed).expect("finishes").into_inner();
+        let info = info_from_reader(RecordingReader::new(&bytes[..])).expect("reads");
+        let gyro = info.channels.iter().find(|c| c.topic == TOPIC_GYRO).expect("gyro");
+        assert!(!gyro.periodic, "host stamps jitter by ±20 %");
+        let d = gyro.device_time.as_ref().expect("device stamps differ from log times");
+        assert!(d.periodic);
+        assert!((d.mean_rate_hz.expect("rate") - 198.0 / 9.95).abs() < 1e-6);
+        assert_eq!(d.median_period_s, Some(0.05));
+        assert_eq!(d.gaps.len(), 1);
+        assert_eq!(human_duration(49_369.0), "13 h 42 min 49 s");
+        assert_eq!(human_duration(0.5), "0.500 s");
     }
 }

@@ -55,11 +55,14 @@ pub mod status;
 pub mod toml_doc;
 pub mod writer;
 
-pub use info::{info, info_from_reader, ChannelReport, Gap, RecordingInfo, StepReport};
+pub use info::{
+    container_info, human_duration, info, info_from_reader, ChannelReport, ContainerInfo,
+    DeviceTiming, Gap, RecordingInfo, StepReport,
+};
 pub use message::{ChamberMsg, GyroMsg, LogLevel, Outcome, StepEvent, StepMsg, TableMsg};
 pub use reader::{
-    summary_counts, AttachmentRecord, ChannelInfo, End, Item, MetadataRecord, OtherMessage,
-    Recording, RecordingError, RecordingReader, Stamped,
+    read_summary, summary_counts, AttachmentRecord, ChannelInfo, End, Item, MetadataRecord,
+    OtherMessage, Recording, RecordingError, RecordingReader, Stamped,
 };
 pub use site::{Axis, MetadataError, Site};
 pub use writer::{RecordError, Recorder, RecorderOptions, RunInfo, TomlAttachment};

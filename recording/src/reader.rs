@@ -744,6 +744,11 @@ impl Recording {
         Self::from_items(RecordingReader::open(path)?)
     }
 
+    /// Read a recording from any reader, e.g. one that counts the bytes for a progress bar.
+    pub fn from_reader<R: Read>(source: R) -> Result<Self, RecordingError> {
+        Self::from_items(RecordingReader::new(source))
+    }
+
     /// Read a recording from memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, RecordingError> {
         Self::from_items(RecordingReader::with_limit(bytes, bytes.len()))
@@ -821,9 +826,9 @@ pub fn seconds_since(zero_ns: u64, t_ns: u64) -> f64 {
     }
 }
 
-/// Message counts per topic from the file's summary section (Statistics record), read without
-/// the data section: `None` when the file has no summary or no statistics (a crashed run).
-pub fn summary_counts(path: &Path) -> Result<Option<BTreeMap<String, u64>>, RecordingError> {
+/// The summary section of the file at `path`, read without the data section; `None` when it
+/// has none (no footer: a crashed run).
+pub fn read_summary(path: &Path) -> Result<Option<mcap::Summary>, RecordingError> {
     let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
     let mut file = File::open(path).map_err(open)?;
     let len = file.metadata().map_err(open)?.len();
@@ -853,7 +858,13 @@ pub fn summary_counts(path: &Path) -> Result<Option<BTreeMap<String, u64>>, Reco
             }
         }
     }
-    let Some(summary) = reader.finish() else {
+    Ok(reader.finish())
+}
+
+/// Message counts per topic from the file's summary section (Statistics record), read without
+/// the data section: `None` when the file has no summary or no statistics (a crashed run).
+pub fn summary_counts(path: &Path) -> Result<Option<BTreeMap<String, u64>>, RecordingError> {
+    let Some(summary) = read_summary(path)? else {
         return Ok(None);
     };
     let Some(stats) = summary.stats.as_ref() else {

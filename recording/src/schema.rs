@@ -39,6 +39,10 @@ pub const META_SITE: &str = "bench.site";
 pub const META_SCENARIO: &str = "bench.scenario";
 /// Metadata record with the nominal gyro error model.
 pub const META_GYRO_MODEL: &str = "bench.gyro_model";
+/// Metadata record (optional): the unit under test, operator and test station.
+pub const META_STATION: &str = "bench.station";
+/// Metadata record (optional): acceptance limits per coefficient.
+pub const META_ACCEPTANCE: &str = "bench.acceptance";
 
 /// Media type of the scenario and configuration attachments.
 pub const MEDIA_TYPE_TOML: &str = "application/toml";

@@ -131,6 +131,12 @@ pub struct RunInfo {
     pub site: Site,
     /// `bench.gyro_model` (from `GyroModel::to_metadata`).
     pub gyro_model: BTreeMap<String, String>,
+    /// `bench.station` (optional: `unit_serial`, `operator`, `station`); not written when
+    /// empty.
+    pub station: BTreeMap<String, String>,
+    /// `bench.acceptance` (optional: the limit on |coefficient| per coefficient key, SI, units
+    /// in the key names); not written when empty.
+    pub acceptance: BTreeMap<String, String>,
 }
 
 impl RunInfo {
@@ -152,6 +158,8 @@ impl RunInfo {
             config: None,
             site,
             gyro_model,
+            station: BTreeMap::new(),
+            acceptance: BTreeMap::new(),
         }
     }
 }
@@ -357,6 +365,14 @@ impl<W: Write + Seek> Recorder<W> {
         writer
             .write_metadata(&meta(META_GYRO_MODEL, info.gyro_model.clone()))
             .map_err(mcap_err("writing bench.gyro_model"))?;
+        for (name, entries) in [(META_STATION, &info.station), (META_ACCEPTANCE, &info.acceptance)]
+        {
+            if !entries.is_empty() {
+                writer
+                    .write_metadata(&meta(name, entries.clone()))
+                    .map_err(mcap_err("writing the station metadata"))?;
+            }
+        }
         let attachments = info
             .scenario_attachment
             .as_deref()

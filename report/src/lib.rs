@@ -7,6 +7,7 @@
 //! - [`calibrate`]: the gyro's thermal calibration (`bench calibrate`).
 //! - [`diagnose`]: where a recording departs from the simulation of its run, and the physics
 //!   left out (`bench diagnose`).
+//! - [`acceptance`]: a calibration's coefficients against the recording's acceptance limits.
 //! - [`display`]: the engineering units shown to people; [`render`]: the figures and the HTML
 //!   page both reports share.
 //!
@@ -19,6 +20,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod acceptance;
 pub mod calibrate;
 pub mod diagnose;
 pub mod display;

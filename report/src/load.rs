@@ -19,6 +19,8 @@
 //!   the file does not end runs to the last gyro sample.
 //! - **Site and model**: `bench.site` ([`bench_recording::Site::from_metadata`]) and
 //!   `bench.gyro_model` with its `effect.*` keys.
+//! - **Test station** (optional): `bench.station` as recorded, `bench.acceptance` limits as
+//!   numbers ([`crate::acceptance`] judges a calibration against them).
 
 use std::collections::BTreeMap;
 
@@ -28,7 +30,9 @@ use bench_analysis::timebase::{fit_clock, unwrap_counter, ClockFit};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use bench_recording::reader::seconds_since;
-use bench_recording::schema::{META_GYRO_MODEL, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE};
+use bench_recording::schema::{
+    META_ACCEPTANCE, META_GYRO_MODEL, META_STATION, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE,
+};
 use bench_recording::{status, MetadataError, Recording, Stamped, StepEvent};
 
 /// Why a recording cannot be turned into arrays.
@@ -110,6 +114,13 @@ pub struct RunData {
     pub gyro_dt_s: f64,
     /// Each device channel's time base (gyro, table, chamber).
     pub time_bases: Vec<TimeBase>,
+    /// `bench.station` (unit serial, operator, station), empty without the record.
+    pub station: BTreeMap<String, String>,
+    /// `bench.acceptance`: the limit on |coefficient| per coefficient key, SI (keys whose value
+    /// is not a positive number are left out and named in [`Self::acceptance_problems`]).
+    pub acceptance: BTreeMap<String, f64>,
+    /// `bench.acceptance` entries that are not a positive number.
+    pub acceptance_problems: Vec<String>,
 }
 
 impl RunData {
@@ -264,6 +275,17 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         });
     }
 
+    let mut acceptance = BTreeMap::new();
+    let mut acceptance_problems = Vec::new();
+    for (k, v) in rec.metadata(META_ACCEPTANCE).into_iter().flatten() {
+        match v.trim().parse::<f64>() {
+            Ok(x) if x.is_finite() && x > 0.0 => {
+                acceptance.insert(k.clone(), x);
+            }
+            _ => acceptance_problems
+                .push(format!("{META_ACCEPTANCE} {k} = {v:?}: a limit must be a positive number")),
+        }
+    }
     Ok(RunData {
         series: RunSeries {
             gyro_time_s,
@@ -283,6 +305,9 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         bad_gyro_time_s,
         gyro_dt_s,
         time_bases: vec![gyro_base, table_base, chamber_base],
+        station: rec.metadata(META_STATION).cloned().unwrap_or_default(),
+        acceptance,
+        acceptance_problems,
     })
 }
 

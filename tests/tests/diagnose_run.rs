@@ -31,13 +31,30 @@ fn scenario(name: &str) -> String {
 }
 
 /// The gyro's truth is the nominal model; the simulated table ripples (1e-5 of the rate at 16
-/// cycles per revolution, below its 1″ readout). The ripple is all there is to find.
+/// cycles per revolution, below its 1″ readout) and the recording says so: its
+/// `bench.gyro_model` holds the ripple as `effect.rate_ripple.*`, physics the simulator
+/// simulated. Nothing is missing; against a nominal model without the ripple, the ripple is
+/// all there is to find.
 #[test]
-fn a_run_whose_gyro_truth_is_the_nominal_model_names_only_the_table_ripple() {
+fn a_run_whose_gyro_truth_is_the_nominal_model_has_nothing_missing() {
     let rec = simulate_text(&scenario("thermal-short.toml"), 21);
     let started = std::time::Instant::now();
     let out = diagnose_recording(&rec, None, &DiagnoseOptions::default()).expect("diagnoses");
     eprintln!("diagnosed in {:.2} s", started.elapsed().as_secs_f64());
+    let d = &out.diagnosis;
+    assert!(out.nominal.1.rate_ripple.is_some(), "the table's ripple is recorded as nominal");
+    assert!(d.findings.iter().all(|f| !f.accepted), "{:?}", d.findings);
+    assert_ne!(d.verdict, Verdict::MissingPhysics);
+    assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
+    let j = json::to_json(&out, "null.mcap");
+    assert_eq!(j["version"], 1);
+    assert_eq!(j["verdict"], d.verdict.key());
+
+    // The same recording against its model without the ripple: the ripple is found.
+    let (model, mut effects, _) = out.nominal.clone();
+    effects.rate_ripple = None;
+    let nominal = Some((model, effects, "no ripple".to_string()));
+    let out = diagnose_recording(&rec, nominal, &DiagnoseOptions::default()).expect("diagnoses");
     let d = &out.diagnosis;
     let found: Vec<_> = d.findings.iter().filter(|f| f.accepted).collect();
     let keys: Vec<_> = found.iter().map(|f| f.effect.key()).collect();
@@ -50,9 +67,7 @@ fn a_run_whose_gyro_truth_is_the_nominal_model_names_only_the_table_ripple() {
     let (eps, s) = p("relative_amplitude");
     assert!((eps - 1e-5).abs() < 3.0 * s, "ε {eps} ± {s}");
     assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
-    // The JSON carries the contract's fields.
     let j = json::to_json(&out, "null.mcap");
-    assert_eq!(j["version"], 1);
     assert_eq!(j["verdict"], "missing_physics");
     assert!(j["parameter_updates"]["bias"]["sigma"].as_f64().is_some_and(|s| s > 0.0));
     assert_eq!(j["findings"].as_array().map(Vec::len), Some(1));

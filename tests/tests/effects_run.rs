@@ -5,7 +5,7 @@
 use std::io::Cursor;
 
 use bench::simulate::{capabilities, run_plan, SimOptions};
-use bench_physics::effects::{BiasStep, Effects, OncePerRevolution};
+use bench_physics::effects::{BiasStep, Effects, OncePerRevolution, RateRipple};
 use bench_recording::Recording;
 
 /// Table at rest, chamber held at 20 °C, 200 s.
@@ -59,9 +59,16 @@ fn a_concealed_bias_step_shows_in_the_stream_but_not_in_the_metadata() {
         run("[simulation.truth.effects]\nbias_step = { time_s = 100, step_rad_s = 1e-6 }\n");
     let meta_plain = plain.metadata("bench.gyro_model").expect("model recorded");
     let meta_hidden = hidden.metadata("bench.gyro_model").expect("model recorded");
-    // Concealed: the recorded model is the same, with no effect key.
+    // Concealed: the recorded model is the same, with no effect key but the simulated table's
+    // own ripple (physics the simulator simulates, recorded as nominal).
     assert_eq!(meta_hidden, meta_plain);
-    assert!(meta_hidden.keys().all(|k| !k.starts_with("effect.")), "{meta_hidden:?}");
+    assert!(
+        meta_hidden
+            .keys()
+            .filter(|k| k.starts_with("effect."))
+            .all(|k| k.starts_with("effect.rate_ripple.")),
+        "{meta_hidden:?}"
+    );
     // ...but the stream shows the step: 1e-6 rad/s after 100 s, within noise (the mean of
     // 1900 samples at the default ARW scatters by ~4e-9 rad/s).
     let step = mean_rate(&hidden, 101.0, 199.0) - mean_rate(&hidden, 1.0, 99.0);
@@ -85,6 +92,12 @@ fn nominal_effects_are_recorded_as_effect_keys_and_simulated() {
     let expected = Effects {
         once_per_revolution: Some(OncePerRevolution { amplitude_rad_s: 2e-8, phase_rad: 0.5 }),
         bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
+        // The simulated table's own ripple.
+        rate_ripple: Some(RateRipple {
+            relative_amplitude: 1e-5,
+            cycles_per_rev: 16.0,
+            phase_rad: 0.0,
+        }),
         ..Effects::default()
     };
     assert_eq!(Effects::from_metadata(meta), Ok(expected));

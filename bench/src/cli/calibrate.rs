@@ -10,7 +10,7 @@ use bench_analysis::joint_fit::Estimator;
 use bench_physics::units::DEG_PER_H;
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench_report::calibrate::{calibrate_file, json, report, CalibrateSettings};
+use bench_report::calibrate::{calibrate_recording, json, report, CalibrateSettings};
 use bench_report::display::coefficient_unit;
 
 /// Arguments of `bench calibrate`.
@@ -19,7 +19,7 @@ pub struct CalibrateArgs {
     /// Recording (MCAP, per the recording contract).
     pub recording: PathBuf,
     /// Directory for `calibration.toml`, `report.html` and the PNG figures.
-    #[arg(long, default_value = "calibration")]
+    #[arg(long, short, default_value = "calibration")]
     pub out: PathBuf,
     /// Also write the machine-readable result here (docs/calibrate.md).
     #[arg(long)]
@@ -36,6 +36,9 @@ pub struct CalibrateArgs {
     /// Skip the HTML/PNG report.
     #[arg(long)]
     pub no_report: bool,
+    /// No progress bar and no timing line.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Calibrate and write the outputs.
@@ -46,7 +49,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         no_lag: args.no_lag,
     };
     let started = std::time::Instant::now();
-    let out = calibrate_file(&args.recording, &settings)
+    let rec = super::load_recording(&args.recording, args.quiet)?;
+    let out = calibrate_recording(&rec, &settings)
         .with_context(|| format!("cannot calibrate {}", args.recording.display()))?;
     let name = args
         .recording
@@ -127,6 +131,10 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    if let Some(a) = bench_report::acceptance::judge_calibration(&out) {
+        print_acceptance(&a);
+    }
+
     if let Some(model) = &out.model {
         let j = cal.joint.as_ref().ok();
         let file = CalibrationFile {
@@ -166,6 +174,32 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         let files = report::write_report(&out, &name, &args.out)?;
         println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
-    eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    if !args.quiet {
+        eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    }
     Ok(if out.model.is_some() { Exit::Success } else { Exit::Incomplete }.into())
+}
+
+/// The pass/fail lines: the unit, each limit, the result.
+fn print_acceptance(a: &bench_report::acceptance::Acceptance) {
+    let who: Vec<String> = ["unit_serial", "operator", "station"]
+        .iter()
+        .filter_map(|k| a.station.get(*k).map(|v| format!("{} {v}", k.replace('_', " "))))
+        .collect();
+    if !who.is_empty() {
+        println!("{}", who.join(", "));
+    }
+    for p in &a.problems {
+        eprintln!("note: {p}");
+    }
+    for c in &a.checks {
+        let shown = match (c.value, c.interval) {
+            (Some(v), Some((lo, hi))) => {
+                format!("{v:.3e} (|·| within {lo:.3e}..{hi:.3e} at ≈95 %)")
+            }
+            _ => "not estimated".to_string(),
+        };
+        println!("acceptance {}: {shown} vs limit {:.3e}: {}", c.key, c.limit, c.judgement.key());
+    }
+    println!("acceptance: {}", a.result.key().to_uppercase());
 }

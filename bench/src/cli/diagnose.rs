@@ -11,19 +11,20 @@ use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::units::DEG_PER_H;
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench_report::diagnose::{diagnose_file, json, report};
+use bench_report::diagnose::{diagnose_recording, json, report};
 
 /// Arguments of `bench diagnose`.
 #[derive(clap::Args, Debug)]
 pub struct DiagnoseArgs {
     /// Recording (MCAP, per the recording contract).
     pub recording: PathBuf,
-    /// Nominal model (a calibration/model TOML file); default: the recording's
-    /// `bench.gyro_model`.
+    /// Nominal model: a model TOML file, or a recording (MCAP) whose `bench.gyro_model` and
+    /// effects are taken (e.g. the simulation of the run: `--model sim.mcap`); default: the
+    /// recording's own `bench.gyro_model`.
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Directory for `model.toml` (the updated model), `report.html` and the PNG figures.
-    #[arg(long, default_value = "diagnosis")]
+    #[arg(long, short, default_value = "diagnosis")]
     pub out: PathBuf,
     /// Also write the machine-readable result here (docs/diagnose.md).
     #[arg(long)]
@@ -37,21 +38,19 @@ pub struct DiagnoseArgs {
     /// Skip the HTML/PNG report.
     #[arg(long)]
     pub no_report: bool,
+    /// No progress bar and no timing line.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
-/// Diagnose and write the outputs. Exit code 0 for `consistent`, 3 for `parameters_only`,
-/// 4 for `missing_physics`.
+/// Diagnose and write the outputs. Exit code 0 for `consistent`, 6 for `parameters_only`,
+/// 7 for `missing_physics` ([`Exit`]).
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
-    let nominal = match &args.model {
-        Some(path) => {
-            let file = CalibrationFile::load(path)?;
-            Some((file.model(), file.effects, path.display().to_string()))
-        }
-        None => None,
-    };
+    let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let opts = DiagnoseOptions { bin_s: args.bin_s, alpha: args.alpha, ..Default::default() };
-    let out = diagnose_file(&args.recording, nominal, &opts)
+    let rec = super::load_recording(&args.recording, args.quiet)?;
+    let out = diagnose_recording(&rec, nominal, &opts)
         .with_context(|| format!("cannot diagnose {}", args.recording.display()))?;
     let name = args
         .recording
@@ -135,7 +134,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         let files = report::write_report(&out, &name, &args.out)?;
         println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
-    eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    if !args.quiet {
+        eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
+    }
     Ok(match d.verdict {
         Verdict::Consistent => Exit::Success.into(),
         Verdict::ParametersOnly => Exit::ParametersOnly.into(),

@@ -32,3 +32,31 @@ impl From<Exit> for ExitCode {
         ExitCode::from(e as u8)
     }
 }
+
+impl Exit {
+    /// The code of a command that failed with `e`: [`Exit::Invalid`] for a scenario, bench
+    /// config or model file that failed validation, else [`Exit::Error`].
+    pub fn of_error(e: &anyhow::Error) -> Exit {
+        use bench_recording::model_file::ModelFileError;
+        for cause in e.chain() {
+            if let Some(c) = cause.downcast_ref::<bench::bench_config::ConfigError>() {
+                use bench::bench_config::ConfigError as C;
+                if matches!(c, C::Invalid { .. } | C::Several(_)) {
+                    return Exit::Invalid;
+                }
+            }
+            if let Some(bench::scenario::LoadError::Invalid(_)) = cause.downcast_ref() {
+                return Exit::Invalid;
+            }
+            if let Some(
+                ModelFileError::Parse { .. }
+                | ModelFileError::Invalid { .. }
+                | ModelFileError::BadEffects { .. },
+            ) = cause.downcast_ref()
+            {
+                return Exit::Invalid;
+            }
+        }
+        Exit::Error
+    }
+}

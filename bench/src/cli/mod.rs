@@ -1,10 +1,12 @@
 //! One file per subcommand; [`exit`] holds the exit codes of all of them.
 
+pub mod allan;
 pub mod calibrate;
 pub mod diagnose;
 pub mod exit;
 pub mod export;
 pub mod info;
+pub mod model;
 pub mod monte_carlo;
 pub mod ports;
 pub mod recover;
@@ -16,6 +18,7 @@ pub mod validate;
 use tracing_subscriber::EnvFilter;
 
 /// The terminal log layer: warnings and errors by default, more with `-v`; `RUST_LOG` wins.
+/// Colours only on a terminal and without `NO_COLOR`.
 pub fn console_layer(
     verbose: u8,
 ) -> Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync> {
@@ -26,7 +29,11 @@ pub fn console_layer(
         _ => "trace",
     };
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
-    tracing_subscriber::fmt::layer().with_writer(std::io::stderr).with_filter(filter).boxed()
+    tracing_subscriber::fmt::layer()
+        .with_writer(std::io::stderr)
+        .with_ansi(bench::progress::stderr_is_styled())
+        .with_filter(filter)
+        .boxed()
 }
 
 /// Start the Foxglove live view on `rt` at `addr` if `on`, and say where it listens.
@@ -78,4 +85,38 @@ pub(crate) fn print_endpoints(e: &bench_sim::serve::bench::ServedEndpoints) {
     println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
     println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
     println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+}
+
+/// Write `value` as pretty JSON to `path`.
+pub(crate) fn write_json(
+    path: &std::path::Path,
+    value: &impl serde::Serialize,
+) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Load the recording at `path`, showing how much of it has been read on a terminal (not with
+/// `quiet`, `NO_COLOR` or stderr not a terminal): reading is the long part on long files.
+pub(crate) fn load_recording(
+    path: &std::path::Path,
+    quiet: bool,
+) -> anyhow::Result<bench_recording::Recording> {
+    use anyhow::Context as _;
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let name = path
+        .file_name()
+        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let show = !quiet && bench::progress::stderr_is_styled();
+    let reader = bench::progress::ReadProgress::new(
+        std::io::BufReader::with_capacity(1 << 20, file),
+        size,
+        &name,
+        show,
+    );
+    bench_recording::Recording::from_reader(reader)
+        .with_context(|| format!("cannot read {}", path.display()))
 }

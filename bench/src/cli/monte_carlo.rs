@@ -12,8 +12,8 @@ use bench_report::display::coefficient_unit;
 /// Arguments of `bench monte-carlo`.
 #[derive(clap::Args, Debug)]
 pub struct MonteCarloArgs {
-    /// Scenario to simulate (its `[simulation.truth]` is the truth).
-    #[arg(default_value = "scenarios/thermal-full.toml")]
+    /// Scenario to simulate (its `[simulation.truth]` is the truth), e.g.
+    /// `scenarios/thermal-full.toml` of the bench repository.
     pub scenario: PathBuf,
     /// Number of seeds.
     #[arg(long, default_value_t = 50)]
@@ -48,13 +48,7 @@ fn unit(key: &str) -> (&'static str, f64) {
 /// The diagnosis study (`--diagnose`).
 fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
-    let nominal = match &args.model {
-        Some(path) => {
-            let file = bench_recording::model_file::CalibrationFile::load(path)?;
-            Some((file.model(), file.effects, path.display().to_string()))
-        }
-        None => None,
-    };
+    let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,

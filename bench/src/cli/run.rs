@@ -1,6 +1,5 @@
 //! `bench run SCENARIO`: run a scenario and record it.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -22,9 +21,23 @@ pub struct RunArgs {
     /// Scenario file (TOML).
     pub scenario: PathBuf,
     /// Recording to write (default: the scenario's file name with `.mcap`, in the current
-    /// directory).
+    /// directory; if that exists, the first free `NAME-2.mcap`, `NAME-3.mcap`, …). An existing
+    /// file given here is refused unless `--force`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
+    /// Overwrite the `--out` file if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Serial number of the unit under test (`bench.station` `unit_serial`; overrides the
+    /// scenario's `[station]`).
+    #[arg(long)]
+    pub unit_serial: Option<String>,
+    /// Who runs the test (`bench.station` `operator`).
+    #[arg(long)]
+    pub operator: Option<String>,
+    /// Which test station (`bench.station` `station`).
+    #[arg(long)]
+    pub station: Option<String>,
     /// Seed of the simulator's random streams; the same seed gives the same recording
     /// (simulated bench only).
     #[arg(long, default_value_t = 1)]
@@ -49,6 +62,19 @@ pub struct RunArgs {
     /// the simulated gyro follows (replacing `[gyro.model]` and `[simulation.truth]`).
     #[arg(long)]
     pub gyro_model: Option<PathBuf>,
+}
+
+/// Apply `--unit-serial`, `--operator`, `--station` over the scenario's `[station]`.
+fn apply_station(plan: &mut RunPlan, args: &RunArgs) {
+    for (key, v) in [
+        ("unit_serial", &args.unit_serial),
+        ("operator", &args.operator),
+        ("station", &args.station),
+    ] {
+        if let Some(v) = v {
+            plan.station.info.insert(key.to_string(), v.clone());
+        }
+    }
 }
 
 /// Apply `--gyro-model` to a loaded plan.
@@ -81,22 +107,45 @@ fn load_plan(path: &Path, caps: &Capabilities) -> anyhow::Result<Option<RunPlan>
 
 /// Run on the embedded simulated bench, or on the bench a config describes.
 pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
-    let out = args.out.clone().unwrap_or_else(|| {
-        let stem = args.scenario.file_stem().map(|s| s.to_os_string()).unwrap_or_default();
-        PathBuf::from(stem).with_extension("mcap")
-    });
-    let progress = !args.quiet && std::io::stderr().is_terminal();
+    let out = match &args.out {
+        Some(out) if out.exists() && !args.force => anyhow::bail!(
+            "{} exists: bench does not overwrite a recording (--force does, or choose another \
+             --out)",
+            out.display()
+        ),
+        Some(out) => out.clone(),
+        None => {
+            let stem = args.scenario.file_stem().map(|s| s.to_os_string()).unwrap_or_default();
+            let default = PathBuf::from(stem).with_extension("mcap");
+            if args.force {
+                default
+            } else {
+                fresh_name(&default)
+            }
+        }
+    };
+    let progress = !args.quiet && bench::progress::stderr_is_styled();
     let report = match &args.bench {
         None => run_simulated(&args, &out, progress, verbose, None)?,
-        Some(spec) => match BenchSource::load(spec)? {
-            BenchSource::Replay(replay) => run_on_replay(&args, &replay, &out, progress, verbose)?,
-            BenchSource::Devices(config) if config.is_simulated() => {
-                run_simulated(&args, &out, progress, verbose, Some(&config))?
+        Some(spec) => {
+            let source = match BenchSource::load(spec) {
+                Ok(source) => source,
+                Err(e) => {
+                    return super::validate::config_invalid(&e).map_or_else(|| Err(e.into()), Ok)
+                }
+            };
+            match source {
+                BenchSource::Replay(replay) => {
+                    run_on_replay(&args, &replay, &out, progress, verbose)?
+                }
+                BenchSource::Devices(config) if config.is_simulated() => {
+                    run_simulated(&args, &out, progress, verbose, Some(&config))?
+                }
+                BenchSource::Devices(config) => {
+                    run_on_bench(&args, spec, *config, &out, progress, verbose)?
+                }
             }
-            BenchSource::Devices(config) => {
-                run_on_bench(&args, spec, *config, &out, progress, verbose)?
-            }
-        },
+        }
     };
     let Some(report) = report else {
         return Ok(Exit::Invalid.into());
@@ -114,6 +163,28 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     Ok(if report.completed() { Exit::Success } else { Exit::Aborted }.into())
 }
 
+/// `path` if it does not exist, else the first of `STEM-2.EXT`, `STEM-3.EXT`, … that does not
+/// (said on stderr).
+pub fn fresh_name(path: &Path) -> PathBuf {
+    if !path.exists() {
+        return path.to_path_buf();
+    }
+    let stem = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let ext = path.extension().map(|e| e.to_string_lossy().into_owned());
+    for k in 2u32.. {
+        let name = match &ext {
+            Some(e) => format!("{stem}-{k}.{e}"),
+            None => format!("{stem}-{k}"),
+        };
+        let candidate = path.with_file_name(name);
+        if !candidate.exists() {
+            eprintln!("{} exists: recording to {} instead", path.display(), candidate.display());
+            return candidate;
+        }
+    }
+    path.to_path_buf()
+}
+
 /// The embedded simulated bench in virtual time; with a bench config that names no drivers,
 /// at its site and with its `[simulation.effects]` over the scenario's truth effects.
 fn run_simulated(
@@ -129,7 +200,9 @@ fn run_simulated(
     apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
     if let Some(config) = config {
         apply_sim_config(&mut plan, config);
+        plan.station = plan.station.overridden_by(&config.station());
     }
+    apply_station(&mut plan, args);
     let rt = runtime()?;
     let live = start_live(&rt, args)?;
     let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
@@ -194,6 +267,8 @@ fn run_on_bench(
             return Ok(None);
         };
         apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
+        plan.station = plan.station.overridden_by(&config.station());
+        apply_station(&mut plan, args);
         if let Some(site) = config.site() {
             if site.latitude_deg != plan.site.latitude_deg {
                 tracing::warn!(
@@ -249,6 +324,7 @@ fn run_on_replay(
         return Ok(None);
     };
     apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
+    apply_station(&mut plan, args);
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let writer = std::io::BufWriter::new(file);

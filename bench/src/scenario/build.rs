@@ -10,7 +10,10 @@ use bench_physics::{gyro_model::GYRO_MODEL_KEYS, GyroModel, ModelKey};
 
 use super::quantity::{self, fmt_num, Dim, Quantity};
 use super::Capabilities;
-use crate::plan::{Action, GyroSetup, PlannedStep, RunPlan, SimSetup, TempSource};
+use crate::plan::{
+    Action, GyroSetup, PlannedStep, RunPlan, SimSetup, Station, TempSource, ACCEPTANCE_KEYS,
+    STATION_KEYS,
+};
 use bench_recording::toml_doc::{line_col, Entry, Node, Value};
 use bench_recording::{Axis, Site};
 
@@ -372,7 +375,18 @@ impl<'a> Builder<'a> {
         let start = 0..0;
         self.check_keys(
             top,
-            &["scenario", "site", "gyro", "table", "chamber", "safe", "simulation", "step"],
+            &[
+                "scenario",
+                "site",
+                "gyro",
+                "table",
+                "chamber",
+                "safe",
+                "simulation",
+                "station",
+                "acceptance",
+                "step",
+            ],
             "the scenario file",
         );
 
@@ -503,6 +517,32 @@ impl<'a> Builder<'a> {
             self.check_temp(&t, &start, "default safe-state temperature");
         }
 
+        // [station], [acceptance]
+        let mut station = Station::default();
+        if let Ok(Some(t)) = self.table(top, "station") {
+            self.check_keys(t, STATION_KEYS, "[station]");
+            for key in STATION_KEYS {
+                if let Ok(Some((v, _))) = self.string(t, key) {
+                    station.info.insert((*key).to_string(), v);
+                }
+            }
+        }
+        if let Ok(Some(t)) = self.table(top, "acceptance") {
+            self.check_keys(t, ACCEPTANCE_KEYS, "[acceptance]");
+            for key in ACCEPTANCE_KEYS {
+                if let Ok(Some((v, span))) = self.number(t, key) {
+                    if v > 0.0 {
+                        station.acceptance.insert((*key).to_string(), v);
+                    } else {
+                        self.err(
+                            &span,
+                            format!("`{key}` is a limit on the coefficient's magnitude: it must be positive, got {v}"),
+                        );
+                    }
+                }
+            }
+        }
+
         // [[step]]
         let mut st = State {
             setpoint_c: sim.initial_temp_c,
@@ -534,6 +574,7 @@ impl<'a> Builder<'a> {
             sim,
             safe_decel_rad_s2: safe_decel,
             safe_temp_c: safe_temp,
+            station,
             steps: std::mem::take(&mut self.steps),
         })
     }

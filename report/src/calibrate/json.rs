@@ -83,6 +83,9 @@ pub struct CalibrationJson {
     pub windows: Vec<WindowJson>,
     /// What the data lack, and what could still be estimated.
     pub missing: Vec<String>,
+    /// The coefficients against the recording's acceptance limits (`bench.acceptance`), with
+    /// its `bench.station`; null when the recording has no limits ([`crate::acceptance`]).
+    pub acceptance: Option<crate::acceptance::Acceptance>,
 }
 
 /// Comparison with the recording's model.
@@ -227,5 +230,6 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             })
             .collect(),
         missing: cal.missing.clone(),
+        acceptance: crate::acceptance::judge_calibration(outcome),
     }
 }

@@ -1,0 +1,255 @@
+//! What a gyro-test engineer meets first, through the binary: a recording is never overwritten,
+//! the estimate and the lab's limits in `bench validate`, the sim-vs-real workflow (`bench
+//! model`, `bench diagnose --model REC.mcap`), a pure simulation diagnosing without missing
+//! physics, and the exit codes.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn bench(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_bench"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("NO_COLOR")
+        .output()
+        .expect("bench runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn scenario(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios").join(name).display().to_string()
+}
+
+/// A two-minute scenario: spin, record, stop.
+const SHORT: &str = "[scenario]\nname = \"short\"\n[site]\nlatitude_deg = 45\n\
+                     [[step]]\nspin = \"10 °/min\"\ndirection = \"cw\"\n\
+                     [[step]]\nlabel = \"record cw\"\nrecord = \"2 min\"\n\
+                     [[step]]\nstop = \"table\"\n";
+
+#[test]
+fn an_existing_recording_is_never_overwritten_without_force() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    std::fs::write(d.join("keep.mcap"), b"precious").expect("file");
+    let r = bench(&["run", "short.toml", "-q", "-o", "keep.mcap"], d);
+    assert_eq!(r.status.code(), Some(1), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("keep.mcap exists"), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("--force"), "{}", text(&r.stderr));
+    assert_eq!(std::fs::read(d.join("keep.mcap")).expect("kept"), b"precious");
+
+    let r = bench(&["run", "short.toml", "-q", "-o", "keep.mcap", "--force"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_ne!(std::fs::read(d.join("keep.mcap")).expect("written"), b"precious");
+
+    // The default name (the scenario's) is taken: a fresh one is picked, and said.
+    std::fs::write(d.join("short.mcap"), b"precious").expect("file");
+    let r = bench(&["run", "short.toml", "-q"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("recording to short-2.mcap instead"), "{}", text(&r.stderr));
+    assert_eq!(std::fs::read(d.join("short.mcap")).expect("kept"), b"precious");
+    assert!(d.join("short-2.mcap").exists());
+}
+
+#[test]
+fn validate_prints_the_physical_estimate_and_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let r = bench(&["validate", &scenario("seed.toml"), "--json", "v.json"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    // The seed's run takes 1:18:15 of bench time (chamber lag, the gyro's thermal lag).
+    assert!(text(&r.stdout).contains("about 1:1"), "{}", text(&r.stdout));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("v.json")).expect("json"))
+            .expect("valid json");
+    assert_eq!(j["ok"], true);
+    let s = j["estimated_bench_time_s"].as_f64().expect("estimate");
+    assert!((s - 4695.0).abs() < 0.05 * 4695.0, "{s}");
+}
+
+#[test]
+fn validate_against_the_labs_limits_without_connecting() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    // Real drivers on ports that do not exist: nothing is connected.
+    let lab = "[table]\ndialect = \"actidyn\"\nendpoint = { tcp = { addr = \"127.0.0.1:9\" } }\n\
+               [chamber]\nendpoint = { tcp = { addr = \"127.0.0.1:9\" } }\nunit_id = 1\n\
+               map = \"watlow_f4t\"\n\
+               [gyro]\ndriver = \"kvh1750\"\nserial = { path = \"/dev/does-not-exist\", baud = 921600 }\n\
+               [limits]\nchamber_max_heat_rate_c_min = 3.0\n";
+    std::fs::write(d.join("lab.toml"), lab).expect("config");
+    let r = bench(&["validate", &scenario("seed.toml"), "--bench", "lab.toml"], d);
+    assert_eq!(r.status.code(), Some(3), "{}{}", text(&r.stdout), text(&r.stderr));
+    let err = text(&r.stderr);
+    assert!(err.contains("seed.toml:") && err.contains("lab.toml's [limits]"), "{err}");
+
+    // Every problem of a config is listed, each located.
+    let bad = "[bench]\ntime_scale = -1\nstale_after_s = 0\n[site]\nlatitude_deg = 100\n\
+               [acceptance]\nbias_rad_s = -1\n";
+    std::fs::write(d.join("bad.toml"), bad).expect("config");
+    let r = bench(&["validate", &scenario("seed.toml"), "--bench", "bad.toml"], d);
+    assert_eq!(r.status.code(), Some(3), "{}", text(&r.stderr));
+    let err = text(&r.stderr);
+    for (at, what) in [
+        ("bad.toml:2:", "time_scale"),
+        ("bad.toml:3:", "stale_after_s"),
+        ("bad.toml:5:", "latitude_deg"),
+        ("bad.toml:7:", "bias_rad_s"),
+    ] {
+        assert!(err.lines().any(|l| l.starts_with(at) && l.contains(what)), "{at} {what}: {err}");
+    }
+    assert!(err.contains("4 error(s)"), "{err}");
+}
+
+#[test]
+fn a_pure_simulation_has_no_missing_physics_and_its_model_is_a_nominal_for_another() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let r = bench(&["run", &scenario("seed.toml"), "-q", "-o", "sim.mcap"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    // The simulated table's ripple is recorded as nominal physics: not "missing".
+    let r =
+        bench(&["diagnose", "sim.mcap", "-q", "--no-report", "-o", "diag", "--json", "d.json"], d);
+    assert!(matches!(r.status.code(), Some(0 | 6)), "{}{}", text(&r.stdout), text(&r.stderr));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("d.json")).expect("json"))
+            .expect("valid json");
+    assert_ne!(j["verdict"], "missing_physics");
+
+    // A second run stands in for the real one; the first's model is the nominal.
+    let r = bench(&["run", &scenario("seed.toml"), "-q", "-o", "real.mcap", "--seed", "7"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let r = bench(
+        &["diagnose", "real.mcap", "--model", "sim.mcap", "-q", "--no-report", "-o", "d2"],
+        d,
+    );
+    assert!(matches!(r.status.code(), Some(0 | 6)), "{}{}", text(&r.stdout), text(&r.stderr));
+    assert!(
+        text(&r.stdout).contains("nominal model: sim.mcap (bench.gyro_model)"),
+        "{}",
+        text(&r.stdout)
+    );
+
+    // The recording's model written out as a model TOML loads back as a nominal model.
+    let r = bench(&["model", "sim.mcap", "-o", "model.toml"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let model = std::fs::read_to_string(d.join("model.toml")).expect("model");
+    assert!(model.contains("[effects.rate_ripple]"), "{model}");
+    assert!(model.contains("thermal_time_constant_s = 300.0"), "{model}");
+    let r = bench(
+        &["diagnose", "real.mcap", "--model", "model.toml", "-q", "--no-report", "-o", "d3"],
+        d,
+    );
+    assert!(matches!(r.status.code(), Some(0 | 6)), "{}", text(&r.stderr));
+
+    // A file that is neither: a clear error, not "stream did not contain valid UTF-8".
+    std::fs::write(d.join("junk.bin"), [0xffu8, 0xfe, 0, 1]).expect("junk");
+    let r = bench(&["diagnose", "real.mcap", "--model", "junk.bin", "-q", "--no-report"], d);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(text(&r.stderr).contains("junk.bin"), "{}", text(&r.stderr));
+}
+
+#[test]
+fn station_metadata_is_recorded_and_the_calibration_judged_against_its_limits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let seed = std::fs::read_to_string(scenario("seed.toml")).expect("seed");
+    // A generous bias limit passes; an impossible temp_coeff limit fails.
+    let st = format!(
+        "{seed}\n[station]\nstation = \"bench 3\"\noperator = \"A. Tester\"\n\
+         [acceptance]\nbias_rad_s = 4.8e-6\ntemp_coeff_rad_s_per_c = 1e-12\n"
+    );
+    std::fs::write(d.join("st.toml"), st).expect("scenario");
+    let r = bench(&["run", "st.toml", "-q", "-o", "st.mcap", "--unit-serial", "FOG-0042"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let r = bench(&["info", "st.mcap", "--json", "i.json", "-q"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    assert!(r.stdout.is_empty(), "-q: no text");
+    let i = json(&d.join("i.json"));
+    assert_eq!(i["metadata"]["bench.station"]["unit_serial"], "FOG-0042");
+    assert_eq!(i["metadata"]["bench.station"]["operator"], "A. Tester");
+    assert_eq!(i["metadata"]["bench.acceptance"]["bias_rad_s"], "4.8e-6");
+    assert_eq!(i["container"]["library"].as_str().map(|l| l.starts_with("mcap")), Some(true));
+    assert!(i["container"]["chunks_by_compression"]["zstd"].as_u64() > Some(0));
+    assert_eq!(i["duration"], "1 h 18 min 16 s");
+    assert_eq!(i["channels"][0]["timing_from"], "log_time");
+
+    let r =
+        bench(&["calibrate", "st.mcap", "-q", "--no-report", "-o", "cal", "--json", "c.json"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let out = text(&r.stdout);
+    assert!(out.contains("unit serial FOG-0042, operator A. Tester, station bench 3"), "{out}");
+    assert!(out.contains("acceptance bias_rad_s:") && out.contains(": pass"), "{out}");
+    assert!(out.contains("acceptance: FAIL"), "{out}");
+    let c = json(&d.join("c.json"));
+    let a = &c["acceptance"];
+    assert_eq!(a["result"], "fail");
+    let check = |key: &str| {
+        a["checks"].as_array().and_then(|v| v.iter().find(|c| c["key"] == key)).cloned()
+    };
+    assert_eq!(check("bias_rad_s").map(|c| c["judgement"].clone()), Some("pass".into()));
+    let tc = check("temp_coeff_rad_s_per_c").expect("checked");
+    assert_eq!(tc["judgement"], "fail");
+    assert!(tc["sigma"].as_f64().is_some_and(|s| s > 0.0));
+}
+
+#[test]
+fn allan_of_a_rotating_record_window_with_its_curve() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["run", "short.toml", "-q", "-o", "s.mcap"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let r = bench(
+        &["allan", "s.mcap", "--window", "record cw", "--json", "a.json", "--csv", "a.csv", "-q"],
+        d,
+    );
+    assert!(r.status.success(), "{}", text_of(&r));
+    let a = json(&d.join("a.json"));
+    // The table's 10 °/min is taken out; the default gyro's ARW is 2.9e-8 rad/√s.
+    let rate = a["table_rate_rad_s"].as_f64().expect("rate");
+    assert!((rate + 10f64.to_radians() / 60.0).abs() < 1e-6, "{rate}");
+    let n = a["arw_rad_per_sqrt_s"]["value"].as_f64().expect("N");
+    assert!((n / 2.9089e-8 - 1.0).abs() < 0.2, "{n}");
+    let curve = a["curve"].as_array().expect("curve");
+    let csv = std::fs::read_to_string(d.join("a.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), curve.len() + 1);
+    let r = bench(&["allan", "s.mcap", "--window", "no such", "-q"], d);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(text(&r.stderr).contains("record windows: record cw"), "{}", text_of(&r));
+}
+
+#[test]
+fn completions_exit_codes_and_no_ansi_off_a_terminal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let r = bench(&["completions", "bash"], d);
+    assert!(r.status.success());
+    assert!(text(&r.stdout).contains("complete -F _bench"), "{}", text_of(&r));
+    // A usage error is 2 (clap), an invalid scenario 3.
+    assert_eq!(bench(&["run"], d).status.code(), Some(2));
+    std::fs::write(d.join("bad.toml"), "[scenario]\nname = \"x\"\n").expect("scenario");
+    let r = bench(&["validate", "bad.toml"], d);
+    assert_eq!(r.status.code(), Some(3));
+    let r = bench(&["run", "bad.toml", "-o", "x.mcap"], d);
+    assert_eq!(r.status.code(), Some(3));
+    // stderr is a pipe here: no escape codes, even with -v log lines.
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["-v", "run", "short.toml", "-o", "v.mcap"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    assert!(!r.stderr.contains(&0x1b), "{}", text(&r.stderr));
+    // The model file of a recording that has none is a clear error.
+    let r = bench(&["model", "bad.toml"], d);
+    assert_eq!(r.status.code(), Some(1));
+}
+
+fn text_of(r: &Output) -> String {
+    format!("{}{}", text(&r.stdout), text(&r.stderr))
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("json written")).expect("json")
+}
