@@ -191,11 +191,14 @@ async fn actidyn_keep_alive_is_sent_every_20_s_and_keeps_the_drive_on() {
 async fn without_keep_alive_the_watchdog_drops_the_drive_until_alarms_are_cleared() {
     let rig = rig(Dialect::Actidyn, Port::Pty, 100.0).await;
     let cfg = TableDriverConfig { keep_alive_s: 0.0, ..rig.config(Dialect::Actidyn) };
+    // Read before connecting: the session-start ALC reaches the controller after this instant,
+    // so its watchdog cannot trip before `before_alc + 30 s` (reading it after `connect` returns
+    // can be late by the scheduling delay of a loaded machine, times the 100× clock).
+    let before_alc = rig.clock.now();
     let mut t = RateTableDriver::connect_with_clock(cfg, rig.clock.clone()).await.expect("connect");
-    let last_alc = rig.clock.now();
     t.set_rate(RATE_DEG_S * DEG, 10.0 * DEG).await.expect("set_rate");
     let r = rig.poll_until(&mut t, |r| r.mode == TableMode::Off).await;
-    assert!(rig.clock.now() >= last_alc + Duration::from_secs(30));
+    assert!(rig.clock.now() >= before_alc + Duration::from_secs(30));
     assert_eq!(r.status, status::table::DRIVE_OFF | status::table::ALARM);
     assert_eq!(n(&rig.stats.watchdog_trips), 1);
     assert_eq!(t.counters().keep_alives, 0);
