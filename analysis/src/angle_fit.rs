@@ -55,7 +55,6 @@ use bench_physics::earth::vertical_rate_rad_s;
 
 use crate::error::AnalysisError;
 use crate::joint_fit::NoiseSpec;
-use crate::temperature_rate::local_linear_value;
 use crate::windows::RecordWindow;
 
 /// The table's angle over one calibration window — its readout through the steady motion, at
@@ -238,7 +237,7 @@ fn stretch(aw: &AngleWindow<'_>, earth: f64, t0: f64, temp_window_s: f64) -> Opt
     }
     // Model temperature (smoothed) and its integral at the gyro's times.
     let ts = w.time_s();
-    let temp = &local_linear_value(ts, w.temperature_c(), temp_window_s).ok()?;
+    let temp = &w.smoothed_temperature_c(temp_window_s).ok()?;
     let mut temp_int = Vec::with_capacity(ts.len());
     let mut acc = 0.0;
     for k in 0..ts.len() {

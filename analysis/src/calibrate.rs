@@ -58,6 +58,15 @@ impl TemperatureSeries {
         TemperatureSeries { time_s: self.time_s.clone(), temp_c: out }
     }
 
+    /// The series smoothed and its rate (°C, °C/s), each by a centred local linear
+    /// regression over `window_s` ([`crate::temperature_rate`]).
+    pub fn smoothed(&self, window_s: f64) -> Result<(Vec<f64>, Vec<f64>), AnalysisError> {
+        Ok((
+            crate::temperature_rate::local_linear_value(&self.time_s, &self.temp_c, window_s)?,
+            local_linear_rate(&self.time_s, &self.temp_c, window_s)?,
+        ))
+    }
+
     /// Linear interpolation at times `at` (held at the ends; [`crate::interp`]).
     pub fn sample(&self, at: &[f64]) -> Vec<f64> {
         crate::interp::interp_at(&self.time_s, &self.temp_c, at)
@@ -600,11 +609,40 @@ pub fn calibrate(
     };
 
     let lag = (opts.fit_lag && count(WindowKind::Ramp) > 0).then(|| fit_lag(windows, series, opts));
-    let model_windows = match &lag {
-        Some(Ok(l)) if l.used_s > 0.0 => {
-            with_lag(windows, series, l.used_s).unwrap_or_else(|_| windows.to_vec())
+    let (model_windows, model_series) = match &lag {
+        Some(Ok(l)) if l.used_s > 0.0 => match with_lag(windows, series, l.used_s) {
+            Ok(w) => (w, series.lagged(l.used_s)),
+            Err(_) => (windows.to_vec(), series.clone()),
+        },
+        _ => (windows.to_vec(), series.clone()),
+    };
+    // The model temperature's smoothed value and rate over the whole run, at each window's
+    // samples: no filter is cut at a window's edges (a ramp window starts and ends where the
+    // temperature bends). Windows keep their own filter when the series does not cover them.
+    let model_windows = match model_series.smoothed(opts.rate_window_s) {
+        Ok((smooth, rate)) => {
+            let (ss, rs) = (
+                TemperatureSeries { time_s: model_series.time_s.clone(), temp_c: smooth },
+                TemperatureSeries { time_s: model_series.time_s.clone(), temp_c: rate },
+            );
+            model_windows
+                .iter()
+                .map(|w| {
+                    let covered = model_series.time_s.first().is_some_and(|&a| a <= w.time_s()[0])
+                        && model_series
+                            .time_s
+                            .last()
+                            .is_some_and(|&b| b >= w.time_s()[w.len() - 1]);
+                    if covered {
+                        w.with_smoothed_temperature(ss.sample(w.time_s()), rs.sample(w.time_s()))
+                            .unwrap_or_else(|_| w.clone())
+                    } else {
+                        w.clone()
+                    }
+                })
+                .collect()
         }
-        _ => windows.to_vec(),
+        Err(_) => model_windows,
     };
 
     let seed_opts = SeedOptions {

@@ -12,7 +12,8 @@
 //!
 //! which is the contract's `bench.gyro_model` output equation rearranged. `T` is the window's
 //! model temperature ([`RecordWindow::temperature_c`]: the gyro's sensor, else chamber air) and
-//! `dT/dt` comes from it by [`local_linear_rate`] over `rate_window_s`. Without a latitude the
+//! `dT/dt` comes from it by a local linear regression over `rate_window_s`
+//! ([`RecordWindow::temperature_rate_c_s`]: over the whole run where the caller gave it). Without a latitude the
 //! Earth term is zero and Earth's rotation (×(1 + s)) ends up in `bias`.
 //!
 //! The columns are scaled to unit RMS and the problem solved by nalgebra's SVD, which also
@@ -78,7 +79,6 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::error::AnalysisError;
 use crate::gls::gls;
-use crate::temperature_rate::local_linear_rate;
 use crate::windows::RecordWindow;
 
 /// Settings of the joint fit.
@@ -249,7 +249,7 @@ pub fn joint_fit(
     let mut row = 0;
     for w in windows {
         let temp = w.temperature_c();
-        let rate = local_linear_rate(w.time_s(), temp, opts.rate_window_s)?;
+        let rate = w.temperature_rate_c_s(opts.rate_window_s)?;
         for (((v, o), t), d) in
             w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate)
         {

@@ -5,6 +5,8 @@
 //! - [`steady`]: where the table turns steadily, from its own readings — the one rule of which
 //!   samples enter a fit, for calibration and diagnosis alike.
 //! - [`timebase`]: host stamps mapped onto a device's own clock (its stamps or its counter).
+//! - [`nominal`]: the nominal model's stated effects, sample by sample (known physics a
+//!   calibration of the base terms takes out first).
 //! - [`windows`]: the calibration's input, one record window (a `record …` step of a recording) as
 //!   arrays of time, gyro rate, table rate and temperatures.
 //! - [`temperature_rate`]: dT/dt from quantised temperature readings (local linear regression).
@@ -35,6 +37,7 @@ pub mod error;
 pub mod gls;
 pub mod interp;
 pub mod joint_fit;
+pub mod nominal;
 pub mod run;
 pub mod seed_method;
 pub mod steady;

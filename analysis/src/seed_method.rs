@@ -43,7 +43,6 @@ use bench_physics::earth::vertical_rate_rad_s;
 use bench_physics::{GyroModel, ModelKey};
 
 use crate::error::AnalysisError;
-use crate::temperature_rate::local_linear_rate;
 use crate::windows::{mean, Direction, RecordWindow};
 
 /// Settings of the seed method.
@@ -217,7 +216,7 @@ pub fn seed_calibration(
             continue;
         }
         let temp = w.temperature_c();
-        let rate = local_linear_rate(w.time_s(), temp, opts.rate_window_s)?;
+        let rate = w.temperature_rate_c_s(opts.rate_window_s)?;
         for (((v, o), t), d) in
             w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate)
         {

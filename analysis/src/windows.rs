@@ -26,6 +26,9 @@ pub struct RecordWindow {
     table_rate_rad_s: Vec<f64>,
     gyro_temp_c: Option<Vec<f64>>,
     chamber_temp_c: Vec<f64>,
+    /// The model temperature smoothed and its rate, from the whole run's series (no filter
+    /// truncated at the window's edges), when given.
+    smoothed: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 fn check_finite(label: &str, array: &'static str, v: &[f64]) -> Result<(), AnalysisError> {
@@ -79,7 +82,15 @@ impl RecordWindow {
         if let Some(i) = time_s.windows(2).position(|w| w[1] <= w[0]) {
             return Err(AnalysisError::TimeNotIncreasing { label, index: i + 1 });
         }
-        Ok(Self { label, time_s, gyro_rate_rad_s, table_rate_rad_s, gyro_temp_c, chamber_temp_c })
+        Ok(Self {
+            label,
+            time_s,
+            gyro_rate_rad_s,
+            table_rate_rad_s,
+            gyro_temp_c,
+            chamber_temp_c,
+            smoothed: None,
+        })
     }
 
     /// The same window with `temp_c` as the model temperature (in place of the gyro sensor's
@@ -94,7 +105,56 @@ impl RecordWindow {
             });
         }
         check_finite(&self.label, "gyro_temp_c", &temp_c)?;
-        Ok(Self { gyro_temp_c: Some(temp_c), ..self.clone() })
+        Ok(Self { gyro_temp_c: Some(temp_c), smoothed: None, ..self.clone() })
+    }
+
+    /// The same window with its model temperature's smoothed value and rate (°C, °C/s) at its
+    /// samples, computed over the whole run so that no filter is cut at the window's edges
+    /// ([`crate::calibrate::TemperatureSeries::smoothed`]).
+    pub fn with_smoothed_temperature(
+        &self,
+        temp_c: Vec<f64>,
+        rate_c_s: Vec<f64>,
+    ) -> Result<Self, AnalysisError> {
+        for (name, v) in [("smoothed temperature", &temp_c), ("temperature rate", &rate_c_s)] {
+            if v.len() != self.len() {
+                return Err(AnalysisError::LengthMismatch {
+                    label: self.label.clone(),
+                    array: name,
+                    got: v.len(),
+                    expected: self.len(),
+                });
+            }
+            check_finite(&self.label, name, v)?;
+        }
+        Ok(Self { smoothed: Some((temp_c, rate_c_s)), ..self.clone() })
+    }
+
+    /// The model temperature's rate of change, °C/s: the whole run's, when given
+    /// ([`Self::with_smoothed_temperature`]), else a local linear regression over `window_s`
+    /// within the window.
+    pub fn temperature_rate_c_s(&self, window_s: f64) -> Result<Vec<f64>, AnalysisError> {
+        match &self.smoothed {
+            Some((_, rate)) => Ok(rate.clone()),
+            None => crate::temperature_rate::local_linear_rate(
+                &self.time_s,
+                self.temperature_c(),
+                window_s,
+            ),
+        }
+    }
+
+    /// The model temperature smoothed (the regression's value), °C: the whole run's when
+    /// given, else within the window.
+    pub fn smoothed_temperature_c(&self, window_s: f64) -> Result<Vec<f64>, AnalysisError> {
+        match &self.smoothed {
+            Some((temp, _)) => Ok(temp.clone()),
+            None => crate::temperature_rate::local_linear_value(
+                &self.time_s,
+                self.temperature_c(),
+                window_s,
+            ),
+        }
     }
 
     /// The step label (e.g. `record cw 20C`).

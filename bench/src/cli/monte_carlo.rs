@@ -31,6 +31,11 @@ pub struct MonteCarloArgs {
     /// truth is the nominal model, recovery of the scenario's concealed effects.
     #[arg(long)]
     pub diagnose: bool,
+    /// Apply a lab's traits to every simulated recording before it is analysed (10 Hz table,
+    /// 1 Hz chamber, 1″ angle, jittered host stamps with latency, lost and bad gyro frames,
+    /// record windows from the reversal).
+    #[arg(long)]
+    pub lab: bool,
     /// With `--diagnose`: the nominal model (a model TOML file) to diagnose against instead of
     /// each recording's `bench.gyro_model`; coefficients other than the scenario's truth make a
     /// parameters-only study.
@@ -101,65 +106,63 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
         return run_diagnose(&args, jobs);
     }
     let started = std::time::Instant::now();
+    let lab = args.lab.then(bench::study::lab::LabTraits::lab);
     let mc = study::calibrate::run(
         &args.scenario,
         args.first_seed,
         args.seeds,
         jobs,
         &CalibrateSettings::default(),
+        lab,
         |r| {
             eprintln!(
-                "seed {:>4}: thermal error removed {:.1} % (seed method {:.1} %), lag {:.0} s",
+                "seed {:>4}: thermal error removed {:.1} % (seed method {:.1} %), lag {:.0} s, \
+                 whitened RMS {:.3} (rate) {:.3} (angle)",
                 r.seed,
                 100.0 * r.joint_removed,
                 100.0 * r.seed_removed,
-                r.lag_s
+                r.lag_s,
+                r.whitened_rms.0,
+                r.whitened_rms.1
             )
         },
     )?;
     println!(
-        "{} seeds of {} in {:.0} s\n",
+        "{} seeds of {}{} in {:.0} s\n",
         mc.seeds.len(),
         args.scenario.display(),
+        if mc.lab { " with a lab's traits" } else { "" },
         started.elapsed().as_secs_f64()
     );
-    println!(
-        "| coefficient | unit | joint RMS error | seed-method RMS error | improvement | joint RMS σ | 95 % coverage |"
-    );
+    println!("| coefficient | unit | estimator | RMS error | RMS σ | 95 % coverage | mean z |");
     println!("| --- | --- | --- | --- | --- | --- | --- |");
     for c in &mc.coefficients {
         let (u, s) = unit(&c.key);
-        println!(
-            "| {} | {} | {:.3e} | {:.3e} | {:.1}× | {:.3e} | {:.0} % |",
-            c.key,
-            u,
-            c.joint_rms_error / s,
-            c.seed_rms_error / s,
-            c.improvement,
-            c.rms_sigma / s,
-            100.0 * c.coverage_95
-        );
-    }
-    println!(
-        "\n| coefficient | unit | OLS RMS error | joint RMS error | RMS noise-model σ (CRB for GLS) | seed RMS / CRB |"
-    );
-    println!("| --- | --- | --- | --- | --- | --- |");
-    for c in &mc.coefficients {
-        let (u, s) = unit(&c.key);
-        println!(
-            "| {} | {} | {:.3e} | {:.3e} | {:.3e} | {:.1}× |",
-            c.key,
-            u,
-            c.ols_rms_error / s,
-            c.joint_rms_error / s,
-            c.rms_noise_model_sigma / s,
-            c.seed_rms_error / c.rms_noise_model_sigma,
-        );
+        for e in &c.estimators {
+            if !e.rms_error.is_finite() {
+                continue;
+            }
+            let pct =
+                |x: f64| if x.is_finite() { format!("{:.0} %", 100.0 * x) } else { "—".into() };
+            let num = |x: f64| if x.is_finite() { format!("{:.3e}", x / s) } else { "—".into() };
+            let z = if e.mean_z.is_finite() { format!("{:+.2}", e.mean_z) } else { "—".into() };
+            println!(
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                c.key,
+                u,
+                e.estimator,
+                num(e.rms_error),
+                num(e.rms_sigma),
+                pct(e.coverage_95),
+                z
+            );
+        }
     }
     let (a, b, c) = mc.joint_removed;
     let (d, e, f) = mc.seed_removed;
     println!(
-        "\nthermal error removed (min / median / max): joint {:.1} / {:.1} / {:.1} %, seed method {:.1} / {:.1} / {:.1} %",
+        "\nthermal error removed (min / median / max): rate-domain GLS {:.1} / {:.1} / {:.1} %, seed \
+         method {:.1} / {:.1} / {:.1} %",
         100.0 * a, 100.0 * b, 100.0 * c, 100.0 * d, 100.0 * e, 100.0 * f
     );
     if let Some(path) = &args.json {

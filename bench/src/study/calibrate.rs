@@ -1,10 +1,11 @@
 //! The calibration's accuracy, proven on simulated recordings with known truth: one scenario
-//! run with many seeds, each recording calibrated by the seed's method and by the joint fit,
-//! and the errors against the simulator's true model summarised.
+//! run with many seeds — as bench records it, or with a lab's traits applied ([`super::lab`]) —
+//! each recording calibrated, and every estimator's errors against the simulator's true model
+//! summarised: the seed's plateau method, OLS, the rate-domain GLS and the angle-domain GLS.
 //!
-//! Per coefficient: the RMS error over seeds of both methods and their ratio; the fraction of
-//! seeds whose stated 95 % interval (±1.96σ) covers the truth; and the thermal error removed
-//! over each run.
+//! Per estimator and coefficient: the RMS error over seeds, the RMS stated σ, the fraction of
+//! seeds whose stated 95 % interval (±1.96σ) covers the truth and the mean z-score; and the
+//! thermal error removed over each run.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -17,34 +18,49 @@ use serde::Serialize;
 use bench_recording::Recording;
 use bench_report::calibrate::{calibrate_recording, CalibrateSettings};
 
+use super::lab::LabTraits;
 use crate::simulate::{capabilities, run_plan, SimOptions};
 
 /// The coefficients compared.
 pub const COEFFICIENTS: [ModelKey; 4] = ModelKey::CALIBRATED;
+
+/// The estimators compared, in the order of [`SeedResult::estimates`].
+pub const ESTIMATORS: [&str; 4] = ["seed_method", "ols", "rate_gls", "angle_gls"];
 
 /// One seed's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct SeedResult {
     /// Simulator seed.
     pub seed: u64,
-    /// Joint fit: (value, σ) per coefficient, in [`COEFFICIENTS`] order.
-    pub joint: Vec<(f64, f64)>,
-    /// Joint fit's σ under the noise model per coefficient: for GLS the Cramér–Rao bound.
-    pub joint_noise_model_sigma: Vec<f64>,
-    /// Joint fit's block-bootstrap σ per coefficient (of the whitened residuals for GLS).
-    pub joint_bootstrap_sigma: Vec<f64>,
-    /// OLS value per coefficient on the same data, for comparison.
-    pub ols: Vec<f64>,
-    /// Seed method: value per coefficient (NaN for the scale factor, which it does not fit).
-    pub seed_method: Vec<f64>,
-    /// True values.
+    /// True values per coefficient, in [`COEFFICIENTS`] order.
     pub truth: Vec<f64>,
-    /// Thermal error removed by the joint calibration (fraction).
+    /// Per estimator ([`ESTIMATORS`]), per coefficient: (value, stated σ); NaN where the
+    /// estimator does not give it (the seed method's scale factor and σ; OLS's σ is its
+    /// standard error under the noise model).
+    pub estimates: Vec<Vec<(f64, f64)>>,
+    /// Whitened residual RMS of the rate-domain and angle-domain fits.
+    pub whitened_rms: (f64, f64),
+    /// Thermal error removed by the rate-domain calibration (fraction).
     pub joint_removed: f64,
     /// Thermal error removed by the seed calibration (fraction).
     pub seed_removed: f64,
-    /// Thermal lag used by the joint fit, s.
+    /// Thermal lag used, s.
     pub lag_s: f64,
+}
+
+/// One estimator's accuracy on one coefficient over the seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct EstimatorSummary {
+    /// Estimator ([`ESTIMATORS`]).
+    pub estimator: String,
+    /// RMS of (value − truth).
+    pub rms_error: f64,
+    /// RMS of the stated σ (NaN without one).
+    pub rms_sigma: f64,
+    /// Fraction of seeds with |value − truth| ≤ 1.96σ (NaN without σ).
+    pub coverage_95: f64,
+    /// Mean of (value − truth)/σ: a bias shows here.
+    pub mean_z: f64,
 }
 
 /// Summary of one coefficient over the seeds.
@@ -52,20 +68,15 @@ pub struct SeedResult {
 pub struct CoefficientSummary {
     /// `bench.gyro_model` key.
     pub key: String,
-    /// RMS of (joint − truth).
-    pub joint_rms_error: f64,
-    /// RMS of (seed − truth); NaN where the seed method does not estimate it.
-    pub seed_rms_error: f64,
-    /// seed RMS / joint RMS.
-    pub improvement: f64,
-    /// Fraction of seeds with |joint − truth| ≤ 1.96σ.
-    pub coverage_95: f64,
-    /// RMS of the stated σ.
-    pub rms_sigma: f64,
-    /// RMS of the noise-model σ (for GLS the Cramér–Rao bound under the fitted noise model).
-    pub rms_noise_model_sigma: f64,
-    /// RMS of (OLS − truth) on the same data.
-    pub ols_rms_error: f64,
+    /// Per estimator, in [`ESTIMATORS`] order.
+    pub estimators: Vec<EstimatorSummary>,
+}
+
+impl CoefficientSummary {
+    /// The summary of estimator `name`.
+    pub fn of(&self, name: &str) -> Option<&EstimatorSummary> {
+        self.estimators.iter().find(|e| e.estimator == name)
+    }
 }
 
 /// The study's result.
@@ -73,11 +84,13 @@ pub struct CoefficientSummary {
 pub struct MonteCarlo {
     /// Scenario file.
     pub scenario: String,
+    /// Whether a lab's traits were applied to each recording ([`super::lab::LabTraits::lab`]).
+    pub lab: bool,
     /// Per seed.
     pub seeds: Vec<SeedResult>,
     /// Per coefficient.
     pub coefficients: Vec<CoefficientSummary>,
-    /// Thermal error removed by the joint calibration: (min, median, max) over seeds.
+    /// Thermal error removed by the rate-domain calibration: (min, median, max) over seeds.
     pub joint_removed: (f64, f64, f64),
     /// Same for the seed method.
     pub seed_removed: (f64, f64, f64),
@@ -85,18 +98,25 @@ pub struct MonteCarlo {
 
 /// Run `scenario` with seeds `first_seed..first_seed + count` on `jobs` threads, calibrate
 /// each recording in memory, and summarise.
+/// With `lab`, each recording first gets a lab's traits ([`super::lab`]).
 pub fn run(
     scenario: &Path,
     first_seed: u64,
     count: u64,
     jobs: usize,
     settings: &CalibrateSettings,
+    lab: Option<LabTraits>,
     on_seed: impl FnMut(&SeedResult) + Send,
 ) -> anyhow::Result<MonteCarlo> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
-    let seeds =
-        parallel_seeds(first_seed, count, jobs, |seed| one_seed(&plan, seed, settings), on_seed)?;
-    Ok(summarise(scenario.display().to_string(), seeds))
+    let seeds = parallel_seeds(
+        first_seed,
+        count,
+        jobs,
+        |seed| one_seed(&plan, seed, settings, lab.as_ref()),
+        on_seed,
+    )?;
+    Ok(summarise(scenario.display().to_string(), lab.is_some(), seeds))
 }
 
 /// Run `work` for seeds `first..first + count` on `jobs` threads, calling `on_done` as each
@@ -148,33 +168,47 @@ fn one_seed(
     plan: &crate::plan::RunPlan,
     seed: u64,
     settings: &CalibrateSettings,
+    lab: Option<&LabTraits>,
 ) -> anyhow::Result<SeedResult> {
     let opts = SimOptions { seed, ..SimOptions::default() };
     let (report, cursor) = run_plan(plan, Cursor::new(Vec::new()), &opts, None)?;
     anyhow::ensure!(report.completed(), "run {}", report.outcome);
-    let rec = Recording::from_bytes(cursor.get_ref())?;
+    let mut rec = Recording::from_bytes(cursor.get_ref())?;
+    if let Some(traits) = lab {
+        rec = super::lab::apply(&rec, traits, seed)?;
+    }
     let out = calibrate_recording(&rec, settings)?;
     let truth = out.truth.as_ref().context("the recording has no bench.gyro_model")?;
-    let joint = out.calibration.joint.as_ref().map_err(|e| anyhow::anyhow!("joint fit: {e}"))?;
-    let seed_cal =
-        out.calibration.seed.as_ref().map_err(|e| anyhow::anyhow!("seed method: {e}"))?;
-    let est = [joint.bias, joint.scale_factor_error, joint.temp_coeff, joint.temp_rate_coeff];
+    let cal = &out.calibration;
+    let joint = cal.joint.as_ref().map_err(|e| anyhow::anyhow!("joint fit: {e}"))?;
+    let nan = (f64::NAN, f64::NAN);
+    let seed_est: Vec<(f64, f64)> = COEFFICIENTS
+        .iter()
+        .map(|k| {
+            cal.seed.as_ref().ok().and_then(|s| s.coefficient(*k)).map_or(nan, |v| (v, f64::NAN))
+        })
+        .collect();
+    let by_key = |f: &dyn Fn(ModelKey) -> Option<(f64, f64)>| -> Vec<(f64, f64)> {
+        COEFFICIENTS.iter().map(|k| f(*k).unwrap_or(nan)).collect()
+    };
+    let ols = by_key(&|k| joint.estimate(k).map(|e| (e.ols_value, e.ols_noise_model_std_err)));
+    let rate = by_key(&|k| joint.estimate(k).map(|e| (e.value, e.std_err)));
+    let angle = cal.angle.as_ref().and_then(|a| a.as_ref().ok());
+    let angle_est = by_key(&|k| {
+        let j = COEFFICIENTS.iter().position(|c| *c == k)?;
+        angle.map(|a| (a.estimates()[j].value, a.estimates()[j].std_err))
+    });
     Ok(SeedResult {
         seed,
-        joint: est.iter().map(|e| (e.value, e.std_err)).collect(),
-        joint_noise_model_sigma: est.iter().map(|e| e.noise_model_std_err).collect(),
-        joint_bootstrap_sigma: est.iter().map(|e| e.bootstrap_std_err).collect(),
-        ols: est.iter().map(|e| e.ols_value).collect(),
-        seed_method: vec![
-            seed_cal.bias_rad_s,
-            f64::NAN,
-            seed_cal.temp_coeff,
-            seed_cal.temp_rate_coeff.unwrap_or(f64::NAN),
-        ],
         truth: COEFFICIENTS.iter().map(|k| truth.model.get(*k)).collect(),
+        estimates: vec![seed_est, ols, rate, angle_est],
+        whitened_rms: (
+            joint.whitened_residual_rms,
+            angle.map_or(f64::NAN, |a| a.whitened_residual_rms),
+        ),
         joint_removed: truth.joint_removal.map_or(f64::NAN, |r| r.removed()),
         seed_removed: truth.seed_removal.map_or(f64::NAN, |r| r.removed()),
-        lag_s: match &out.calibration.lag {
+        lag_s: match &cal.lag {
             Some(Ok(l)) => l.used_s,
             _ => 0.0,
         },
@@ -187,7 +221,11 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
         s += x * x;
         n += 1;
     }
-    (s / n as f64).sqrt()
+    if n == 0 {
+        f64::NAN
+    } else {
+        (s / n as f64).sqrt()
+    }
 }
 
 fn spread(mut v: Vec<f64>) -> (f64, f64, f64) {
@@ -200,31 +238,43 @@ fn spread(mut v: Vec<f64>) -> (f64, f64, f64) {
 }
 
 /// Summarise per-seed results.
-pub fn summarise(scenario: String, seeds: Vec<SeedResult>) -> MonteCarlo {
+pub fn summarise(scenario: String, lab: bool, seeds: Vec<SeedResult>) -> MonteCarlo {
     let coefficients = COEFFICIENTS
         .iter()
         .enumerate()
-        .map(|(j, key)| {
-            let joint_rms_error = rms(seeds.iter().map(|r| r.joint[j].0 - r.truth[j]));
-            let seed_rms_error = rms(seeds.iter().map(|r| r.seed_method[j] - r.truth[j]));
-            let covered = seeds
+        .map(|(j, key)| CoefficientSummary {
+            key: key.key().to_owned(),
+            estimators: ESTIMATORS
                 .iter()
-                .filter(|r| (r.joint[j].0 - r.truth[j]).abs() <= 1.959_964 * r.joint[j].1)
-                .count();
-            CoefficientSummary {
-                key: key.key().to_owned(),
-                joint_rms_error,
-                seed_rms_error,
-                improvement: seed_rms_error / joint_rms_error,
-                coverage_95: covered as f64 / seeds.len() as f64,
-                rms_sigma: rms(seeds.iter().map(|r| r.joint[j].1)),
-                rms_noise_model_sigma: rms(seeds.iter().map(|r| r.joint_noise_model_sigma[j])),
-                ols_rms_error: rms(seeds.iter().map(|r| r.ols[j] - r.truth[j])),
-            }
+                .enumerate()
+                .map(|(e, name)| {
+                    let pairs: Vec<(f64, f64, f64)> = seeds
+                        .iter()
+                        .map(|r| (r.estimates[e][j].0, r.estimates[e][j].1, r.truth[j]))
+                        .filter(|(v, _, _)| v.is_finite())
+                        .collect();
+                    let with_sigma: Vec<f64> = pairs
+                        .iter()
+                        .filter(|(_, s, _)| s.is_finite() && *s > 0.0)
+                        .map(|(v, s, t)| (v - t) / s)
+                        .collect();
+                    let n = with_sigma.len() as f64;
+                    EstimatorSummary {
+                        estimator: (*name).to_owned(),
+                        rms_error: rms(pairs.iter().map(|(v, _, t)| v - t)),
+                        rms_sigma: rms(pairs.iter().map(|(_, s, _)| *s).filter(|s| s.is_finite())),
+                        coverage_95: with_sigma.iter().filter(|z| z.abs() <= 1.959_964).count()
+                            as f64
+                            / n,
+                        mean_z: with_sigma.iter().sum::<f64>() / n,
+                    }
+                })
+                .collect(),
         })
         .collect();
     MonteCarlo {
         scenario,
+        lab,
         joint_removed: spread(seeds.iter().map(|r| r.joint_removed).collect()),
         seed_removed: spread(seeds.iter().map(|r| r.seed_removed).collect()),
         coefficients,

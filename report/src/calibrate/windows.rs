@@ -14,10 +14,15 @@
 //!   rad/s) is ten times the gyro's own white noise at 20 Hz.
 //! - **Model temperature**: the gyro's own sensor where it has one (the loader's rule);
 //!   otherwise chamber air, interpolated at the gyro's times.
+//! - **Known effects**: what the recording's `bench.gyro_model` states beyond the base terms
+//!   (its `effect.*` keys, e.g. a simulated table's rate ripple) is taken out of the gyro's
+//!   output first ([`bench_analysis::nominal`]).
 
 use bench_analysis::angle_fit::TableReadings;
 use bench_analysis::calibrate::TemperatureSeries;
+use bench_analysis::diagnose::series::Native;
 use bench_analysis::interp::interp_at;
+use bench_analysis::nominal::effects_per_sample;
 use bench_analysis::run::StepEnd;
 use bench_analysis::steady::{TableMotion, Unsteady};
 use bench_analysis::temperature_rate::local_linear_rate;
@@ -108,6 +113,20 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
         None => chamber.clone(),
     };
     let motion = TableMotion::fit(&s.table_time_s, &s.table_angle_rad, &s.table_rate_command_rad_s);
+    // Effects the recording's model states (e.g. a simulated table's rate ripple) are known
+    // physics: taken out of the gyro's output before the base terms are fitted.
+    let known: Option<Vec<f64>> = run.model.as_ref().and_then(|m| {
+        let stated = bench_physics::effects::Effects { earth_rate: false, ..m.effects };
+        if !stated.any() {
+            return None;
+        }
+        let native = Native::build(s, &motion, m.model.thermal_time_constant).ok()?;
+        Some(effects_per_sample(&native, &m.model, &stated, s.axis_up, s.latitude_deg))
+    });
+    let gyro_rate: Vec<f64> = match &known {
+        Some(k) => s.gyro_rate_rad_s.iter().zip(k).map(|(v, e)| v - e).collect(),
+        None => s.gyro_rate_rad_s.clone(),
+    };
     // A gyro sample covers (t − dt, t]: its interval must lie in the steady part.
     let dt = run.gyro_dt_s;
     let samples_in = |a: f64, b: f64| {
@@ -183,15 +202,8 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
                 .collect();
             let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
             let sensor = s.gyro_temp_c.as_ref().map(|g| g[lo..hi].to_vec());
-            let w = RecordWindow::new(
-                label,
-                time,
-                s.gyro_rate_rad_s[lo..hi].to_vec(),
-                table,
-                sensor,
-                air,
-            )
-            .map_err(CalibrateError::Analysis)?;
+            let w = RecordWindow::new(label, time, gyro_rate[lo..hi].to_vec(), table, sensor, air)
+                .map_err(CalibrateError::Analysis)?;
             let (ta, tb) = (
                 s.table_time_s.partition_point(|&t| t < a),
                 s.table_time_s.partition_point(|&t| t <= b),
