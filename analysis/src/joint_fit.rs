@@ -199,6 +199,10 @@ pub struct JointFit {
     pub block_len: usize,
     /// Bootstrap replicates.
     pub replicates: usize,
+    /// Each sample's residual in units of its noise: the GLS whitened residual (white, unit
+    /// variance when the noise model fits), or for OLS the residual over its RMS; in the
+    /// windows' sample order.
+    pub residual_z: Vec<f64>,
 }
 
 impl JointFit {
@@ -386,6 +390,13 @@ pub fn joint_fit(
         correlation_lag,
         block_len,
         replicates: opts.replicates,
+        residual_z: match gls_fit {
+            Some(g) => g.whitened_residual,
+            None => {
+                let rms = (rss / n as f64).sqrt();
+                resid.iter().map(|e| if rms > 0.0 { e / rms } else { 0.0 }).collect()
+            }
+        },
     })
 }
 

@@ -34,6 +34,7 @@ pub mod angle_fit;
 pub mod calibrate;
 pub mod diagnose;
 pub mod error;
+pub mod fit_check;
 pub mod gls;
 pub mod interp;
 pub mod joint_fit;

@@ -89,6 +89,9 @@ pub struct GyroSetup {
     pub sample_rate_hz: f64,
     /// The nominal error model written to `bench.gyro_model`.
     pub model: GyroModel,
+    /// Whether the lab gave the model (`[gyro.model]` or `--gyro-model`): a run on real
+    /// drivers records only a given model, never the defaults as if they were the gyro's.
+    pub model_given: bool,
     /// Effects beyond the model that the lab believes in (`[gyro.model.effects]`, or a model
     /// file's `[effects]`): written to `bench.gyro_model` as `effect.*` keys, and the starting
     /// point of the simulator's [`SimSetup::truth_effects`].

@@ -139,5 +139,6 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
         Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
     let mut info = run_info(plan, opts.epoch_ns);
     info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
+    info.gyro_model_role = bench_recording::ModelRole::Simulation;
     run_virtual(plan, devices, &clock, info, writer, opts.run_options(console))
 }

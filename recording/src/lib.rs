@@ -59,7 +59,9 @@ pub use info::{
     container_info, human_duration, info, info_from_reader, ChannelReport, ContainerInfo,
     DeviceTiming, Gap, RecordingInfo, StepReport,
 };
-pub use message::{ChamberMsg, GyroMsg, LogLevel, Outcome, StepEvent, StepMsg, TableMsg};
+pub use message::{
+    ChamberMsg, GyroMsg, LogLevel, ModelRole, Outcome, StepEvent, StepMsg, TableMsg,
+};
 pub use reader::{
     read_summary, summary_counts, AttachmentRecord, ChannelInfo, End, Item, MetadataRecord,
     OtherMessage, Recording, RecordingError, RecordingReader, Stamped,

@@ -180,3 +180,32 @@ mod tests {
         assert_eq!(Outcome::parse("finished"), None);
     }
 }
+
+/// What a recording's `bench.gyro_model` is to its data (`bench.run` key `gyro_model_role`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ModelRole {
+    /// A simulator produced the gyro's output from this model: it is the data's truth.
+    Simulation,
+    /// The model the lab believes in (a datasheet, an earlier calibration), or none given:
+    /// a starting point, not the truth. A recording that does not say is read as this.
+    #[default]
+    Nominal,
+}
+
+impl ModelRole {
+    /// Text in `bench.run`.
+    pub fn key(self) -> &'static str {
+        match self {
+            ModelRole::Simulation => "simulation",
+            ModelRole::Nominal => "nominal",
+        }
+    }
+
+    /// The role `bench.run`'s text names; anything but `simulation` is nominal.
+    pub fn from_key(text: Option<&str>) -> ModelRole {
+        match text {
+            Some("simulation") => ModelRole::Simulation,
+            _ => ModelRole::Nominal,
+        }
+    }
+}

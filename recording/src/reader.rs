@@ -788,7 +788,17 @@ impl Recording {
         Outcome::parse(self.outcome_text()?)
     }
 
-    /// `bench.run` `outcome` as written, if the run recorded one.
+    /// What `bench.gyro_model` is to the data (`bench.run` `gyro_model_role`; nominal when
+    /// the recording does not say).
+    pub fn gyro_model_role(&self) -> crate::ModelRole {
+        crate::ModelRole::from_key(
+            self.metadata(META_RUN)
+                .and_then(|m| m.get(crate::schema::RUN_KEY_MODEL_ROLE))
+                .map(String::as_str),
+        )
+    }
+
+    /// `bench.run` `outcome` as written, if the run ended.
     pub fn outcome_text(&self) -> Option<&str> {
         self.metadata(META_RUN)?.get("outcome").map(String::as_str)
     }

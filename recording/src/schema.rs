@@ -33,6 +33,8 @@ pub const SCHEMA_LOG: &str = "foxglove.Log";
 
 /// Metadata record with format version, start time, software and outcome.
 pub const META_RUN: &str = "bench.run";
+/// `bench.run` key saying what `bench.gyro_model` is to the data ([`crate::ModelRole`]).
+pub const RUN_KEY_MODEL_ROLE: &str = "gyro_model_role";
 /// Metadata record describing the bench's site.
 pub const META_SITE: &str = "bench.site";
 /// Metadata record with the scenario's name and text.

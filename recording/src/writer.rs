@@ -129,8 +129,11 @@ pub struct RunInfo {
     pub config: Option<TomlAttachment>,
     /// `bench.site`.
     pub site: Site,
-    /// `bench.gyro_model` (from `GyroModel::to_metadata`).
+    /// `bench.gyro_model` (from `GyroModel::to_metadata`); empty when no model was given.
     pub gyro_model: BTreeMap<String, String>,
+    /// What `gyro_model` is to the data (`bench.run` `gyro_model_role`): the simulator's truth
+    /// only for a simulated gyro.
+    pub gyro_model_role: crate::ModelRole,
     /// `bench.station` (optional: `unit_serial`, `operator`, `station`); not written when
     /// empty.
     pub station: BTreeMap<String, String>,
@@ -158,6 +161,7 @@ impl RunInfo {
             config: None,
             site,
             gyro_model,
+            gyro_model_role: crate::ModelRole::Nominal,
             station: BTreeMap::new(),
             acceptance: BTreeMap::new(),
         }
@@ -293,6 +297,7 @@ pub struct Recorder<W: Write + Seek> {
     writer: mcap::Writer<W>,
     epoch_ns: u64,
     software: String,
+    model_role: crate::ModelRole,
     buf: Vec<u8>,
     gyro: Chan,
     table: Chan,
@@ -397,6 +402,7 @@ impl<W: Write + Seek> Recorder<W> {
             writer,
             epoch_ns: info.epoch_ns,
             software: info.software,
+            model_role: info.gyro_model_role,
             buf: Vec::with_capacity(512),
             gyro,
             table,
@@ -552,6 +558,7 @@ impl<W: Write + Seek> Recorder<W> {
             ("started".to_string(), rfc3339_utc(self.epoch_ns)),
             ("software".to_string(), self.software.clone()),
             ("outcome".to_string(), outcome.to_string()),
+            (crate::schema::RUN_KEY_MODEL_ROLE.to_string(), self.model_role.key().to_string()),
         ]);
         self.writer
             .write_metadata(&mcap::records::Metadata { name: META_RUN.to_string(), metadata: run })

@@ -106,6 +106,8 @@ pub struct RunData {
     pub series: RunSeries,
     /// Time zero, ns since the Unix epoch.
     pub zero_ns: u64,
+    /// What `model` is to the data: the simulator's truth, or nominal.
+    pub model_role: bench_recording::ModelRole,
     /// `bench.gyro_model`, if the recording has one.
     pub model: Option<RecordedModel>,
     /// Times (s) of gyro samples left out for a non-zero status or a non-finite rate.
@@ -302,6 +304,7 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         },
         zero_ns,
         model: recorded_model(rec)?,
+        model_role: rec.gyro_model_role(),
         bad_gyro_time_s,
         gyro_dt_s,
         time_bases: vec![gyro_base, table_base, chamber_base],

@@ -83,13 +83,15 @@ pub(crate) fn short_run() -> Recording {
     let accel = 1f64.to_radians();
     let earth = 7.292_115e-5 * LATITUDE_DEG.to_radians().sin();
     let arcsec = 1f64.to_radians() / 3600.0;
-    let info = RunInfo::new(
+    let mut info = RunInfo::new(
         1_767_225_600_000_000_000,
         "report-test",
         "",
         Site::at_latitude(LATITUDE_DEG),
         m.to_metadata(),
     );
+    // This function is the simulator: its model is the data's truth.
+    info.gyro_model_role = bench_recording::ModelRole::Simulation;
     let mut r = Recorder::new(Cursor::new(Vec::new()), info).expect("recorder starts");
     let mut noise = Normal(0x9e37_79b9_7f4a_7c15);
     let (mut air, mut coil, mut rate, mut angle) = (20.0f64, 20.0f64, 0.0f64, 0.0f64);

@@ -39,6 +39,9 @@ pub struct CalibrateArgs {
     /// No progress bar and no timing line.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Write `calibration.toml` even when the fit is poor (it then says so in its method).
+    #[arg(long)]
+    pub keep_poor_fit: bool,
 }
 
 /// Calibrate and write the outputs.
@@ -96,7 +99,30 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             a.readings, a.stretches, a.whitened_residual_rms
         );
     }
+    let poor = out.quality.poor();
+    if poor {
+        eprintln!(
+            "FIT POOR: the model does not fit these data, so the coefficients below and their σ \
+             are not sound:"
+        );
+        for l in out.quality.lines() {
+            eprintln!("  - {l}");
+        }
+        eprintln!(
+            "  `bench diagnose {}` looks for the physics the model leaves out.",
+            args.recording.display()
+        );
+    } else {
+        println!(
+            "fit: sound ({} checks passed; no residual block beyond {:.2}σ)",
+            out.quality.checks.len(),
+            out.quality.block_threshold
+        );
+    }
     let model_label = if out.truth.is_some() { "simulator's truth" } else { "recording's model" };
+    if poor {
+        println!("(poor fit: values for inspection only)");
+    }
     println!(
         "| coefficient | rate domain ± 1σ | angle domain ± 1σ | seed method | {model_label} |"
     );
@@ -135,7 +161,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         print_acceptance(&a);
     }
 
-    if let Some(model) = &out.model {
+    if let Some(model) = out.model.as_ref().filter(|_| !poor || args.keep_poor_fit) {
         let j = cal.joint.as_ref().ok();
         let file = CalibrationFile {
             source: Source {
@@ -148,7 +174,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
                     }
                     _ => "joint least squares (docs/calibrate.md)",
                 }
-                .into(),
+                .to_owned()
+                    + if poor { "; FIT POOR: kept on request, not sound" } else { "" },
             },
             gyro_model: ModelKeys::from(model),
             uncertainty: Uncertainty {
@@ -162,6 +189,10 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         let path = args.out.join("calibration.toml");
         file.save(&path)?;
         println!("wrote {}", path.display());
+    } else if out.model.is_some() {
+        eprintln!(
+            "no calibration file: the fit is poor (see above); --keep-poor-fit writes it anyway"
+        );
     } else {
         eprintln!("no calibration file: the joint fit failed (see the notes above)");
     }
@@ -177,7 +208,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     if !args.quiet {
         eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
     }
-    Ok(if out.model.is_some() { Exit::Success } else { Exit::Incomplete }.into())
+    Ok(match (&out.model, poor) {
+        (None, _) => Exit::Incomplete,
+        (Some(_), true) => Exit::FitPoor,
+        (Some(_), false) => Exit::Success,
+    }
+    .into())
 }
 
 /// The pass/fail lines: the unit, each limit, the result.

@@ -25,6 +25,10 @@ pub enum Exit {
     ParametersOnly = 6,
     /// A diagnosis found physics the model leaves out.
     MissingPhysics = 7,
+    /// A calibration ran but its fit does not fit the data (whitened residual, residual
+    /// excursions, bootstrap against bound, or the two domains disagree): its numbers are not
+    /// to be trusted; `bench diagnose` looks for what is missing.
+    FitPoor = 8,
 }
 
 impl From<Exit> for ExitCode {

@@ -83,6 +83,7 @@ fn apply_gyro_model(plan: &mut RunPlan, path: Option<&Path>) -> anyhow::Result<(
         let file = bench_recording::model_file::CalibrationFile::load(path)?;
         let model = file.model();
         plan.gyro.model = model.clone();
+        plan.gyro.model_given = true;
         plan.gyro.effects = file.effects;
         plan.sim.truth = model;
         plan.sim.truth_effects = file.effects;
@@ -280,6 +281,11 @@ fn run_on_bench(
             plan.site = site;
         }
         let mut info = run_info(&plan, epoch_ns);
+        // Real drivers: the gyro is the lab's, so its model is what the lab gave (nominal), or
+        // none; the scenario's defaults are not this gyro's.
+        if !plan.gyro.model_given {
+            info.gyro_model.clear();
+        }
         info.config = Some(TomlAttachment {
             name: config_path
                 .file_name()

@@ -150,6 +150,8 @@ pub struct ReplayData {
     pub site: Option<Site>,
     /// `bench.gyro_model` entries, if recorded.
     pub gyro_model: Option<BTreeMap<String, String>>,
+    /// What they are to the recorded data.
+    pub gyro_model_role: bench_recording::ModelRole,
     /// Whether the file ended normally (a cut file replays up to its cut).
     pub complete: bool,
 }
@@ -204,6 +206,7 @@ impl ReplayData {
             chamber: Track::new(&rec.chamber, epoch_ns),
             site: rec.site()?,
             gyro_model: rec.metadata(META_GYRO_MODEL).cloned(),
+            gyro_model_role: rec.gyro_model_role(),
             complete: rec.complete,
         })
     }

@@ -30,6 +30,7 @@ pub fn prepare(plan: &mut RunPlan, data: &ReplayData, epoch_ns: u64) -> RunInfo 
     if let Some(model) = &data.gyro_model {
         info.gyro_model = model.clone();
     }
+    info.gyro_model_role = data.gyro_model_role;
     info
 }
 

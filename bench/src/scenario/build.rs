@@ -446,6 +446,7 @@ impl<'a> Builder<'a> {
         let mut gyro = GyroSetup {
             sample_rate_hz: 20.0,
             model: GyroModel::default(),
+            model_given: false,
             effects: Effects::default(),
         };
         let gyro_t = self.table(top, "gyro");
@@ -463,6 +464,7 @@ impl<'a> Builder<'a> {
             }
             if let Ok(Some(m)) = self.table(t, "model") {
                 self.model(m, &mut gyro.model, &mut gyro.effects, "[gyro.model]");
+                gyro.model_given = true;
             }
         }
         if !rate_checked {

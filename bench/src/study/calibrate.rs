@@ -46,6 +46,8 @@ pub struct SeedResult {
     pub seed_removed: f64,
     /// Thermal lag used, s.
     pub lag_s: f64,
+    /// The checks `bench calibrate` failed on this seed's fit (empty: judged sound).
+    pub fit_failed: Vec<String>,
 }
 
 /// One estimator's accuracy on one coefficient over the seeds.
@@ -94,6 +96,8 @@ pub struct MonteCarlo {
     pub joint_removed: (f64, f64, f64),
     /// Same for the seed method.
     pub seed_removed: (f64, f64, f64),
+    /// Seeds whose fit `bench calibrate` judged poor.
+    pub fits_poor: usize,
 }
 
 /// Run `scenario` with seeds `first_seed..first_seed + count` on `jobs` threads, calibrate
@@ -212,6 +216,13 @@ fn one_seed(
             Some(Ok(l)) => l.used_s,
             _ => 0.0,
         },
+        fit_failed: out
+            .quality
+            .checks
+            .iter()
+            .filter(|c| !c.passed)
+            .map(|c| c.key.to_owned())
+            .collect(),
     })
 }
 
@@ -277,6 +288,7 @@ pub fn summarise(scenario: String, lab: bool, seeds: Vec<SeedResult>) -> MonteCa
         lab,
         joint_removed: spread(seeds.iter().map(|r| r.joint_removed).collect()),
         seed_removed: spread(seeds.iter().map(|r| r.seed_removed).collect()),
+        fits_poor: seeds.iter().filter(|r| !r.fit_failed.is_empty()).count(),
         coefficients,
         seeds,
     }

@@ -169,13 +169,14 @@ pub fn apply(rec: &Recording, traits: &LabTraits, seed: u64) -> anyhow::Result<R
     let meta = |name: &str| rec.metadata(name).cloned().unwrap_or_default();
     let scenario = meta(META_SCENARIO);
     let site = rec.site()?.unwrap_or_else(|| Site::at_latitude(0.0));
-    let info = RunInfo::new(
+    let mut info = RunInfo::new(
         epoch,
         scenario.get("name").cloned().unwrap_or_default(),
         scenario.get("text").cloned().unwrap_or_default(),
         site,
         meta(META_GYRO_MODEL),
     );
+    info.gyro_model_role = rec.gyro_model_role();
     let opts = RecorderOptions { flush_interval: None, ..RecorderOptions::default() };
     let mut r = Recorder::with_options(Cursor::new(Vec::new()), info, opts)?;
     for (t, device, msg) in &gyro {

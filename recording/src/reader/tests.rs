@@ -432,3 +432,23 @@ fn files_of_many_batches_decode_in_file_order_with_errors_in_place() {
     let first: Vec<_> = RecordingReader::new(&file[..]).take(10).collect();
     assert_eq!(first.len(), 10);
 }
+
+#[test]
+fn the_model_role_round_trips_and_an_unsaid_one_is_nominal() {
+    for role in [crate::ModelRole::Simulation, crate::ModelRole::Nominal] {
+        let mut info = run_info();
+        info.gyro_model_role = role;
+        let mut r = Recorder::new(Cursor::new(Vec::new()), info).expect("start");
+        r.chamber(
+            Duration::ZERO,
+            None,
+            &ChamberMsg { temperature_c: 20.0, setpoint_c: 20.0, status: 0 },
+        )
+        .expect("chamber");
+        let bytes = r.finish(&Outcome::Completed).expect("finish").into_inner();
+        assert_eq!(Recording::from_bytes(&bytes).expect("reads").gyro_model_role(), role);
+    }
+    // A file from another writer without the key (or a crashed one, without bench.run).
+    assert_eq!(crate::ModelRole::from_key(None), crate::ModelRole::Nominal);
+    assert_eq!(crate::ModelRole::from_key(Some("truth")), crate::ModelRole::Nominal);
+}

@@ -224,7 +224,9 @@ fn metadata_records_and_attachments() {
     assert_eq!(run["started"], "2023-11-14T22:13:20.123456789Z");
     assert_eq!(run["software"], format!("bench {}", env!("CARGO_PKG_VERSION")));
     assert_eq!(run["outcome"], "aborted: door open");
-    assert_eq!(run.len(), 4);
+    // RunInfo::new's default: the model is nominal, not the data's truth.
+    assert_eq!(run["gyro_model_role"], "nominal");
+    assert_eq!(run.len(), 5);
     let site = &meta["bench.site"];
     assert_eq!(
         site,

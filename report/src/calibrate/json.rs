@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::CalibrationOutcome;
 
 /// Version of this JSON layout.
-pub const JSON_VERSION: u32 = 1;
+pub const JSON_VERSION: u32 = 2;
 
 /// A value with its 1σ standard error.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -83,9 +83,87 @@ pub struct CalibrationJson {
     pub windows: Vec<WindowJson>,
     /// What the data lack, and what could still be estimated.
     pub missing: Vec<String>,
+    /// Whether the fit fits: `verdict` (`sound`/`poor`), each check, the residual's largest
+    /// excursions with what the table and chamber were doing.
+    pub fit: super::quality::FitQuality,
+    /// The angle-domain fit (the seed's navigation method), beside the rate domain.
+    pub angle_domain: Option<AngleDomainJson>,
+    /// What the record steps hold outside the windows used, with the cause, in time order.
+    pub excluded: Vec<ExcludedJson>,
+    /// Record steps with no steady part long enough to use.
+    pub unused_steps: Vec<String>,
+    /// Each channel's time base: device stamps, device counter or host stamps, and for a device
+    /// clock the host stamps' drift, jitter and largest delay against it.
+    pub time_bases: Vec<TimeBaseJson>,
     /// The coefficients against the recording's acceptance limits (`bench.acceptance`), with
     /// its `bench.station`; null when the recording has no limits ([`crate::acceptance`]).
     pub acceptance: Option<crate::acceptance::Acceptance>,
+}
+
+/// The angle-domain fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct AngleDomainJson {
+    /// Why it could not run, else null.
+    pub error: Option<String>,
+    /// Keyed by `bench.gyro_model` key: value, σ (bound × max(1, whitened RMS)), bound.
+    pub coefficients: BTreeMap<String, AngleCoefficient>,
+    /// RMS of the whitened residual (≈ 1 when the noise model fits).
+    pub whitened_residual_rms: Option<f64>,
+    /// Angle readings used.
+    pub readings: usize,
+    /// Steady stretches used.
+    pub stretches: usize,
+    /// Gyro samples bridged (lost or flagged) inside the stretches.
+    pub bridged_samples: usize,
+    /// RMS angle misclosure over the readings before and after calibration, rad.
+    pub misclosure_rms_before: Option<f64>,
+    /// After calibration (each stretch's offset removed too), rad.
+    pub misclosure_rms_after: Option<f64>,
+}
+
+/// One angle-domain coefficient.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AngleCoefficient {
+    /// Estimate.
+    pub value: f64,
+    /// 1σ.
+    pub sigma: f64,
+    /// The Cramér–Rao bound under the noise model.
+    pub sigma_bound: f64,
+}
+
+/// A span of a record step left out.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExcludedJson {
+    /// The step's label.
+    pub step: String,
+    /// From, s since time zero.
+    pub start: f64,
+    /// Until, s.
+    pub end: f64,
+    /// Length, s.
+    pub seconds: f64,
+    /// `reversal`, `start`, `stop`, `rate_change`, `no_table_data` or `not_steady`.
+    pub why: &'static str,
+    /// Good gyro samples in it.
+    pub samples: usize,
+}
+
+/// A channel's time base.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeBaseJson {
+    /// Topic.
+    pub topic: &'static str,
+    /// `device_stamps`, `device_counter` or `host`.
+    pub source: &'static str,
+    /// Host clock drift against the device's, ppm; null for host time.
+    pub drift_ppm: Option<f64>,
+    /// Robust scatter of the host stamps about the device clock's line, s.
+    pub jitter: Option<f64>,
+    /// Largest delay of a host stamp behind the line, s.
+    pub max_late: Option<f64>,
+    /// Host stamps set aside as late.
+    pub late_outliers: Option<usize>,
 }
 
 /// Comparison with the recording's model.
@@ -230,6 +308,83 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             })
             .collect(),
         missing: cal.missing.clone(),
+        fit: outcome.quality.clone(),
+        angle_domain: cal.angle.as_ref().map(angle_json),
+        excluded: outcome
+            .data
+            .exclusions
+            .iter()
+            .map(|x| ExcludedJson {
+                step: x.label.clone(),
+                start: x.start_s,
+                end: x.end_s,
+                seconds: x.end_s - x.start_s,
+                why: x.why.key(),
+                samples: x.samples,
+            })
+            .collect(),
+        unused_steps: outcome.data.empty_windows.iter().map(|(l, _)| l.clone()).collect(),
+        time_bases: outcome
+            .data
+            .run
+            .time_bases
+            .iter()
+            .map(|b| TimeBaseJson {
+                topic: b.topic,
+                source: b.source.key(),
+                drift_ppm: b.fit.map(|f| (f.rate - 1.0) * 1e6),
+                jitter: b.fit.map(|f| f.jitter_s),
+                max_late: b.fit.map(|f| f.max_late_s),
+                late_outliers: b.fit.map(|f| f.outliers),
+            })
+            .collect(),
         acceptance: crate::acceptance::judge_calibration(outcome),
+    }
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> Option<f64> {
+    let (n, s) = v.fold((0usize, 0.0), |(n, s), x| (n + 1, s + x * x));
+    (n > 0).then(|| (s / n as f64).sqrt())
+}
+
+fn angle_json(
+    a: &Result<bench_analysis::angle_fit::AngleFit, bench_analysis::AnalysisError>,
+) -> AngleDomainJson {
+    match a {
+        Err(e) => AngleDomainJson {
+            error: Some(e.to_string()),
+            coefficients: BTreeMap::new(),
+            whitened_residual_rms: None,
+            readings: 0,
+            stretches: 0,
+            bridged_samples: 0,
+            misclosure_rms_before: None,
+            misclosure_rms_after: None,
+        },
+        Ok(a) => AngleDomainJson {
+            error: None,
+            coefficients: ModelKey::CALIBRATED
+                .into_iter()
+                .zip(a.estimates())
+                .map(|(k, e)| {
+                    (
+                        k.key().to_owned(),
+                        AngleCoefficient { value: e.value, sigma: e.std_err, sigma_bound: e.bound },
+                    )
+                })
+                .collect(),
+            whitened_residual_rms: Some(a.whitened_residual_rms).filter(|v| v.is_finite()),
+            readings: a.readings,
+            stretches: a.stretches,
+            bridged_samples: a.bridged_samples,
+            misclosure_rms_before: rms(a
+                .misclosure
+                .iter()
+                .flat_map(|m| m.before_rad.iter().copied())),
+            misclosure_rms_after: rms(a
+                .misclosure
+                .iter()
+                .flat_map(|m| m.after_rad.iter().copied())),
+        },
     }
 }

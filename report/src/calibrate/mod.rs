@@ -7,6 +7,7 @@
 //! `bench_recording::model_file`.
 
 pub mod json;
+pub mod quality;
 pub mod report;
 pub mod windows;
 
@@ -100,6 +101,8 @@ pub struct CalibrationOutcome {
     pub temp_range_c: (f64, f64),
     /// dT/dt range of the windows, °C/s.
     pub rate_range_c_s: (f64, f64),
+    /// Whether the fit fits ([`quality`]).
+    pub quality: quality::FitQuality,
 }
 
 fn function_errors(
@@ -178,7 +181,9 @@ pub fn calibrate_recording(
         }
     }
 
-    let truth = recorded.map(|t| {
+    // Only a simulator's model is the data's truth; a lab's is nominal (docs/recording.md).
+    let simulated = data.run.model_role == bench_recording::ModelRole::Simulation;
+    let truth = recorded.filter(|_| simulated).map(|t| {
         let series = &data.temperature;
         TruthComparison {
             joint: model.as_ref().map(|m| function_errors(&t, m, temp_range_c, rate_range_c_s)),
@@ -192,7 +197,7 @@ pub fn calibrate_recording(
             model: t,
         }
     });
-    Ok(CalibrationOutcome {
+    let mut out = CalibrationOutcome {
         data,
         calibration,
         model,
@@ -200,5 +205,8 @@ pub fn calibrate_recording(
         truth,
         temp_range_c,
         rate_range_c_s,
-    })
+        quality: quality::FitQuality::default(),
+    };
+    out.quality = quality::judge(&out);
+    Ok(out)
 }
