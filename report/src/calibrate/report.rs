@@ -9,7 +9,8 @@
 //!   the IEEE 952 noise terms with their intervals, the thermal-lag result, the record windows,
 //!   what the data lack, and the figures as inline SVG. No script, no external asset; every
 //!   text from the recording is escaped.
-//! - one PNG per figure (`fig1-raw-rate.png` … `fig8-allan.png`), the same drawing rasterised.
+//! - one PNG per figure (`fig1-raw-rate.png` … `fig9-angle-misclosure.png`), the same drawing
+//!   rasterised.
 //!
 //! Figures (units: °/h, °C, °C/min, hours, τ in s; record windows shaded on time axes):
 //!
@@ -20,7 +21,11 @@
 //! 5. fitted error functions k_t(T) and k_dt·dT/dt: joint (±2σ band), seed method, truth;
 //! 6. ramp windows: uncalibrated vs calibrated error and the true thermal error (60 s bins);
 //! 7. calibration residual over every window (60 s bins) with its RMS;
-//! 8. Allan deviation with confidence intervals and the fitted N, B and K lines.
+//! 8. Allan deviation with confidence intervals and the fitted N, B and K lines;
+//! 9. angle misclosure per steady stretch (″), before and after the angle-domain calibration.
+//!
+//! Above the coefficients: the fit's verdict ([`super::quality`]) with each check and where the
+//! residual strays; below the windows: what the steady-motion rule left out, and the time bases.
 //!
 //! Drawing uses `plotters` with its SVG backend and its bitmap backend; text is laid out and
 //! rasterised by `ab_glyph` with DejaVu Sans embedded (`report/assets/fonts/`), so no system
@@ -92,7 +97,7 @@ mod tests {
         let html = std::fs::read_to_string(&files.html).expect("html readable");
         assert_eq!(files.html, target.join("report.html"));
         let figs = figures::figures(out);
-        assert_eq!(figs.len(), 8);
+        assert_eq!(figs.len(), 9);
         assert_eq!(html.matches("<svg ").count(), figs.len(), "one inline SVG per figure");
         assert_eq!(html.matches("</svg>").count(), figs.len());
         for f in &figs {
@@ -150,7 +155,8 @@ mod tests {
                 "fig5-error-functions",
                 "fig6-thermal-error",
                 "fig7-residual",
-                "fig8-allan"
+                "fig8-allan",
+                "fig9-angle-misclosure"
             ]
         );
         let points = |item: &crate::render::plot::Item| match item {
@@ -200,6 +206,18 @@ mod tests {
             other => panic!("Allan points first, got {other:?}"),
         }
         assert_eq!(allan.items.len(), 4);
+        // Angle misclosure: before and after, one line per stretch, the after RMS smaller.
+        let mis = &figs[8];
+        let a = out.calibration.angle.as_ref().expect("readings").as_ref().expect("angle fit");
+        assert_eq!(mis.panels.len(), 2);
+        for p in &mis.panels {
+            assert_eq!(p.items.len(), a.misclosure.len());
+        }
+        let rms_of = |p: &crate::render::plot::Plot| -> f64 {
+            let n = p.note.as_deref().expect("RMS note");
+            n.trim_start_matches("RMS ").trim_end_matches(" ″").parse().expect("a number")
+        };
+        assert!(rms_of(&mis.panels[1]) < rms_of(&mis.panels[0]), "{:?}", mis.panels[1].note);
     }
 
     #[test]
@@ -218,11 +236,11 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let files = write_report(&out, "x.mcap", dir.path()).expect("report written");
         let html = std::fs::read_to_string(&files.html).expect("html readable");
-        assert_eq!(html.matches("<svg ").count(), 8);
-        assert_eq!(files.pngs.len(), 8);
+        assert_eq!(html.matches("<svg ").count(), 9);
+        assert_eq!(files.pngs.len(), 9);
         assert!(html.contains("test &lt;failure&gt;") && !html.contains("test <failure>"));
         assert!(html.contains("<li>a note with &lt;markup&gt;</li>"));
-        assert!(html.contains("no truth to compare with"));
+        assert!(html.contains("No truth to compare with"));
     }
 
     #[test]

@@ -44,6 +44,8 @@ fn coefficient_rows(o: &CalibrationOutcome) -> String {
     let truth = o.truth.as_ref().map(|t| &t.model);
     // The truth's bias at the calibration's T0 (its own T0 may differ).
     let truth_bias = truth.map(|m| thermal_bias(m, t0, 0.0));
+    let angle = o.calibration.angle.as_ref().and_then(|a| a.as_ref().ok()).map(|a| a.estimates());
+    let angle_of = |j: usize| angle.map(|a| (a[j].value, a[j].std_err));
     // (name, unit, joint (value, σ), seed value, truth value), SI.
     type Row<'a> = (&'a str, Unit, Option<(f64, f64)>, Option<f64>, Option<f64>);
     let rows: [Row; 4] = [
@@ -77,9 +79,10 @@ fn coefficient_rows(o: &CalibrationOutcome) -> String {
         ),
     ];
     let mut out = String::new();
-    for (name, unit, j, s, t) in rows {
+    for (row, (name, unit, j, s, t)) in rows.into_iter().enumerate() {
         let k = unit.per_si;
         let jt = j.map_or("—".into(), |(v, e)| pm(v * k, e * k));
+        let at = angle_of(row).map_or("—".into(), |(v, e)| pm(v * k, e * k));
         let st = s.map_or_else(
             || if name.starts_with("scale") { "not fitted".into() } else { "—".into() },
             |v| sig(v * k, 4),
@@ -98,8 +101,8 @@ fn coefficient_rows(o: &CalibrationOutcome) -> String {
         };
         let _ = writeln!(
             out,
-            "<tr><td class=l>{}</td><td class=l>{}</td><td>{jt}</td><td>{st}</td><td>{tt}</td>\
-             <td>{jd}</td><td>{sd}</td></tr>",
+            "<tr><td class=l>{}</td><td class=l>{}</td><td>{jt}</td><td>{at}</td><td>{st}</td>\
+             <td>{tt}</td><td>{jd}</td><td>{sd}</td></tr>",
             escape(name),
             escape(unit.name)
         );
@@ -107,7 +110,8 @@ fn coefficient_rows(o: &CalibrationOutcome) -> String {
     let _ = writeln!(
         out,
         "<tr><td class=l>reference temperature T0</td><td class=l>°C</td><td>{}</td><td>{}</td>\
-         <td>{}</td><td></td><td></td></tr>",
+         <td>{}</td><td>{}</td><td></td><td></td></tr>",
+        sig(t0, 4),
         sig(t0, 4),
         seed.map_or("—".into(), |s| sig(s.reference_temperature_c, 4)),
         truth.map_or("—".into(), |m| sig(m.reference_temperature, 4)),
@@ -164,6 +168,103 @@ fn model_summary(m: &GyroModel) -> String {
 }
 
 /// The whole page; `figures` pairs each figure with its SVG document.
+/// The fit's verdict: each check, the residual's excursions, and what to do about a poor fit.
+fn fit_quality(h: &mut String, o: &CalibrationOutcome, source: &str) {
+    let q = &o.quality;
+    let _ = writeln!(
+        h,
+        "<h2>Fit: {}</h2>",
+        if q.poor() { "POOR — the coefficients below are not sound" } else { "sound" }
+    );
+    if q.poor() {
+        let _ = writeln!(
+            h,
+            "<p class=note>The model does not fit these data: the numbers are for inspection, \
+             not for use. <code>bench diagnose {}</code> looks for the physics the model leaves \
+             out.</p>",
+            escape(source)
+        );
+    }
+    let _ = writeln!(
+        h,
+        "<table>\n<tr><th class=l>check</th><th>value</th><th>allowed</th><th class=l>result</th>\
+         </tr>"
+    );
+    for c in &q.checks {
+        let _ = writeln!(
+            h,
+            "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td class=l>{}</td></tr>",
+            escape(&c.text),
+            sig(c.value, 3),
+            escape(&c.allowed),
+            if c.passed { "pass" } else { "FAIL" }
+        );
+    }
+    let _ = writeln!(h, "</table>");
+    if !q.excursions.is_empty() {
+        let _ =
+            writeln!(h, "<p>Where the residual strays most (block mean in noise units):</p>\n<ul>");
+        for x in &q.excursions {
+            let _ = writeln!(
+                h,
+                "<li>{:+.1}σ over {}–{} in <b>{}</b>: {}</li>",
+                x.z,
+                super::super::quality::clock(x.start_s),
+                super::super::quality::clock(x.end_s),
+                escape(&x.window),
+                escape(&x.context)
+            );
+        }
+        let _ = writeln!(h, "</ul>");
+    }
+}
+
+/// What the record steps hold outside the windows, and each channel's time base.
+fn exclusions(h: &mut String, o: &CalibrationOutcome) {
+    let d = &o.data;
+    let _ = writeln!(
+        h,
+        "<h2>Left out of the record steps</h2>\n<p class=note>Decided from the table's own \
+         readings (its steady motion), not from the step events.</p>\n<table>\n<tr><th class=l>step</th>\
+         <th>from, h</th><th>length, s</th><th class=l>why</th><th>gyro samples</th></tr>"
+    );
+    for x in &d.exclusions {
+        let _ = writeln!(
+            h,
+            "<tr><td class=l>{}</td><td>{:.3}</td><td>{:.1}</td><td class=l>{}</td><td>{}</td></tr>",
+            escape(&x.label),
+            x.start_s / 3600.0,
+            x.end_s - x.start_s,
+            x.why.key().replace('_', " "),
+            x.samples
+        );
+    }
+    let _ = writeln!(h, "</table>");
+    for (label, n) in &d.empty_windows {
+        let _ = writeln!(
+            h,
+            "<p class=note>Step {} ({n} gyro samples) has no steady part long enough to use.</p>",
+            escape(label)
+        );
+    }
+    let _ = writeln!(h, "<h2>Time bases</h2>\n<ul>");
+    for b in &d.run.time_bases {
+        let text = match &b.fit {
+            Some(f) => format!(
+                "{}: {}; host clock {:+.1} ppm against it, host stamps' jitter {} ms, latest {} ms",
+                b.topic,
+                b.source.key().replace('_', " "),
+                (f.rate - 1.0) * 1e6,
+                sig(f.jitter_s * 1e3, 3),
+                sig(f.max_late_s * 1e3, 3)
+            ),
+            None => format!("{}: {}", b.topic, b.source.key().replace('_', " ")),
+        };
+        let _ = writeln!(h, "<li>{}</li>", escape(&text));
+    }
+    let _ = writeln!(h, "</ul>");
+}
+
 pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, String)]) -> String {
     let src = escape(source);
     let opts = &o.calibration.options;
@@ -205,12 +306,14 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         sig(opts.rate_window_s, 3)
     );
 
+    fit_quality(&mut h, o, source);
+
     // Coefficients.
     let _ = writeln!(
         h,
         "<h2>Coefficients</h2>\n<table>\n<tr><th class=l>coefficient</th><th class=l>unit</th>\
-         <th>joint fit (±1σ)</th><th>seed method</th><th>truth</th><th>joint − truth</th>\
-         <th>seed − truth</th></tr>\n{}</table>",
+         <th>joint fit, rate domain (±1σ)</th><th>angle domain (±1σ)</th><th>seed method</th>\
+         <th>truth</th><th>joint − truth</th><th>seed − truth</th></tr>\n{}</table>",
         coefficient_rows(o)
     );
     let mut notes = Vec::new();
@@ -221,7 +324,11 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         notes.push(format!("Seed method failed: {e}"));
     }
     if o.truth.is_none() {
-        notes.push("The recording carries no bench.gyro_model: no truth to compare with.".into());
+        notes.push(
+            "No truth to compare with: the recording's bench.gyro_model is nominal (the lab's \
+             belief, or absent), not a simulator's model (bench.run gyro_model_role)."
+                .into(),
+        );
     } else {
         notes.push(
             "Truth: the recording's bench.gyro_model (the simulator's model for a simulated run); \
@@ -381,6 +488,7 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         );
     }
     let _ = writeln!(h, "</table>");
+    exclusions(&mut h, o);
 
     // What the data lack.
     let _ = writeln!(h, "<h2>What the data lack</h2>");
