@@ -459,6 +459,37 @@ fn with_lag(
     windows.iter().map(|w| w.with_model_temperature(lagged.sample(w.time_s()))).collect()
 }
 
+/// `eval` at every point of `grid`, split over the machine's cores: (point, RSS) in grid order.
+fn eval_all<F>(grid: &[f64], eval: &F) -> Result<Vec<(f64, f64)>, AnalysisError>
+where
+    F: Fn(f64) -> Result<(f64, usize, usize), AnalysisError> + Sync,
+{
+    let threads =
+        std::thread::available_parallelism().map_or(1, |n| n.get()).min(grid.len()).max(1);
+    let chunk = grid.len().div_ceil(threads);
+    let parts: Vec<Result<Vec<(f64, f64)>, AnalysisError>> = std::thread::scope(|s| {
+        let handles: Vec<_> = grid
+            .chunks(chunk.max(1))
+            .map(|c| s.spawn(move || c.iter().map(|&t| eval(t).map(|r| (t, r.0))).collect()))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(AnalysisError::Insufficient(
+                        "thermal lag: a profile worker panicked".into(),
+                    ))
+                })
+            })
+            .collect()
+    });
+    let mut out = Vec::with_capacity(grid.len());
+    for p in parts {
+        out.extend(p?);
+    }
+    Ok(out)
+}
+
 /// Profile the thermal lag (module docs) over `series`.
 pub fn fit_lag(
     windows: &[RecordWindow],
@@ -479,42 +510,36 @@ pub fn fit_lag(
     let eval = |tau: f64| -> Result<(f64, usize, usize), AnalysisError> {
         joint_rss(&with_lag(windows, series, tau)?, earth, t0, opts.rate_window_s)
     };
-    // Coarse grid 0, 10·1.33^k .. 3000 s, then golden-section refinement around the best.
+    // Coarse grid 0, 10·1.33^k .. 3000 s, then a fine grid between the best point's
+    // neighbours and a parabola through the fine minimum; each grid evaluated on every core
+    // (the points are independent).
     let mut grid = vec![0.0];
     let mut t = 10.0;
     while t <= 3000.0 {
         grid.push(t);
         t *= 1.33;
     }
-    let mut profile = Vec::with_capacity(grid.len() + 20);
-    for &tau in &grid {
-        profile.push((tau, eval(tau)?.0));
-    }
+    let mut profile = eval_all(&grid, &eval)?;
     let ibest =
         profile.iter().enumerate().min_by(|a, b| a.1 .1.total_cmp(&b.1 .1)).map_or(0, |(i, _)| i);
-    let (mut a, mut b) =
+    let (a, b) =
         (profile[ibest.saturating_sub(1)].0, profile[(ibest + 1).min(profile.len() - 1)].0);
-    let g = 0.618_033_988_749_895;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let (mut fc, mut fd) = (eval(c)?.0, eval(d)?.0);
-    profile.push((c, fc));
-    profile.push((d, fd));
-    for _ in 0..14 {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = eval(c)?.0;
-            profile.push((c, fc));
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = eval(d)?.0;
-            profile.push((d, fd));
+    const FINE: usize = 16;
+    let fine: Vec<f64> = (1..FINE).map(|k| a + (b - a) * k as f64 / FINE as f64).collect();
+    profile.extend(eval_all(&fine, &eval)?);
+    profile.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let k =
+        profile.iter().enumerate().min_by(|x, y| x.1 .1.total_cmp(&y.1 .1)).map_or(0, |(i, _)| i);
+    if k > 0 && k + 1 < profile.len() {
+        // Vertex of the parabola through the minimum and its neighbours.
+        let ((x0, y0), (x1, y1), (x2, y2)) = (profile[k - 1], profile[k], profile[k + 1]);
+        let den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0);
+        if den.abs() > 0.0 {
+            let v =
+                x1 - 0.5 * ((x1 - x0).powi(2) * (y1 - y2) - (x1 - x2).powi(2) * (y1 - y0)) / den;
+            if v > x0 && v < x2 {
+                profile.push((v, eval(v)?.0));
+            }
         }
     }
     profile.sort_by(|x, y| x.0.total_cmp(&y.0));

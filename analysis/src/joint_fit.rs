@@ -513,7 +513,11 @@ fn noise_model_variance(
 }
 
 /// First lag `k ≥ 1` at which the sample autocorrelation of `r` drops below `1/e`, searched up
-/// to `max_lag` (returned if never).
+/// to `max_lag` (returned if never). The search doubles the lag until the autocorrelation is
+/// below `1/e`, then bisects between the last two lags: `O(n·log k)` rather than `O(n·k)` (a
+/// residual with a slow component keeps its correlation for thousands of lags). It assumes the
+/// autocorrelation decreases between those two lags, as it does for the noise processes here;
+/// a lag where it crosses back above `1/e` inside that bracket is not looked for.
 pub fn correlation_lag(r: &[f64], max_lag: usize) -> usize {
     let n = r.len();
     if n < 2 {
@@ -526,13 +530,33 @@ pub fn correlation_lag(r: &[f64], max_lag: usize) -> usize {
         return 1;
     }
     let limit = (-1.0f64).exp();
-    for k in 1..=max_lag.min(n - 1) {
+    let below = |k: usize| -> bool {
         let ck: f64 = c.iter().zip(&c[k..]).map(|(a, b)| a * b).sum();
-        if ck / c0 < limit {
-            return k;
+        ck / c0 < limit
+    };
+    let top = max_lag.min(n - 1).max(1);
+    // Doubling: `lo` is above the limit (or 0), `hi` the first power of two below it.
+    let (mut lo, mut hi) = (0usize, 1usize);
+    loop {
+        if below(hi) {
+            break;
+        }
+        if hi >= top {
+            return top;
+        }
+        lo = hi;
+        hi = (2 * hi).min(top);
+    }
+    // Bisect (lo, hi]: the first lag below the limit.
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if below(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
         }
     }
-    max_lag.min(n - 1).max(1)
+    hi
 }
 
 /// Block length from a correlation lag (module docs): `max(10·k_e, ⌈n^{1/3}⌉)`, at most `n/5`,
@@ -676,6 +700,36 @@ mod tests {
         // One plateau only: T − T0 is zero everywhere too.
         let e = joint_fit(&ws[..2], &JointFitOptions::default());
         assert!(matches!(e, Err(AnalysisError::Insufficient(_))));
+    }
+
+    #[test]
+    fn the_bisected_correlation_lag_is_the_first_lag_below_1_over_e() {
+        let linear = |r: &[f64], max: usize| {
+            let m = r.iter().sum::<f64>() / r.len() as f64;
+            let c: Vec<f64> = r.iter().map(|v| v - m).collect();
+            let c0: f64 = c.iter().map(|v| v * v).sum();
+            (1..=max)
+                .find(|&k| {
+                    c.iter().zip(&c[k..]).map(|(a, b)| a * b).sum::<f64>() / c0 < (-1f64).exp()
+                })
+                .unwrap_or(max)
+        };
+        for (seed, tau) in [(1u64, 0.3), (2, 5.0), (3, 77.0), (4, 600.0)] {
+            let phi = (-1.0f64 / tau).exp();
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut x = 0.0;
+            let r: Vec<f64> = (0..50_000)
+                .map(|_| {
+                    let w: f64 = StandardNormal.sample(&mut rng);
+                    x = phi * x + w;
+                    x
+                })
+                .collect();
+            assert_eq!(correlation_lag(&r, 2000), linear(&r, 2000), "τ = {tau}");
+        }
+        // Never below the limit within max_lag: max_lag.
+        let ramp: Vec<f64> = (0..1000).map(f64::from).collect();
+        assert_eq!(correlation_lag(&ramp, 10), 10);
     }
 
     #[test]

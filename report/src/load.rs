@@ -340,12 +340,23 @@ fn channel_times<T>(
     };
     let Some((device, source)) = device else { return host_only(host) };
     let Some(fit) = fit_clock(&device, &host) else { return host_only(host) };
-    // A clock keeps time: host stamps scatter about it by less than a quarter of the median
-    // sample interval, and it runs at a positive rate.
-    let mut dt: Vec<f64> = host.windows(2).map(|w| w[1] - w[0]).collect();
-    dt.sort_by(f64::total_cmp);
-    let period = dt.get(dt.len() / 2).copied().unwrap_or(0.0);
-    if !(fit.rate > 0.0 && fit.jitter_s < 0.25 * period && fit.outliers * 10 < msgs.len()) {
+    // A clock keeps time with the host's: the line through the host stamps runs at the rate
+    // of the device's within 1 % (a real clock drifts by ppm; stamps in another unit, or a
+    // counter that does not count samples, are far off), and at most one host stamp in ten
+    // lies off the line. The host stamps' scatter is not held against the device: however
+    // large (a loaded host, a scaled clock), the device's stamps are the better times.
+    // A counter counts samples: its rate (seconds per count) is the host's median interval
+    // within 10 %.
+    let expected = match source {
+        TimeSource::DeviceCounter => {
+            let mut dt: Vec<f64> = host.windows(2).map(|w| w[1] - w[0]).collect();
+            dt.sort_by(f64::total_cmp);
+            (dt.get(dt.len() / 2).copied().unwrap_or(0.0), 0.1)
+        }
+        _ => (1.0, 0.01),
+    };
+    let ok_rate = expected.0 > 0.0 && (fit.rate / expected.0 - 1.0).abs() <= expected.1;
+    if !(ok_rate && fit.outliers * 10 < msgs.len()) {
         return host_only(host);
     }
     let times = device.iter().map(|&d| fit.host(d)).collect();

@@ -280,6 +280,8 @@ impl Gyro for CanGyro {
             };
             let mut sample = s.to_gyro_sample();
             let missing = self.seq.observe(u64::from(s.seq));
+            // The device's clock: its counter times its own sample interval.
+            sample.device_time = self.seq.device_time(clock.now(), s.interval_s);
             if missing > 0 {
                 sample.status |= status::gyro::SEQ_GAP;
                 self.stats.seq_gaps += 1;

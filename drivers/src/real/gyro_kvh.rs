@@ -297,12 +297,14 @@ impl Kvh1750Gyro {
             self.link.stats.seq_gaps += 1;
             self.link.stats.missing += missing;
         }
+        // The device's clock: its counter at the configured output rate.
+        let device_time = self.seq.device_time(self.link.clock.now(), 1.0 / self.link.rate_hz);
         self.link.finish(GyroSample {
             rate_rad_s: rate,
             temperature_c: Some(f64::from(f.temp_c)),
             seq: u64::from(f.seq),
             status: st,
-            device_time: None,
+            device_time,
         })
     }
 }
