@@ -96,6 +96,10 @@ pub struct CalibrateOptions {
     pub confidence: f64,
     /// Whether to profile the thermal lag.
     pub fit_lag: bool,
+    /// The flicker floor the lab states for this gyro (its `bench.gyro_model`
+    /// `bias_instability`, a datasheet value), rad/s: used in the noise model only where the
+    /// constant-temperature windows are too short to resolve the floor ([`AllanResult::noise`]).
+    pub stated_flicker_floor_rad_s: Option<f64>,
 }
 
 impl Default for CalibrateOptions {
@@ -111,6 +115,7 @@ impl Default for CalibrateOptions {
             seed: 0,
             confidence: 0.95,
             fit_lag: true,
+            stated_flicker_floor_rad_s: None,
         }
     }
 }
@@ -164,12 +169,37 @@ impl AllanResult {
     /// reading is not an upper bound): a K fitted to the few long-τ points of short windows,
     /// extrapolated over hours, would swamp every coefficient's error.
     pub fn noise_spec(&self) -> NoiseSpec {
+        self.noise(None).0
+    }
+
+    /// The noise model, and whether the curve resolves its flicker floor. Unresolved, the floor
+    /// is the larger of the curve's detection limit ([`fit_noise_spec`]) and `stated` (the
+    /// lab's value for this gyro), when given.
+    pub fn noise(&self, stated: Option<f64>) -> (NoiseSpec, bool) {
         let with_k = !self.fit.rate_random_walk.upper_bound;
-        fit_noise_spec(&self.points, with_k).unwrap_or(NoiseSpec {
-            arw: self.fit.arw.value,
-            flicker_floor: self.fit.flicker_floor().value,
-            rrw: 0.0,
-        })
+        let pts: Vec<&AdevPoint> = self
+            .points
+            .iter()
+            .filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0)
+            .collect();
+        match fit_noise_spec_resolved(&pts, with_k) {
+            Some((mut spec, resolved)) => {
+                if !resolved {
+                    if let Some(b) = stated.filter(|b| b.is_finite() && *b > 0.0) {
+                        spec.flicker_floor = spec.flicker_floor.max(b);
+                    }
+                }
+                (spec, resolved)
+            }
+            None => (
+                NoiseSpec {
+                    arw: self.fit.arw.value,
+                    flicker_floor: self.fit.flicker_floor().value,
+                    rrw: 0.0,
+                },
+                true,
+            ),
+        }
     }
 }
 
@@ -191,14 +221,20 @@ impl AllanResult {
 /// `thermal-full.toml`), while it barely projects onto the slowly varying regressors; the
 /// joint fit's bootstrap of its whitened residuals still sees it.
 pub fn fit_noise_spec(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
+    let pts: Vec<&AdevPoint> =
+        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
+    fit_noise_spec_resolved(&pts, with_rrw).map(|(s, _)| s)
+}
+
+/// [`fit_noise_spec`] and whether the curve resolves the flicker floor.
+fn fit_noise_spec_resolved(points: &[&AdevPoint], with_rrw: bool) -> Option<(NoiseSpec, bool)> {
     use bench_physics::allan::NoiseType;
     use bench_physics::noise::bias_instability_adev;
-    let mut pts: Vec<&AdevPoint> =
-        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
+    let mut pts: Vec<&AdevPoint> = points.to_vec();
     loop {
         let spec = fit_noise_spec_once(&pts, with_rrw)?;
         if pts.len() <= 3 {
-            return Some(spec);
+            return Some(with_flicker_limit(spec, &pts, with_rrw));
         }
         let model = |tau: f64| {
             spec.arw * spec.arw / tau
@@ -217,9 +253,45 @@ pub fn fit_noise_spec(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec>
             Some((i, z)) if z > NOISE_FIT_OUTLIER_Z => {
                 pts.remove(i);
             }
-            _ => return Some(spec),
+            _ => return Some(with_flicker_limit(spec, &pts, with_rrw)),
         }
     }
+}
+
+/// `spec` with its flicker floor raised, where the curve does not resolve it, to the largest
+/// floor the curve cannot rule out: `B_f² ≥ 2·se(B_f²)`, the standard error of the flicker
+/// term in the same weighted fit. Short constant-temperature windows (minutes) end their
+/// Allan curve before the flicker floor shows; a fit that then drops the term (or keeps a
+/// near-zero one by chance) would treat hour-scale wander as absent and state σ ten times too
+/// small (seen on 3 of 200 lab-like `seed.toml` runs). A resolved floor is kept as fitted.
+fn with_flicker_limit(
+    mut spec: NoiseSpec,
+    pts: &[&AdevPoint],
+    with_rrw: bool,
+) -> (NoiseSpec, bool) {
+    use bench_physics::allan::NoiseType;
+    use bench_physics::noise::bias_instability_adev;
+    let cols = if with_rrw { 3 } else { 2 };
+    if pts.len() <= cols {
+        return (spec, false);
+    }
+    let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols);
+    for (i, p) in pts.iter().enumerate() {
+        let avar = p.adev * p.adev;
+        let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
+        let f = [1.0 / p.tau_s, bias_instability_adev(p.tau_s, 1.0).powi(2), p.tau_s / 3.0];
+        for j in 0..cols {
+            a[(i, j)] = f[j] * w;
+        }
+    }
+    let Some(cov) = (a.transpose() * &a).try_inverse() else { return (spec, false) };
+    let se = cov[(1, 1)].max(0.0).sqrt();
+    let limit = 2.0 * se;
+    let resolved = se.is_finite() && spec.flicker_floor * spec.flicker_floor >= limit;
+    if se.is_finite() && !resolved {
+        spec.flicker_floor = limit.sqrt();
+    }
+    (spec, resolved)
 }
 
 /// [`fit_noise_spec`] without leaving any point out: every excess counts as noise. The
@@ -315,6 +387,8 @@ pub struct Calibration {
     pub model_windows: Vec<RecordWindow>,
     /// Allan deviation and noise terms (plateau and static windows).
     pub allan: Result<AllanResult, AnalysisError>,
+    /// The noise model both fits used ([`AllanResult::noise`]), if any.
+    pub noise_model: Option<NoiseSpec>,
     /// Thermal lag profile.
     pub lag: Option<Result<LagFit, AnalysisError>>,
     /// The seed's method.
@@ -678,6 +752,21 @@ pub fn calibrate(
         axis_up: opts.axis_up,
         rate_window_s: opts.rate_window_s,
     };
+    let noise = allan.as_ref().ok().map(|a| a.noise(opts.stated_flicker_floor_rad_s));
+    if let Some((spec, false)) = noise {
+        missing.push(format!(
+            "flicker floor: the constant-temperature windows are too short for the Allan \
+             deviation to resolve it; the noise model uses {:.3e} °/h ({}), and every σ rests \
+             on it — longer holds at constant temperature measure it",
+            spec.flicker_floor / bench_physics::units::DEG_PER_H,
+            if opts.stated_flicker_floor_rad_s.is_some_and(|b| b >= spec.flicker_floor) {
+                "the recording model's bias_instability, the lab's value"
+            } else {
+                "the largest floor the curve cannot rule out"
+            }
+        ));
+    }
+    let noise_model = noise.map(|(s, _)| s);
     let seed = seed_calibration(&model_windows, &seed_opts);
     if let Err(e) = &seed {
         missing.push(format!("seed method: {e}"));
@@ -690,14 +779,17 @@ pub fn calibrate(
         replicates: opts.replicates,
         block_len: None,
         seed: opts.seed,
-        noise: allan.as_ref().ok().map(AllanResult::noise_spec),
+        noise: noise_model,
     };
     let joint = joint_fit(&model_windows, &joint_opts);
     if let Err(e) = &joint {
         missing.push(format!("joint fit: {e}"));
     }
     let angle = (readings.len() == model_windows.len() && !readings.is_empty()).then(|| {
-        let noise = allan.as_ref().map(AllanResult::noise_spec).map_err(Clone::clone)?;
+        let noise = noise_model.ok_or_else(|| match &allan {
+            Err(e) => e.clone(),
+            Ok(_) => AnalysisError::Insufficient("no noise model".into()),
+        })?;
         let aws: Vec<_> =
             readings.iter().zip(&model_windows).map(|(r, w)| r.for_window(w)).collect();
         angle_fit(
@@ -719,6 +811,7 @@ pub fn calibrate(
         windows: summaries,
         model_windows,
         allan,
+        noise_model,
         lag,
         seed,
         joint,
@@ -928,5 +1021,43 @@ mod tests {
             assert!((robust - 1.0).abs() < 0.2, "seed {seed}: floor ratio {robust}");
             assert!((naive / robust - 1.0).abs() < 0.03, "seed {seed}: {naive} vs {robust}");
         }
+    }
+}
+
+#[cfg(test)]
+mod flicker_limit_tests {
+    use super::*;
+    use bench_physics::noise::bias_instability_adev;
+
+    /// Octave points of a 20 Hz, `n`-sample record whose Allan deviation is exactly white
+    /// noise `arw` plus flicker at floor `b`.
+    fn curve(arw: f64, b: f64, n: usize, max_tau: f64) -> Vec<AdevPoint> {
+        let mut out = Vec::new();
+        let mut m = 1;
+        while m as f64 * 0.05 <= max_tau {
+            let tau = m as f64 * 0.05;
+            let adev = (arw * arw / tau + bias_instability_adev(tau, b).powi(2)).sqrt();
+            out.push(AdevPoint { tau_s: tau, m, adev, n_terms: n - 2 * m, n_samples: n });
+            m *= 2;
+        }
+        out
+    }
+
+    #[test]
+    fn an_unresolved_flicker_floor_is_raised_to_what_the_curve_cannot_rule_out() {
+        let arw = 2.9e-8;
+        // Ten minutes of white noise only, τ up to 100 s: the floor is not resolved, yet not 0.
+        let pts = curve(arw, 0.0, 12_000, 100.0);
+        let refs: Vec<&AdevPoint> = pts.iter().collect();
+        let (spec, resolved) = fit_noise_spec_resolved(&refs, false).expect("fits");
+        assert!(!resolved);
+        assert!(spec.flicker_floor > 0.0 && spec.flicker_floor < 1e-8, "{spec:?}");
+        assert!((spec.arw / arw - 1.0).abs() < 0.05, "{spec:?}");
+        // Five hours with a 9.7e-9 rad/s floor, τ up to 1000 s: resolved, kept as fitted.
+        let pts = curve(arw, 9.7e-9, 360_000, 1000.0);
+        let refs: Vec<&AdevPoint> = pts.iter().collect();
+        let (spec, resolved) = fit_noise_spec_resolved(&refs, false).expect("fits");
+        assert!(resolved);
+        assert!((spec.flicker_floor / 9.7e-9 - 1.0).abs() < 0.05, "{spec:?}");
     }
 }

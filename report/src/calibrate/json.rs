@@ -278,8 +278,7 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
         seed_method,
         noise,
         noise_confidence,
-        noise_model: cal.allan.as_ref().ok().map(|a| {
-            let n = a.noise_spec();
+        noise_model: cal.noise_model.map(|n| {
             BTreeMap::from([
                 ("arw".to_owned(), n.arw),
                 ("flicker_floor".to_owned(), n.flicker_floor),

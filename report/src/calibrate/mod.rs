@@ -150,6 +150,10 @@ pub fn calibrate_recording(
         // sensor, the profile's χ² test with a correlation-lag n_eff found a spurious 50 s lag
         // on simulated data without any: flicker noise needs the noise-model test, not done.)
         fit_lag: !settings.no_lag && !data.run.gyro_sensor(),
+        stated_flicker_floor_rad_s: recorded
+            .as_ref()
+            .map(|m| m.bias_instability)
+            .filter(|b| *b > 0.0),
         ..CalibrateOptions::default()
     };
     if let Some(r) = settings.replicates {
