@@ -54,6 +54,7 @@ fn unit(key: &str) -> (&'static str, f64) {
 fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
+    let lab = args.lab.then(bench::study::lab::LabTraits::lab);
     let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,
@@ -61,6 +62,7 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
         jobs,
         &bench_analysis::diagnose::DiagnoseOptions::default(),
         nominal,
+        lab.as_ref(),
         |s| {
             eprintln!(
                 "seed {:>4}: {} found [{}]{} in {:.2} s",
@@ -74,15 +76,21 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
     )?;
     let truth: Vec<&str> = study.truth.ids().iter().map(|e| e.key()).collect();
     println!(
-        "{} seeds of {} in {:.0} s; concealed truth: [{}]",
+        "{} seeds of {}{} in {:.0} s; concealed truth: [{}]",
         study.seeds.len(),
         args.scenario.display(),
+        if args.lab { " with a lab's traits" } else { "" },
         started.elapsed().as_secs_f64(),
         truth.join(", ")
     );
     println!("| figure | value |");
     println!("| --- | --- |");
     println!("| false-discovery rate | {:.1} % |", 100.0 * study.false_discovery_rate());
+    println!(
+        "| … false findings (an effect not in the truth) | {:.1} % |",
+        100.0 * study.false_finding_rate()
+    );
+    println!("| … seeds with unexplained windows | {:.1} % |", 100.0 * study.unexplained_rate());
     println!("| exactly the truth's effects named | {:.1} % |", 100.0 * study.exact_rate());
     let [c, p, m] = study.verdict_rates();
     println!(

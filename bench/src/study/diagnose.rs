@@ -60,6 +60,19 @@ impl DiagnoseStudy {
         bad as f64 / self.seeds.len().max(1) as f64
     }
 
+    /// Seeds naming an effect that is not in the truth (unexplained windows aside).
+    pub fn false_finding_rate(&self) -> f64 {
+        let truth = self.truth.ids();
+        let bad = self.seeds.iter().filter(|s| s.found.iter().any(|e| !truth.contains(e))).count();
+        bad as f64 / self.seeds.len().max(1) as f64
+    }
+
+    /// Seeds reporting unexplained structure, whatever they found.
+    pub fn unexplained_rate(&self) -> f64 {
+        let bad = self.seeds.iter().filter(|s| s.unexplained).count();
+        bad as f64 / self.seeds.len().max(1) as f64
+    }
+
     /// Seeds naming exactly the truth's effects.
     pub fn exact_rate(&self) -> f64 {
         let mut truth = self.truth.ids();
@@ -105,7 +118,7 @@ impl DiagnoseStudy {
 /// Simulate `scenario` with seeds `first..first + count` on `jobs` threads and diagnose each
 /// recording in memory against `nominal`, or else its own `bench.gyro_model` (a nominal model
 /// that differs from the scenario's truth only in parameter values makes a parameters-only
-/// study).
+/// study). With `lab`, each recording first gets a lab's traits ([`super::lab`]).
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     scenario: &Path,
@@ -114,6 +127,7 @@ pub fn run(
     jobs: usize,
     opts: &DiagnoseOptions,
     nominal: Option<(GyroModel, Effects, String)>,
+    lab: Option<&super::lab::LabTraits>,
     on_seed: impl FnMut(&SeedDiagnosis) + Send,
 ) -> anyhow::Result<DiagnoseStudy> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
@@ -133,6 +147,15 @@ pub fn run(
             truth.clear(id);
         }
     }
+    // A lab's traits stamp the gyro and the table with different latencies: the recording
+    // then truly holds a time offset of the gyro against the table (δ > 0: gyro late), which a
+    // diagnosis should name.
+    if let Some(l) = lab {
+        let delta_s = l.latency_s[0] - l.latency_s[1];
+        if delta_s != 0.0 && truth.time_offset.is_none() {
+            truth.time_offset = Some(bench_physics::effects::TimeOffset { offset_s: delta_s });
+        }
+    }
     let seeds = parallel_seeds(
         first,
         count,
@@ -141,7 +164,10 @@ pub fn run(
             let sim = SimOptions { seed, ..SimOptions::default() };
             let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
             anyhow::ensure!(report.completed(), "run {}", report.outcome);
-            let rec = Recording::from_bytes(cursor.get_ref())?;
+            let mut rec = Recording::from_bytes(cursor.get_ref())?;
+            if let Some(traits) = lab {
+                rec = super::lab::apply(&rec, traits, seed)?;
+            }
             let started = Instant::now();
             let out = bench_report::diagnose::diagnose_recording(&rec, nominal.clone(), opts)?;
             let seconds = started.elapsed().as_secs_f64();
