@@ -199,6 +199,10 @@ pub struct JointFit {
     pub block_len: usize,
     /// Bootstrap replicates.
     pub replicates: usize,
+    /// Covariance of (bias, scale factor error, temp_coeff, temp_rate_coeff), contract units:
+    /// GLS, the Cramér–Rao bound scaled by max(1, whitened RMS)²; OLS, under the noise model
+    /// when there is one, else NaN. Its diagonal is each [`Estimate::std_err`]² for GLS.
+    pub covariance: [[f64; 4]; 4],
     /// Each sample's residual in units of its noise: the GLS whitened residual (white, unit
     /// variance when the noise model fits), or for OLS the residual over its RMS; in the
     /// windows' sample order.
@@ -390,6 +394,18 @@ pub fn joint_fit(
         correlation_lag,
         block_len,
         replicates: opts.replicates,
+        covariance: {
+            let mut c = [[f64::NAN; 4]; 4];
+            if let Some(g) = &gls_fit {
+                let k = whitened_rms.max(1.0).powi(2);
+                for (i, row) in c.iter_mut().enumerate() {
+                    for (j, v) in row.iter_mut().enumerate() {
+                        *v = g.cov[(i, j)] / (scale[i] * scale[j]) * k;
+                    }
+                }
+            }
+            c
+        },
         residual_z: match gls_fit {
             Some(g) => g.whitened_residual,
             None => {

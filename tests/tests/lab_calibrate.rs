@@ -87,6 +87,20 @@ fn a_lab_recording_calibrates_within_3_sigma_and_says_what_it_left_out() {
     assert!(j["excluded"].as_array().is_some_and(|v| v.iter().any(|x| x["why"] == "reversal")));
     assert!(j["angle_domain"]["coefficients"]["scale_factor_error"]["sigma"].as_f64().is_some());
     assert_eq!(j["time_bases"][0]["source"], "device_stamps");
+    // The covariance: σ² on its diagonal, symmetric, correlations within ±1.
+    let cov = &j["covariance"];
+    for (i, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
+        assert_eq!(j["covariance_keys"][i], key.key());
+        let sigma = j["coefficients"][key.key()]["sigma"].as_f64().expect("σ");
+        let var = cov[i][i].as_f64().expect("variance");
+        assert!((var.sqrt() / sigma - 1.0).abs() < 1e-9, "{}: {var} vs σ {sigma}", key.key());
+        for k in 0..4 {
+            let (a, b) = (cov[i][k].as_f64().expect("c"), cov[k][i].as_f64().expect("c"));
+            assert!((a - b).abs() <= 1e-12 * a.abs().max(b.abs()), "symmetric");
+            let r = a / (var * cov[k][k].as_f64().expect("c")).sqrt();
+            assert!(r.abs() <= 1.0 + 1e-9, "correlation {r}");
+        }
+    }
 }
 
 #[test]

@@ -62,6 +62,11 @@ pub struct CalibrationJson {
     pub whitened_residual_rms: Option<f64>,
     /// Joint fit, keyed by `bench.gyro_model` key.
     pub coefficients: BTreeMap<String, Coefficient>,
+    /// Covariance of the joint fit's coefficients (their σ² on the diagonal), rows and columns
+    /// in `covariance_keys` order, contract units; null for OLS.
+    pub covariance: Option<[[f64; 4]; 4]>,
+    /// The order of `covariance`'s rows and columns.
+    pub covariance_keys: [&'static str; 4],
     /// The seed method's values (no σ: the method gives none), keyed likewise.
     pub seed_method: BTreeMap<String, f64>,
     /// IEEE 952 noise terms: `arw` (rad/√s), `bias_instability` (the flicker floor, rad/s, as
@@ -275,6 +280,13 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             .map(|j| j.whitened_residual_rms)
             .filter(|v| v.is_finite()),
         coefficients,
+        covariance: cal
+            .joint
+            .as_ref()
+            .ok()
+            .map(|j| j.covariance)
+            .filter(|c| c.iter().flatten().all(|v| v.is_finite())),
+        covariance_keys: ModelKey::CALIBRATED.map(|k| k.key()),
         seed_method,
         noise,
         noise_confidence,
