@@ -110,7 +110,7 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", cli::exit::error_text(&e));
             cli::exit::Exit::of_error(&e).into()
         }
     }

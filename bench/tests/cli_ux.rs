@@ -253,3 +253,30 @@ fn text_of(r: &Output) -> String {
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("json written")).expect("json")
 }
+
+#[test]
+fn a_connection_error_says_each_piece_of_context_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    // A port nothing listens on.
+    let port =
+        std::net::TcpListener::bind("127.0.0.1:0").expect("bind").local_addr().expect("addr");
+    let config = format!(
+        "[site]\nlatitude_deg = 45.0\n[table]\ndialect = \"actidyn\"\n\
+         endpoint = {{ tcp = {{ addr = \"{port}\" }} }}\n[chamber]\n\
+         endpoint = {{ tcp = {{ addr = \"{port}\" }} }}\nunit_id = 1\nmap = \"watlow_f4t\"\n\
+         [gyro]\ndriver = \"can\"\ntransport = {{ kind = \"slcan\", serial = {{ path = \
+         \"/dev/null\", baud = 115200 }}, bitrate = 1000000 }}\nsample_rate_hz = 20.0\n"
+    );
+    std::fs::write(d.join("lab.toml"), config).expect("config");
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["run", "short.toml", "-q", "--bench", "lab.toml", "-o", "x.mcap"], d);
+    let err = text(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    let line = err.lines().find(|l| l.starts_with("error:")).expect("an error line");
+    assert!(line.contains("rate table"), "{line}");
+    assert!(line.contains(&port.to_string()), "{line}");
+    for piece in ["link error", "connecting to the actidyn table", "Connection refused"] {
+        assert_eq!(line.matches(piece).count(), 1, "{piece} in {line}");
+    }
+}

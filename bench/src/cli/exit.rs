@@ -31,6 +31,24 @@ pub enum Exit {
     FitPoor = 8,
 }
 
+/// An error and its causes as one line, each piece of context once: a cause whose text the
+/// line already holds (a device error that quotes its I/O error, a config error that quotes its
+/// device error) is not repeated.
+pub fn error_text(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if out.contains(&s) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&s);
+    }
+    out
+}
+
 impl From<Exit> for ExitCode {
     fn from(e: Exit) -> Self {
         ExitCode::from(e as u8)
