@@ -179,7 +179,9 @@ fn station_metadata_is_recorded_and_the_calibration_judged_against_its_limits() 
 
     let r =
         bench(&["calibrate", "st.mcap", "-q", "--no-report", "-o", "cal", "--json", "c.json"], d);
-    assert!(r.status.success(), "{}", text_of(&r));
+    // A failed unit is a failed test: exit 9 (the calibration itself is sound and written).
+    assert_eq!(r.status.code(), Some(9), "{}", text_of(&r));
+    assert!(d.join("cal/calibration.toml").exists());
     let out = text(&r.stdout);
     assert!(out.contains("unit serial FOG-0042, operator A. Tester, station bench 3"), "{out}");
     assert!(out.contains("acceptance bias_rad_s:") && out.contains(": pass"), "{out}");

@@ -157,9 +157,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
-    if let Some(a) = bench_report::acceptance::judge_calibration(&out) {
-        print_acceptance(&a);
+    let acceptance = bench_report::acceptance::judge_calibration(&out);
+    if let Some(a) = &acceptance {
+        print_acceptance(a);
     }
+    let failed =
+        acceptance.as_ref().is_some_and(|a| a.result == bench_report::acceptance::Judgement::Fail);
 
     if let Some(model) = out.model.as_ref().filter(|_| !poor || args.keep_poor_fit) {
         let j = cal.joint.as_ref().ok();
@@ -211,6 +214,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     Ok(match (&out.model, poor) {
         (None, _) => Exit::Incomplete,
         (Some(_), true) => Exit::FitPoor,
+        (Some(_), false) if failed => Exit::AcceptanceFailed,
         (Some(_), false) => Exit::Success,
     }
     .into())

@@ -29,6 +29,9 @@ pub enum Exit {
     /// excursions, bootstrap against bound, or the two domains disagree): its numbers are not
     /// to be trusted; `bench diagnose` looks for what is missing.
     FitPoor = 8,
+    /// A sound calibration judged the unit beyond an acceptance limit (`bench.acceptance`):
+    /// the unit fails its test.
+    AcceptanceFailed = 9,
 }
 
 /// An error and its causes as one line, each piece of context once: a cause whose text the
