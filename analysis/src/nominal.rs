@@ -26,19 +26,7 @@ pub fn effects_per_sample(
     if !effects.any() {
         return vec![0.0; native.t.len()];
     }
-    let (temp, temp_rate): (Vec<f64>, Vec<f64>) = match effects.thermal_lag {
-        Some(l) => {
-            let lagged = lag_temperature(&native.t, &native.temp_c, l.time_constant_s);
-            let rate = native
-                .temp_c
-                .iter()
-                .zip(&lagged)
-                .map(|(a, b)| (a - b) / l.time_constant_s)
-                .collect();
-            (lagged, rate)
-        }
-        None => (native.temp_c.clone(), native.temp_rate_c_s.clone()),
-    };
+    let (temp, temp_rate) = effect_temperature(native, &effects);
     let hysteresis = HysteresisState::series(effects.hysteresis_threshold_c_s(), &temp_rate);
     let axis = if axis_up { 1.0 } else { -1.0 };
     let earth = latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, axis_up));
@@ -58,4 +46,23 @@ pub fn effects_per_sample(
             effects.value(&s, scale)
         })
         .collect()
+}
+
+/// The temperature the effects see at every sample of `native`, and its rate (°C, °C/s): the
+/// model temperature, or with an effect's thermal lag, the lagged one (rate from the lag's own
+/// equation, dT/dt = (T_in − T)/τ).
+pub fn effect_temperature(native: &Native, effects: &Effects) -> (Vec<f64>, Vec<f64>) {
+    match effects.thermal_lag {
+        Some(l) => {
+            let lagged = lag_temperature(&native.t, &native.temp_c, l.time_constant_s);
+            let rate = native
+                .temp_c
+                .iter()
+                .zip(&lagged)
+                .map(|(a, b)| (a - b) / l.time_constant_s)
+                .collect();
+            (lagged, rate)
+        }
+        None => (native.temp_c.clone(), native.temp_rate_c_s.clone()),
+    }
 }

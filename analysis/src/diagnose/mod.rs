@@ -330,19 +330,7 @@ fn prepare(
         ));
     }
     let native = Native::build(run, &motion, model.thermal_time_constant)?;
-    let (temp, temp_rate) = match effects.thermal_lag {
-        Some(l) => {
-            let lagged = lag_temperature(&native.t, &native.temp_c, l.time_constant_s);
-            let rate = native
-                .temp_c
-                .iter()
-                .zip(&lagged)
-                .map(|(a, b)| (a - b) / l.time_constant_s)
-                .collect();
-            (lagged, rate)
-        }
-        None => (native.temp_c.clone(), native.temp_rate_c_s.clone()),
-    };
+    let (temp, temp_rate) = crate::nominal::effect_temperature(&native, effects);
     let bins = make_bins(&native, &motion, opts.bin_s);
     if bins.len() < 20 {
         return Err(AnalysisError::TooFewSamples {
