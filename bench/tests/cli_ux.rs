@@ -282,3 +282,30 @@ fn a_connection_error_says_each_piece_of_context_once() {
         assert_eq!(line.matches(piece).count(), 1, "{piece} in {line}");
     }
 }
+
+#[test]
+fn recover_refuses_an_existing_output_and_reports_as_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    // A demo recording cut in the middle, as a crash leaves it.
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../recordings/demo-null.mcap");
+    let bytes = std::fs::read(demo).expect("demo");
+    let cut = bytes.len() / 2;
+    std::fs::write(d.join("cut.mcap"), &bytes[..cut]).expect("cut");
+    std::fs::write(d.join("out.mcap"), b"precious").expect("file");
+    let r = bench(&["recover", "cut.mcap", "out.mcap"], d);
+    assert_eq!(r.status.code(), Some(1), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("out.mcap exists"), "{}", text(&r.stderr));
+    assert_eq!(std::fs::read(d.join("out.mcap")).expect("kept"), b"precious");
+    let r = bench(&["recover", "cut.mcap", "new.mcap", "-q", "--json", "r.json"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(r.stdout.is_empty(), "-q: no text");
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("r.json")).expect("json")).expect("parses");
+    assert_eq!(j["complete"], false);
+    assert_eq!(j["input_bytes"].as_u64(), Some(cut as u64));
+    let at = j["break"]["at_byte"].as_u64().expect("where it broke");
+    assert!(at > 0 && at <= cut as u64, "{at}");
+    assert!(j["total_messages"].as_u64() > Some(0));
+    assert!(d.join("new.mcap").exists());
+}

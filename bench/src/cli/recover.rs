@@ -10,8 +10,17 @@ use anyhow::Context as _;
 pub struct RecoverArgs {
     /// The damaged recording.
     pub input: PathBuf,
-    /// The new file (overwritten).
+    /// The new file; an existing one is refused unless `--force`.
     pub output: PathBuf,
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
+    /// Also write what was kept and where the input broke as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// No text on stdout.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Copy every complete record into a fresh indexed file; say how much was kept and where the
@@ -21,9 +30,38 @@ pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
         args.input.canonicalize().ok() != args.output.canonicalize().ok() || !args.output.exists(),
         "the output must be a new file, not the input"
     );
+    anyhow::ensure!(
+        args.force || !args.output.exists(),
+        "{} exists: recover into a new file, or pass --force to overwrite it",
+        args.output.display()
+    );
     let report = bench_recording::recover::recover_file(&args.input, &args.output)
         .with_context(|| format!("cannot recover {}", args.input.display()))?;
-    print!("{report}");
-    println!("written to {}", args.output.display());
+    if !args.quiet {
+        print!("{report}");
+        println!("written to {}", args.output.display());
+    }
+    if let Some(path) = &args.json {
+        let j = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.output.display().to_string(),
+            "input_bytes": report.input_bytes,
+            "complete": report.complete,
+            "messages": report.messages,
+            "total_messages": report.total_messages(),
+            "schemas": report.schemas,
+            "channels": report.channels,
+            "metadata": report.metadata,
+            "attachments": report.attachments,
+            "orphans": report.orphans,
+            "break": report.break_at.as_ref().map(|b| serde_json::json!({
+                "at_byte": b.at_byte,
+                "after_record": b.after_record,
+                "reason": b.reason,
+            })),
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&j)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     Ok(ExitCode::SUCCESS)
 }
