@@ -172,6 +172,21 @@ impl AngleFit {
     pub fn estimates(&self) -> [AngleEstimate; 4] {
         [self.bias, self.scale_factor_error, self.temp_coeff, self.temp_rate_coeff]
     }
+
+    /// RMS angle misclosure over every reading, before and after calibration, rad; NaN
+    /// without readings.
+    pub fn misclosure_rms(&self) -> (f64, f64) {
+        let n: usize = self.misclosure.iter().map(|m| m.time_s.len()).sum();
+        let rms = |f: fn(&Misclosure) -> &[f64]| {
+            let s: f64 = self.misclosure.iter().flat_map(|m| f(m).iter()).map(|v| v * v).sum();
+            if n == 0 {
+                f64::NAN
+            } else {
+                (s / n as f64).sqrt()
+            }
+        };
+        (rms(|m| &m.before_rad), rms(|m| &m.after_rad))
+    }
 }
 
 /// The observations of one stretch: per reading after the first, `y` and the four columns.

@@ -164,25 +164,15 @@ pub struct AllanResult {
 }
 
 impl AllanResult {
-    /// The noise model for the joint fit's covariance ([`fit_noise_spec`] over the curve).
-    /// Rate random walk is included only where the curve shows its +1/2 slope (the tangent
-    /// reading is not an upper bound): a K fitted to the few long-τ points of short windows,
+    /// The noise model for the fits' covariance ([`fit_noise_spec`] over the curve), and
+    /// whether the curve resolves its flicker floor. Unresolved, the floor is the larger of the
+    /// curve's detection limit and `stated` (the lab's value for this gyro), when given. Rate
+    /// random walk is included only where the curve shows its +1/2 slope (the tangent reading
+    /// is not an upper bound): a K fitted to the few long-τ points of short windows,
     /// extrapolated over hours, would swamp every coefficient's error.
-    pub fn noise_spec(&self) -> NoiseSpec {
-        self.noise(None).0
-    }
-
-    /// The noise model, and whether the curve resolves its flicker floor. Unresolved, the floor
-    /// is the larger of the curve's detection limit ([`fit_noise_spec`]) and `stated` (the
-    /// lab's value for this gyro), when given.
     pub fn noise(&self, stated: Option<f64>) -> (NoiseSpec, bool) {
         let with_k = !self.fit.rate_random_walk.upper_bound;
-        let pts: Vec<&AdevPoint> = self
-            .points
-            .iter()
-            .filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0)
-            .collect();
-        match fit_noise_spec_resolved(&pts, with_k) {
+        match fit_noise_spec_resolved(&usable_points(&self.points), with_k) {
             Some((mut spec, resolved)) => {
                 if !resolved {
                     if let Some(b) = stated.filter(|b| b.is_finite() && *b > 0.0) {
@@ -221,9 +211,22 @@ impl AllanResult {
 /// `thermal-full.toml`), while it barely projects onto the slowly varying regressors; the
 /// joint fit's bootstrap of its whitened residuals still sees it.
 pub fn fit_noise_spec(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
-    let pts: Vec<&AdevPoint> =
-        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
-    fit_noise_spec_resolved(&pts, with_rrw).map(|(s, _)| s)
+    fit_noise_spec_resolved(&usable_points(points), with_rrw).map(|(s, _)| s)
+}
+
+/// The Allan points a noise fit can use: finite, positive deviation at a positive τ.
+fn usable_points(points: &[AdevPoint]) -> Vec<&AdevPoint> {
+    points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect()
+}
+
+/// One Allan point as a row of the noise fit: the terms `(1/τ, g(τ), τ/3)` whose weights are
+/// `(N², B_f², K²)`, the point's Allan variance, and its weight `1/sd` (sd ≈ avar·√(2/edf)).
+fn noise_row(p: &AdevPoint) -> ([f64; 3], f64, f64) {
+    use bench_physics::allan::NoiseType;
+    use bench_physics::noise::bias_instability_adev;
+    let avar = p.adev * p.adev;
+    let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
+    ([1.0 / p.tau_s, bias_instability_adev(p.tau_s, 1.0).powi(2), p.tau_s / 3.0], avar, w)
 }
 
 /// [`fit_noise_spec`] and whether the curve resolves the flicker floor.
@@ -269,17 +272,13 @@ fn with_flicker_limit(
     pts: &[&AdevPoint],
     with_rrw: bool,
 ) -> (NoiseSpec, bool) {
-    use bench_physics::allan::NoiseType;
-    use bench_physics::noise::bias_instability_adev;
     let cols = if with_rrw { 3 } else { 2 };
     if pts.len() <= cols {
         return (spec, false);
     }
     let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols);
     for (i, p) in pts.iter().enumerate() {
-        let avar = p.adev * p.adev;
-        let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
-        let f = [1.0 / p.tau_s, bias_instability_adev(p.tau_s, 1.0).powi(2), p.tau_s / 3.0];
+        let (f, _, w) = noise_row(p);
         for j in 0..cols {
             a[(i, j)] = f[j] * w;
         }
@@ -298,8 +297,7 @@ fn with_flicker_limit(
 /// diagnosis uses it — an excess over broadband noise is what it looks for, so its noise model
 /// must not explain it away (conservative: more noise, fewer claims).
 pub fn fit_noise_spec_all_points(points: &[AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
-    let pts: Vec<&AdevPoint> =
-        points.iter().filter(|p| p.adev.is_finite() && p.adev > 0.0 && p.tau_s > 0.0).collect();
+    let pts = usable_points(points);
     if pts.len() < 3 {
         return None;
     }
@@ -312,12 +310,9 @@ pub const NOISE_FIT_OUTLIER_Z: f64 = 3.0;
 
 /// One weighted least-squares fit of [`fit_noise_spec`]'s curve to `pts`.
 fn fit_noise_spec_once(pts: &[&AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
-    use bench_physics::allan::NoiseType;
-    use bench_physics::noise::bias_instability_adev;
     if pts.len() < 3 {
         return None;
     }
-    let basis = |tau: f64| [1.0 / tau, bias_instability_adev(tau, 1.0).powi(2), tau / 3.0];
     let mut active = [true, true, with_rrw];
     for _ in 0..3 {
         let cols: Vec<usize> = (0..3).filter(|&j| active[j]).collect();
@@ -327,10 +322,7 @@ fn fit_noise_spec_once(pts: &[&AdevPoint], with_rrw: bool) -> Option<NoiseSpec> 
         let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols.len());
         let mut b = nalgebra::DVector::<f64>::zeros(pts.len());
         for (i, p) in pts.iter().enumerate() {
-            let avar = p.adev * p.adev;
-            // Weight: 1/sd of the AVAR point, sd ≈ avar·√(2/edf).
-            let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
-            let f = basis(p.tau_s);
+            let (f, avar, w) = noise_row(p);
             for (c, &j) in cols.iter().enumerate() {
                 a[(i, c)] = f[j] * w;
             }
@@ -529,8 +521,15 @@ fn with_lag(
     series: &TemperatureSeries,
     tau_s: f64,
 ) -> Result<Vec<RecordWindow>, AnalysisError> {
-    let lagged = series.lagged(tau_s);
-    windows.iter().map(|w| w.with_model_temperature(lagged.sample(w.time_s()))).collect()
+    with_model_series(windows, &series.lagged(tau_s))
+}
+
+/// `windows` with the model temperature sampled from `series`.
+fn with_model_series(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+) -> Result<Vec<RecordWindow>, AnalysisError> {
+    windows.iter().map(|w| w.with_model_temperature(series.sample(w.time_s()))).collect()
 }
 
 /// `eval` at every point of `grid`, split over the machine's cores: (point, RSS) in grid order.
@@ -709,10 +708,13 @@ pub fn calibrate(
 
     let lag = (opts.fit_lag && count(WindowKind::Ramp) > 0).then(|| fit_lag(windows, series, opts));
     let (model_windows, model_series) = match &lag {
-        Some(Ok(l)) if l.used_s > 0.0 => match with_lag(windows, series, l.used_s) {
-            Ok(w) => (w, series.lagged(l.used_s)),
-            Err(_) => (windows.to_vec(), series.clone()),
-        },
+        Some(Ok(l)) if l.used_s > 0.0 => {
+            let lagged = series.lagged(l.used_s);
+            match with_model_series(windows, &lagged) {
+                Ok(w) => (w, lagged),
+                Err(_) => (windows.to_vec(), series.clone()),
+            }
+        }
         _ => (windows.to_vec(), series.clone()),
     };
     // The model temperature's smoothed value and rate over the whole run, at each window's

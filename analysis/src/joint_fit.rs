@@ -79,6 +79,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::error::AnalysisError;
 use crate::gls::gls;
+use crate::timebase::median_interval;
 use crate::windows::RecordWindow;
 
 /// Settings of the joint fit.
@@ -316,7 +317,7 @@ pub fn joint_fit(
         windows
             .iter()
             .flat_map(|w| {
-                let dt = median_interval(w.time_s());
+                let dt = median_interval(w.time_s()).unwrap_or(f64::NAN);
                 w.time_s().iter().map(move |&t| (t, dt))
             })
             .unzip()
@@ -453,13 +454,6 @@ fn block_bootstrap_variance(
         out[j] = (sum2[j] - sum[j] * sum[j] / b) / (b - 1.0);
     }
     out
-}
-
-/// Median of successive differences of `t` (at least 2 samples).
-fn median_interval(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
 }
 
 /// Variances of the coefficients `β = P·e` (rows of `pinv`, scaled units) for noise `e` from

@@ -90,6 +90,14 @@ pub fn fit_clock(device_s: &[f64], host_s: &[f64]) -> Option<ClockFit> {
     })
 }
 
+/// Median of the successive differences of `t` (a stream's nominal sample interval, robust to
+/// gaps and jitter); `None` with fewer than 2 samples.
+pub fn median_interval(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    d.get(d.len() / 2).copied()
+}
+
 /// A device counter unwrapped: each decrease is taken as a wrap of a counter of the smallest
 /// power-of-two width that holds the largest value seen. Returns counts from the first.
 pub fn unwrap_counter(seq: &[u64]) -> Vec<f64> {

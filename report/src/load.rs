@@ -26,7 +26,7 @@ use std::collections::BTreeMap;
 
 use bench_analysis::interp::interp_at;
 use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
-use bench_analysis::timebase::{fit_clock, unwrap_counter, ClockFit};
+use bench_analysis::timebase::{fit_clock, median_interval, unwrap_counter, ClockFit};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use bench_recording::reader::seconds_since;
@@ -220,9 +220,7 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         let filled = interp_at(&ts, &vs, &gyro_time_s);
         gyro_temp.iter().zip(filled).map(|(v, f)| if v.is_finite() { *v } else { f }).collect()
     });
-    let mut dts: Vec<f64> = gyro_time_s.windows(2).map(|w| w[1] - w[0]).collect();
-    dts.sort_by(f64::total_cmp);
-    let gyro_dt_s = dts[dts.len() / 2];
+    let gyro_dt_s = median_interval(&gyro_time_s).unwrap_or(f64::NAN);
 
     let (table_times, table_base) = channel_times(TOPIC_TABLE, &rec.table, zero_ns, |_| None);
     let mut table_time_s = Vec::with_capacity(rec.table.len());
@@ -348,11 +346,7 @@ fn channel_times<T>(
     // A counter counts samples: its rate (seconds per count) is the host's median interval
     // within 10 %.
     let expected = match source {
-        TimeSource::DeviceCounter => {
-            let mut dt: Vec<f64> = host.windows(2).map(|w| w[1] - w[0]).collect();
-            dt.sort_by(f64::total_cmp);
-            (dt.get(dt.len() / 2).copied().unwrap_or(0.0), 0.1)
-        }
+        TimeSource::DeviceCounter => (median_interval(&host).unwrap_or(0.0), 0.1),
         _ => (1.0, 0.01),
     };
     let ok_rate = expected.0 > 0.0 && (fit.rate / expected.0 - 1.0).abs() <= expected.1;

@@ -77,9 +77,7 @@ impl Native {
             ));
         }
         let t = run.gyro_time_s.clone();
-        let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        d.sort_by(f64::total_cmp);
-        let nominal_dt = d[d.len() / 2];
+        let nominal_dt = crate::timebase::median_interval(&t).unwrap_or(f64::NAN);
         if nominal_dt.is_nan() || nominal_dt <= 0.0 {
             return Err(AnalysisError::TimeNotIncreasing { label: "gyro".into(), index: 1 });
         }

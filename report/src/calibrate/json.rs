@@ -353,14 +353,10 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
     }
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> Option<f64> {
-    let (n, s) = v.fold((0usize, 0.0), |(n, s), x| (n + 1, s + x * x));
-    (n > 0).then(|| (s / n as f64).sqrt())
-}
-
 fn angle_json(
     a: &Result<bench_analysis::angle_fit::AngleFit, bench_analysis::AnalysisError>,
 ) -> AngleDomainJson {
+    let misclosure = a.as_ref().map_or((f64::NAN, f64::NAN), |a| a.misclosure_rms());
     match a {
         Err(e) => AngleDomainJson {
             error: Some(e.to_string()),
@@ -388,14 +384,8 @@ fn angle_json(
             readings: a.readings,
             stretches: a.stretches,
             bridged_samples: a.bridged_samples,
-            misclosure_rms_before: rms(a
-                .misclosure
-                .iter()
-                .flat_map(|m| m.before_rad.iter().copied())),
-            misclosure_rms_after: rms(a
-                .misclosure
-                .iter()
-                .flat_map(|m| m.after_rad.iter().copied())),
+            misclosure_rms_before: Some(misclosure.0).filter(|v| v.is_finite()),
+            misclosure_rms_after: Some(misclosure.1).filter(|v| v.is_finite()),
         },
     }
 }

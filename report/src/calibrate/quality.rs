@@ -110,31 +110,21 @@ pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
     let joint = cal.joint.as_ref().ok();
     let angle = cal.angle.as_ref().and_then(|a| a.as_ref().ok());
 
+    let rms_check = |key: &'static str, domain: &str, v: f64| Check {
+        key,
+        passed: rms_in_band(v),
+        value: v,
+        allowed: band.clone(),
+        text: format!(
+            "{domain}-domain whitened residual RMS {v:.3} (the noise model predicts 1; allowed \
+             {band})"
+        ),
+    };
     if let Some(j) = joint.filter(|j| j.whitened_residual_rms.is_finite()) {
-        let v = j.whitened_residual_rms;
-        checks.push(Check {
-            key: "rate_whitened_rms",
-            passed: rms_in_band(v),
-            value: v,
-            allowed: band.clone(),
-            text: format!(
-                "rate-domain whitened residual RMS {v:.3} (the noise model predicts 1; allowed \
-                 {band})"
-            ),
-        });
+        checks.push(rms_check("rate_whitened_rms", "rate", j.whitened_residual_rms));
     }
     if let Some(a) = angle {
-        let v = a.whitened_residual_rms;
-        checks.push(Check {
-            key: "angle_whitened_rms",
-            passed: rms_in_band(v),
-            value: v,
-            allowed: band.clone(),
-            text: format!(
-                "angle-domain whitened residual RMS {v:.3} (the noise model predicts 1; allowed \
-                 {band})"
-            ),
-        });
+        checks.push(rms_check("angle_whitened_rms", "angle", a.whitened_residual_rms));
     }
     if let Some(j) = joint {
         let lens: Vec<usize> = cal.model_windows.iter().map(|w| w.len()).collect();

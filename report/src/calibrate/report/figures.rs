@@ -133,7 +133,6 @@ fn misclosure(o: &CalibrationOutcome) -> Figure {
         Some(Ok(a)) => {
             let n = a.misclosure.len().max(1);
             let per = (MAX_POINTS / n).max(8);
-            let mut sq = (0.0, 0.0, 0usize);
             for (k, m) in a.misclosure.iter().enumerate() {
                 let b = decimate(&m.time_s, &m.before_rad, per);
                 let c = decimate(&m.time_s, &m.after_rad, per);
@@ -147,19 +146,17 @@ fn misclosure(o: &CalibrationOutcome) -> Figure {
                     colour::BLUE,
                     c.iter().map(|b| (hours(b.t), b.mean / ARCSEC)).collect(),
                 ));
-                sq.0 += m.before_rad.iter().map(|v| v * v).sum::<f64>();
-                sq.1 += m.after_rad.iter().map(|v| v * v).sum::<f64>();
-                sq.2 += m.after_rad.len();
             }
-            let r = |s: f64| crate::render::sig((s / sq.2.max(1) as f64).sqrt() / ARCSEC, 3);
-            before.note = Some(format!("RMS {} ″", r(sq.0)));
-            after.note = Some(format!("RMS {} ″", r(sq.1)));
+            let (rb, ra) = a.misclosure_rms();
+            let r = |v: f64| crate::render::sig(v / ARCSEC, 3);
+            before.note = Some(format!("RMS {} ″", r(rb)));
+            after.note = Some(format!("RMS {} ″", r(ra)));
             caption.push_str(&format!(
                 " {} stretches, {} readings; RMS {} ″ before, {} ″ after.",
                 a.stretches,
                 a.readings,
-                r(sq.0),
-                r(sq.1)
+                r(rb),
+                r(ra)
             ));
         }
         Some(Err(e)) => {
