@@ -20,6 +20,7 @@
 //! | `rate_squared` | `c·Ω_in²` | c | — |
 //! | `periodic_bias` | `a·sin(2π·t/P + φ)` | a·cos φ, a·sin φ | P |
 //! | `rate_ripple` | `ε·Ω_t·sin(N·θ + φ)`, Ω_t the table's rate along the sensing axis | ε·cos φ, ε·sin φ | N |
+//! | `angle_harmonic` | `a·sin(k·θ + φ)`, k ≥ 2 cycles per revolution, independent of the rate | a·cos φ, a·sin φ | k |
 //!
 //! `Ω_in` is the input rate the gyro sees (table plus Earth along the sensing axis), `T` the
 //! temperature that drives the bias (°C), `t` seconds since power-on (the start of the run; in
@@ -58,11 +59,14 @@ pub enum EffectId {
     PeriodicBias,
     /// Table rate rippling N times per revolution, below the table's readout resolution.
     RateRipple,
+    /// Output periodic in the table angle, k ≥ 2 times per revolution (the gyro's, not the
+    /// table's rate: independent of how fast the table turns).
+    AngleHarmonic,
 }
 
 impl EffectId {
     /// Every effect, in library order.
-    pub const ALL: [EffectId; 12] = [
+    pub const ALL: [EffectId; 13] = [
         EffectId::EarthRate,
         EffectId::ThermalLag,
         EffectId::TemperatureQuadratic,
@@ -75,6 +79,7 @@ impl EffectId {
         EffectId::RateSquared,
         EffectId::PeriodicBias,
         EffectId::RateRipple,
+        EffectId::AngleHarmonic,
     ];
 
     /// The stable id (snake case).
@@ -92,6 +97,7 @@ impl EffectId {
             EffectId::RateSquared => "rate_squared",
             EffectId::PeriodicBias => "periodic_bias",
             EffectId::RateRipple => "rate_ripple",
+            EffectId::AngleHarmonic => "angle_harmonic",
         }
     }
 
@@ -146,6 +152,11 @@ impl EffectId {
                 "the table's rate ripples N times per revolution (torque-motor cogging, encoder \
                  errors) by less than its angle readout resolves: the gyro sees ε·Ω·sin(Nθ + φ) \
                  that the recorded table motion does not show"
+            }
+            EffectId::AngleHarmonic => {
+                "output periodic k ≥ 2 times per table revolution whatever the rate: the \
+                 gyro's own angle-dependent error (an asymmetric mount or magnetic shield, a \
+                 field gradient across the table) rather than the table's rate ripple"
             }
         }
     }
@@ -259,6 +270,18 @@ pub struct RateRipple {
     pub phase_rad: f64,
 }
 
+/// Output periodic in the table angle at k ≥ 2 cycles per revolution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AngleHarmonic {
+    /// `a`, rad/s.
+    pub amplitude_rad_s: f64,
+    /// `k`, cycles per revolution (> 0; an integer: 1 is `once_per_revolution`).
+    pub cycles_per_rev: f64,
+    /// `φ` in `a·sin(k·θ + φ)`, rad.
+    pub phase_rad: f64,
+}
+
 /// The effects switched on (truth of a simulator, or found by a diagnosis); all off by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -287,6 +310,8 @@ pub struct Effects {
     pub periodic_bias: Option<PeriodicBias>,
     /// See [`RateRipple`].
     pub rate_ripple: Option<RateRipple>,
+    /// See [`AngleHarmonic`].
+    pub angle_harmonic: Option<AngleHarmonic>,
 }
 
 /// What the additive effects depend on, for one sample.
@@ -313,7 +338,10 @@ impl EffectId {
     pub fn linear_count(self) -> usize {
         match self {
             EffectId::ThermalLag | EffectId::TimeOffset => 0,
-            EffectId::OncePerRevolution | EffectId::PeriodicBias | EffectId::RateRipple => 2,
+            EffectId::OncePerRevolution
+            | EffectId::PeriodicBias
+            | EffectId::RateRipple
+            | EffectId::AngleHarmonic => 2,
             _ => 1,
         }
     }
@@ -350,6 +378,11 @@ impl EffectId {
                 out[0] = s.table_rate_rad_s * sin;
                 out[1] = s.table_rate_rad_s * cos;
             }
+            EffectId::AngleHarmonic => {
+                let (sin, cos) = (p * s.angle_mid_rad).sin_cos();
+                out[0] = sin;
+                out[1] = cos;
+            }
             EffectId::ThermalLag | EffectId::TimeOffset => {}
         }
     }
@@ -381,6 +414,7 @@ impl Effects {
             EffectId::RateSquared => self.rate_squared.is_some(),
             EffectId::PeriodicBias => self.periodic_bias.is_some(),
             EffectId::RateRipple => self.rate_ripple.is_some(),
+            EffectId::AngleHarmonic => self.angle_harmonic.is_some(),
         }
     }
 
@@ -428,6 +462,11 @@ impl Effects {
             checks.push(("rate_ripple.relative_amplitude", r.relative_amplitude, false));
             checks.push(("rate_ripple.cycles_per_rev", r.cycles_per_rev, true));
             checks.push(("rate_ripple.phase_rad", r.phase_rad, false));
+        }
+        if let Some(h) = self.angle_harmonic {
+            checks.push(("angle_harmonic.amplitude_rad_s", h.amplitude_rad_s, false));
+            checks.push(("angle_harmonic.cycles_per_rev", h.cycles_per_rev, true));
+            checks.push(("angle_harmonic.phase_rad", h.phase_rad, false));
         }
         for (name, v, positive) in checks {
             if !v.is_finite() {
@@ -500,6 +539,10 @@ impl Effects {
             let coeffs = wave(r.relative_amplitude, r.phase_rad);
             v += term(EffectId::RateRipple, r.cycles_per_rev, coeffs);
         }
+        if let Some(h) = self.angle_harmonic {
+            let coeffs = wave(h.amplitude_rad_s, h.phase_rad);
+            v += term(EffectId::AngleHarmonic, h.cycles_per_rev, coeffs);
+        }
         v
     }
 }
@@ -571,6 +614,7 @@ impl EffectId {
             EffectId::RateSquared => &["coeff_s_per_rad"],
             EffectId::PeriodicBias => &["amplitude_rad_s", "period_s", "phase_rad"],
             EffectId::RateRipple => &["relative_amplitude", "cycles_per_rev", "phase_rad"],
+            EffectId::AngleHarmonic => &["amplitude_rad_s", "cycles_per_rev", "phase_rad"],
         }
     }
 
@@ -583,6 +627,7 @@ impl EffectId {
                 | (EffectId::ThermalHysteresis, "threshold_c_s")
                 | (EffectId::PeriodicBias, "period_s")
                 | (EffectId::RateRipple, "cycles_per_rev")
+                | (EffectId::AngleHarmonic, "cycles_per_rev")
         )
     }
 }
@@ -615,6 +660,9 @@ impl Effects {
             }
             EffectId::RateRipple => {
                 self.rate_ripple.map(|e| vec![e.relative_amplitude, e.cycles_per_rev, e.phase_rad])
+            }
+            EffectId::AngleHarmonic => {
+                self.angle_harmonic.map(|e| vec![e.amplitude_rad_s, e.cycles_per_rev, e.phase_rad])
             }
         }
     }
@@ -674,6 +722,13 @@ impl Effects {
                     phase_rad: v(2),
                 });
             }
+            EffectId::AngleHarmonic => {
+                self.angle_harmonic = Some(AngleHarmonic {
+                    amplitude_rad_s: v(0),
+                    cycles_per_rev: v(1),
+                    phase_rad: v(2),
+                });
+            }
         }
         Ok(())
     }
@@ -693,6 +748,7 @@ impl Effects {
             EffectId::RateSquared => self.rate_squared = None,
             EffectId::PeriodicBias => self.periodic_bias = None,
             EffectId::RateRipple => self.rate_ripple = None,
+            EffectId::AngleHarmonic => self.angle_harmonic = None,
         }
     }
 
@@ -805,6 +861,11 @@ mod metadata_tests {
                 cycles_per_rev: 16.0,
                 phase_rad: 0.25,
             }),
+            angle_harmonic: Some(AngleHarmonic {
+                amplitude_rad_s: 6e-8,
+                cycles_per_rev: 2.0,
+                phase_rad: -0.4,
+            }),
         }
     }
 
@@ -831,8 +892,8 @@ mod metadata_tests {
         );
         assert_eq!(m.get("effect.bias_step.time_s").map(String::as_str), Some("1e2"));
         assert_eq!(m.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
-        // 1 + every parameter of the eleven parametrised effects.
-        assert_eq!(m.len(), 1 + 19);
+        // 1 + every parameter of the twelve parametrised effects.
+        assert_eq!(m.len(), 1 + 22);
         assert!(m.keys().all(|k| k.starts_with(METADATA_PREFIX)));
         assert!(Effects::default().to_metadata().is_empty());
     }

@@ -28,7 +28,9 @@
 //!    temperature band and table angle; blocks whose mean departs from the noise model are
 //!    `unexplained`, with the signal they correlate with best.
 
+pub mod family;
 pub mod fit;
+pub mod identify;
 pub mod noise;
 pub mod scan;
 pub mod series;
@@ -36,9 +38,9 @@ pub mod series;
 use bench_physics::allan::{chi2_quantile, normal_quantile, AdevPoint};
 use bench_physics::earth::vertical_rate_rad_s;
 use bench_physics::effects::{
-    lag_temperature, BiasStep, EffectId, EffectSample, Effects, OncePerRevolution, PeriodicBias,
-    RateRipple, RateSquared, ScaleFactorTemperature, TemperatureQuadratic, ThermalHysteresis,
-    ThermalLag, TimeOffset, WarmUp, HYSTERESIS_THRESHOLD_C_S,
+    lag_temperature, AngleHarmonic, BiasStep, EffectId, EffectSample, Effects, OncePerRevolution,
+    PeriodicBias, RateRipple, RateSquared, ScaleFactorTemperature, TemperatureQuadratic,
+    ThermalHysteresis, ThermalLag, TimeOffset, WarmUp, HYSTERESIS_THRESHOLD_C_S,
 };
 use bench_physics::{GyroModel, ModelKey};
 
@@ -48,7 +50,9 @@ use crate::joint_fit::NoiseSpec;
 use crate::windows::RecordWindow;
 
 use crate::steady::TableMotion;
+pub use family::{FamilyCheck, FamilyMember, RateDependence};
 use fit::Projector;
+pub use identify::Collinearity;
 use noise::BinNoise;
 use series::{bin_mean, make_bins, Bin, Native, RunSeries};
 
@@ -123,6 +127,11 @@ pub struct Finding {
     pub accepted: bool,
     /// Why not, when not.
     pub rejected_because: Option<String>,
+    /// The residual check against the effect's family ([`family`]), for effects that passed
+    /// the search.
+    pub family: Option<FamilyCheck>,
+    /// For a per-revolution term: whether it belongs to the gyro or to the table's rate.
+    pub rate_dependence: Option<RateDependence>,
 }
 
 /// Structure no effect explains.
@@ -259,6 +268,34 @@ pub struct Diagnosis {
     pub effects: Effects,
     /// Figures' data.
     pub series: Series,
+    /// Pairs of terms this recording cannot tell apart well ([`identify`]).
+    pub identifiability: Vec<Collinearity>,
+}
+
+impl Diagnosis {
+    /// The caveats the verdict carries: every effect not in the model that is nearly collinear
+    /// with a term that is, with the largest size the data cannot rule out (empty when nothing
+    /// is collinear). They matter most for `consistent` and `parameters_only`: a term in the
+    /// model may hold an effect that this recording cannot show.
+    pub fn verdict_caveats(&self) -> Vec<String> {
+        self.identifiability
+            .iter()
+            .filter(|c| !c.effect_accepted)
+            .map(|c| {
+                format!(
+                    "{} cannot be told apart from {} on this recording (ρ = {:.3}): a {} up to \
+                     {:.2e} {} ({}) is not ruled out",
+                    c.effect.key(),
+                    c.with,
+                    c.rho,
+                    c.effect.key(),
+                    c.bound,
+                    c.unit,
+                    c.parameter
+                )
+            })
+            .collect()
+    }
 }
 
 /// Hysteresis threshold used for the candidate (the library's default).
@@ -502,9 +539,10 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
             vec![bins.iter().map(|b| -scale * axis * b.table_accel_rad_s2).collect()]
         }
         EffectId::EarthRate => vec![vec![prep.earth; bins.len()]],
-        EffectId::OncePerRevolution => {
-            let s = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].sin());
-            let c = bin_mean(bins, dt, |k| nat.angle_mid_rad[k].cos());
+        EffectId::OncePerRevolution | EffectId::AngleHarmonic => {
+            let h = if id == EffectId::OncePerRevolution { 1.0 } else { p };
+            let s = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).sin());
+            let c = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).cos());
             vec![s, c]
         }
         EffectId::RateRipple => {
@@ -683,6 +721,7 @@ fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
         }
         EffectId::PeriodicBias => period_grid(&prep.bins),
         EffectId::RateRipple => RIPPLE_CYCLES.map(f64::from).collect(),
+        EffectId::AngleHarmonic => (2..=family::harmonic_max(prep)).map(f64::from).collect(),
         _ => vec![f64::NAN],
     }
 }
@@ -885,6 +924,7 @@ pub fn diagnose(
         })
         .collect();
     let m_candidates = candidates.len().max(1) as f64;
+    let tested_ids = candidates.clone();
     let mut design = prep.base.clone();
     let mut accepted_cols: Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
@@ -901,189 +941,217 @@ pub fn diagnose(
     let mut thresholds: std::collections::BTreeMap<EffectId, f64> =
         std::collections::BTreeMap::new();
     let mut base_design = prep.base.clone();
+    // Structure that a candidate fitted but its family check did not confirm ([`family`]).
+    let mut downgraded: Vec<Unexplained> = Vec::new();
+    let level = opts.alpha / m_candidates;
     let ctx = SearchCtx { prep: &prep, model, opts, m_candidates };
     // Candidates the held-out blocks did not confirm wait until the model changes.
     let mut on_hold: Vec<EffectId> = Vec::new();
     // Each round accepts an effect or puts one on hold: the bound is never reached first.
-    for _round in 0..(opts.max_effects + 1) * (EffectId::ALL.len() + 1) {
-        if findings.len() >= opts.max_effects {
-            break;
-        }
-        let (best, tried) = search(
-            &ctx,
-            &candidates,
-            &proj,
-            &design,
-            &y,
-            &r,
-            &noise,
-            &mut column_cache,
-            &mut thresholds,
-        );
-        let Some((_, mut f, Fitted { mut p, mut cols, test: mut t })) = best else {
-            rejected.extend(tried);
-            break;
-        };
-        let hz = if f.effect == EffectId::EarthRate {
-            f64::INFINITY
-        } else {
-            holdout_z(&design, &cols, &y, &prep.bins, &noise, opts.holdout_block_s)
-        };
-        f.holdout_z = hz;
-        candidates.retain(|&c| c != f.effect);
-        let mut partner: Option<(Finding, Fitted)> = None;
-        if hz <= HOLDOUT_Z {
-            // Another missing effect may be what spoils the held-out blocks (a warm-up judged
-            // against blocks that also hold an unmodelled later step): fit the best partner
-            // with this one in the model and take both when the held-out blocks confirm each
-            // with the other in.
-            if f.effect != EffectId::EarthRate && findings.len() + 2 <= opts.max_effects {
-                let mut d2 = design.clone();
-                d2.extend(cols.iter().cloned());
-                let proj2 = Projector::new(&d2, &all)?;
-                let r2 = proj2.residual(&y, n);
-                let others: Vec<EffectId> = candidates
-                    .iter()
-                    .chain(&on_hold)
-                    .copied()
-                    .filter(|&c| c != EffectId::EarthRate)
-                    .collect();
-                let (best2, _) = search(
-                    &ctx,
-                    &others,
-                    &proj2,
-                    &d2,
-                    &y,
-                    &r2,
-                    &noise,
-                    &mut column_cache,
-                    &mut thresholds,
-                );
-                if let Some((_, mut f2, mut fitted2)) = best2 {
-                    // The two grid values fitted in turn, each with the other in the model.
-                    let mut top = Fitted { p, cols: cols.clone(), test: t.clone() };
-                    let mut d3 = design.clone();
-                    for _ in 0..2 {
-                        d3 = design.clone();
-                        d3.extend(fitted2.cols.iter().cloned());
-                        let p3 = Projector::new(&d3, &all)?;
-                        if let Some(g1) =
-                            refit_grid(&prep, f.effect, &p3, &y, &noise, model, &column_cache)
-                        {
-                            top = g1;
-                        }
-                        let mut d4 = design.clone();
-                        d4.extend(top.cols.iter().cloned());
-                        let p4 = Projector::new(&d4, &all)?;
-                        if let Some(g2) =
-                            refit_grid(&prep, f2.effect, &p4, &y, &noise, model, &column_cache)
-                        {
-                            fitted2 = g2;
-                        }
-                    }
-                    let mut d2 = design.clone();
-                    d2.extend(top.cols.iter().cloned());
-                    let block = opts.holdout_block_s;
-                    let hz1 = holdout_z(&d3, &top.cols, &y, &prep.bins, &noise, block);
-                    let hz2 = holdout_z(&d2, &fitted2.cols, &y, &prep.bins, &noise, block);
-                    if hz1 > HOLDOUT_Z && hz2 > HOLDOUT_Z {
-                        f.holdout_z = hz1;
-                        f2.holdout_z = hz2;
-                        f2.accepted = true;
-                        candidates.retain(|&c| c != f2.effect);
-                        on_hold.retain(|&c| c != f2.effect);
-                        (p, cols, t) = (top.p, top.cols, top.test);
-                        partner = Some((f2, fitted2));
-                    }
-                }
+    // The search, then the family check of every accepted effect in the final model; an effect
+    // that fails becomes nuisance structure and the search runs again around it.
+    for _pass in 0..3 {
+        for _round in 0..(opts.max_effects + 1) * (EffectId::ALL.len() + 1) {
+            if findings.len() >= opts.max_effects {
+                break;
             }
-            if partner.is_none() {
-                f.rejected_because =
-                    Some(format!("held-out blocks do not confirm it (z = {hz:.1})"));
-                on_hold.push(f.effect);
-                rejected.push(f);
+            let (best, tried) = search(
+                &ctx,
+                &candidates,
+                &proj,
+                &design,
+                &y,
+                &r,
+                &noise,
+                &mut column_cache,
+                &mut thresholds,
+            );
+            let Some((_, mut f, Fitted { mut p, mut cols, test: mut t })) = best else {
                 rejected.extend(tried);
-                continue;
-            }
-        }
-        candidates.append(&mut on_hold);
-        f.accepted = true;
-        let f_id = f.effect;
-        findings.push(f);
-        rejected
-            .extend(tried.into_iter().filter(|t| !findings.iter().any(|a| a.effect == t.effect)));
-        if f_id == EffectId::EarthRate {
-            // A constant the bias column spans: move it into the prediction (through the
-            // scale factor) rather than the design, so the bias correction is re-estimated.
-            let scale = 1.0 + model.scale_factor_error;
-            for v in &mut y {
-                *v -= scale * prep.earth;
-            }
-            if let Some(input) = base_design.get_mut(1) {
-                for v in input.iter_mut() {
-                    *v += prep.earth;
-                }
-            }
-            earth_found = true;
-        } else {
-            accepted_cols.push((f_id, p, cols, t));
-        }
-        if let Some((f2, fitted2)) = partner {
-            accepted_cols.push((f2.effect, fitted2.p, fitted2.cols, fitted2.test));
-            findings.push(f2);
-        }
-        // Stepwise: with the newcomer in, each earlier effect's grid value is fitted again and
-        // an effect the others now explain is dropped.
-        if accepted_cols.len() >= 2 || (earth_found && !accepted_cols.is_empty()) {
-            let mut i = 0;
-            while i < accepted_cols.len() {
-                let others: Vec<Vec<f64>> = base_design
-                    .iter()
-                    .cloned()
-                    .chain(
-                        accepted_cols
-                            .iter()
-                            .enumerate()
-                            .filter(|(j, _)| *j != i)
-                            .flat_map(|(_, a)| a.2.iter().cloned()),
-                    )
-                    .collect();
-                let proj_o = Projector::new(&others, &all)?;
-                let id = accepted_cols[i].0;
-                if let Some(fitted) =
-                    refit_grid(&prep, id, &proj_o, &y, &noise, model, &column_cache)
-                {
-                    accepted_cols[i].1 = fitted.p;
-                    accepted_cols[i].2 = fitted.cols;
-                }
-                let thr = thresholds.get(&id).copied().unwrap_or(0.0);
-                match proj_o.test(&accepted_cols[i].2, &y, &noise) {
-                    Some(t) if t.wald > thr => {
-                        accepted_cols[i].3 = t;
-                        i += 1;
+                break;
+            };
+            let hz = if f.effect == EffectId::EarthRate {
+                f64::INFINITY
+            } else {
+                holdout_z(&design, &cols, &y, &prep.bins, &noise, opts.holdout_block_s)
+            };
+            f.holdout_z = hz;
+            candidates.retain(|&c| c != f.effect);
+            let mut partner: Option<(Finding, Fitted)> = None;
+            if hz <= HOLDOUT_Z {
+                // Another missing effect may be what spoils the held-out blocks (a warm-up judged
+                // against blocks that also hold an unmodelled later step): fit the best partner
+                // with this one in the model and take both when the held-out blocks confirm each
+                // with the other in.
+                if f.effect != EffectId::EarthRate && findings.len() + 2 <= opts.max_effects {
+                    let mut d2 = design.clone();
+                    d2.extend(cols.iter().cloned());
+                    let proj2 = Projector::new(&d2, &all)?;
+                    let r2 = proj2.residual(&y, n);
+                    let others: Vec<EffectId> = candidates
+                        .iter()
+                        .chain(&on_hold)
+                        .copied()
+                        .filter(|&c| c != EffectId::EarthRate)
+                        .collect();
+                    let (best2, _) = search(
+                        &ctx,
+                        &others,
+                        &proj2,
+                        &d2,
+                        &y,
+                        &r2,
+                        &noise,
+                        &mut column_cache,
+                        &mut thresholds,
+                    );
+                    if let Some((_, mut f2, mut fitted2)) = best2 {
+                        // The two grid values fitted in turn, each with the other in the model.
+                        let mut top = Fitted { p, cols: cols.clone(), test: t.clone() };
+                        let mut d3 = design.clone();
+                        for _ in 0..2 {
+                            d3 = design.clone();
+                            d3.extend(fitted2.cols.iter().cloned());
+                            let p3 = Projector::new(&d3, &all)?;
+                            if let Some(g1) =
+                                refit_grid(&prep, f.effect, &p3, &y, &noise, model, &column_cache)
+                            {
+                                top = g1;
+                            }
+                            let mut d4 = design.clone();
+                            d4.extend(top.cols.iter().cloned());
+                            let p4 = Projector::new(&d4, &all)?;
+                            if let Some(g2) =
+                                refit_grid(&prep, f2.effect, &p4, &y, &noise, model, &column_cache)
+                            {
+                                fitted2 = g2;
+                            }
+                        }
+                        let mut d2 = design.clone();
+                        d2.extend(top.cols.iter().cloned());
+                        let block = opts.holdout_block_s;
+                        let hz1 = holdout_z(&d3, &top.cols, &y, &prep.bins, &noise, block);
+                        let hz2 = holdout_z(&d2, &fitted2.cols, &y, &prep.bins, &noise, block);
+                        if hz1 > HOLDOUT_Z && hz2 > HOLDOUT_Z {
+                            f.holdout_z = hz1;
+                            f2.holdout_z = hz2;
+                            f2.accepted = true;
+                            candidates.retain(|&c| c != f2.effect);
+                            on_hold.retain(|&c| c != f2.effect);
+                            (p, cols, t) = (top.p, top.cols, top.test);
+                            partner = Some((f2, fitted2));
+                        }
                     }
-                    t => {
-                        accepted_cols.remove(i);
-                        if let Some(pos) = findings.iter().position(|f| f.effect == id) {
-                            let mut dropped = findings.remove(pos);
-                            dropped.accepted = false;
-                            let w = t.map_or(0.0, |t| t.wald);
-                            dropped.rejected_because = Some(format!(
+                }
+                if partner.is_none() {
+                    f.rejected_because =
+                        Some(format!("held-out blocks do not confirm it (z = {hz:.1})"));
+                    on_hold.push(f.effect);
+                    rejected.push(f);
+                    rejected.extend(tried);
+                    continue;
+                }
+            }
+            candidates.append(&mut on_hold);
+            f.accepted = true;
+            let f_id = f.effect;
+
+            findings.push(f);
+            rejected.extend(
+                tried.into_iter().filter(|t| !findings.iter().any(|a| a.effect == t.effect)),
+            );
+            if f_id == EffectId::EarthRate {
+                // A constant the bias column spans: move it into the prediction (through the
+                // scale factor) rather than the design, so the bias correction is re-estimated.
+                let scale = 1.0 + model.scale_factor_error;
+                for v in &mut y {
+                    *v -= scale * prep.earth;
+                }
+                if let Some(input) = base_design.get_mut(1) {
+                    for v in input.iter_mut() {
+                        *v += prep.earth;
+                    }
+                }
+                earth_found = true;
+            } else {
+                accepted_cols.push((f_id, p, cols, t));
+            }
+            if let Some((f2, fitted2)) = partner {
+                accepted_cols.push((f2.effect, fitted2.p, fitted2.cols, fitted2.test));
+                findings.push(f2);
+            }
+            // Stepwise: with the newcomer in, each earlier effect's grid value is fitted again and
+            // an effect the others now explain is dropped.
+            if accepted_cols.len() >= 2 || (earth_found && !accepted_cols.is_empty()) {
+                let mut i = 0;
+                while i < accepted_cols.len() {
+                    let others: Vec<Vec<f64>> = base_design
+                        .iter()
+                        .cloned()
+                        .chain(
+                            accepted_cols
+                                .iter()
+                                .enumerate()
+                                .filter(|(j, _)| *j != i)
+                                .flat_map(|(_, a)| a.2.iter().cloned()),
+                        )
+                        .collect();
+                    let proj_o = Projector::new(&others, &all)?;
+                    let id = accepted_cols[i].0;
+                    if let Some(fitted) =
+                        refit_grid(&prep, id, &proj_o, &y, &noise, model, &column_cache)
+                    {
+                        accepted_cols[i].1 = fitted.p;
+                        accepted_cols[i].2 = fitted.cols;
+                    }
+                    let thr = thresholds.get(&id).copied().unwrap_or(0.0);
+                    match proj_o.test(&accepted_cols[i].2, &y, &noise) {
+                        Some(t) if t.wald > thr => {
+                            accepted_cols[i].3 = t;
+                            i += 1;
+                        }
+                        t => {
+                            accepted_cols.remove(i);
+                            if let Some(pos) = findings.iter().position(|f| f.effect == id) {
+                                let mut dropped = findings.remove(pos);
+                                dropped.accepted = false;
+                                let w = t.map_or(0.0, |t| t.wald);
+                                dropped.rejected_because = Some(format!(
                                 "explained by {} once that is in the model (Wald {w:.1} ≤ {thr:.1})",
                                 f_id.key()
                             ));
-                            rejected.push(dropped);
+                                rejected.push(dropped);
+                            }
                         }
                     }
                 }
             }
+            design = base_design.clone();
+            for a in &accepted_cols {
+                design.extend(a.2.iter().cloned());
+            }
+            proj = Projector::new(&design, &all)?;
+            r = proj.residual(&y, n);
         }
+        let ids: Vec<EffectId> = accepted_cols.iter().map(|a| a.0).collect();
+        let mut state = FamilyState {
+            accepted: &mut accepted_cols,
+            base_design: &mut base_design,
+            findings: &mut findings,
+            rejected: &mut rejected,
+            downgraded: &mut downgraded,
+            thresholds: &thresholds,
+        };
+        let changed = check_families(&prep, model, &ids, &mut state, &y, &noise, level);
         design = base_design.clone();
         for a in &accepted_cols {
             design.extend(a.2.iter().cloned());
         }
         proj = Projector::new(&design, &all)?;
         r = proj.residual(&y, n);
+        if !changed {
+            break;
+        }
     }
     // Keep, per effect, the last rejection only.
     let mut seen = std::collections::BTreeSet::new();
@@ -1115,7 +1183,7 @@ pub fn diagnose(
     // Effects' final coefficients (refitted jointly) into the findings and the model.
     let mut new_effects = *effects;
     new_effects.earth_rate |= earth_found;
-    let mut col = prep.base.len();
+    let mut col = base_design.len();
     let mut contributions = Vec::new();
     for (id, p, cols, _) in &accepted_cols {
         let k = cols.len();
@@ -1169,7 +1237,38 @@ pub fn diagnose(
         .sum();
     let bic_after = r.iter().map(|x| x * x).sum::<f64>() / sig2
         + (proj.kept.len() + q_total) as f64 * n_eff.ln();
-    let unexplained = unexplained(&prep, &r, &noise, opts);
+    // Identifiability of every effect against the final model's terms ([`identify`]).
+    let mut terms: Vec<identify::Term> = base_keys
+        .iter()
+        .enumerate()
+        .map(|(j, k)| identify::Term { name: k.key().to_string(), cols: vec![j] })
+        .collect();
+    let mut at = base_design.len();
+    for (id, _, cols, _) in &accepted_cols {
+        terms.push(identify::Term {
+            name: id.key().to_string(),
+            cols: (at..at + cols.len()).collect(),
+        });
+        at += cols.len();
+    }
+    let effect_cols: Vec<(EffectId, bool, Vec<Vec<f64>>)> = tested_ids
+        .iter()
+        .filter(|&&id| id != EffectId::EarthRate)
+        .filter_map(|&id| {
+            if let Some(a) = accepted_cols.iter().find(|a| a.0 == id) {
+                return Some((id, true, a.2.clone()));
+            }
+            let cols = match refit_grid(&prep, id, &proj, &y, &noise, model, &column_cache) {
+                Some(f) => f.cols,
+                None if grid(&prep, id).len() == 1 => candidate_columns(&prep, id, f64::NAN, model),
+                None => return None,
+            };
+            Some((id, false, cols))
+        })
+        .collect();
+    let identifiability = identify::collinear_pairs(&design, &terms, &effect_cols, &y, &noise);
+    let mut unexplained = unexplained(&prep, &r, &noise, opts);
+    unexplained.splice(0..0, downgraded);
     let verdict = if !findings.is_empty() || !unexplained.is_empty() {
         Verdict::MissingPhysics
     } else if wald_params > thr_params {
@@ -1211,7 +1310,139 @@ pub fn diagnose(
         model: updated,
         effects: new_effects,
         series,
+        identifiability,
     })
+}
+
+/// What [`check_families`] updates.
+struct FamilyState<'a> {
+    accepted: &'a mut Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)>,
+    base_design: &'a mut Vec<Vec<f64>>,
+    findings: &'a mut Vec<Finding>,
+    rejected: &'a mut Vec<Finding>,
+    downgraded: &'a mut Vec<Unexplained>,
+    thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
+}
+
+/// The family check ([`family`]) of each accepted effect in `ids` against the rest of the
+/// model: its result goes into the finding; an effect that fails leaves the findings for the
+/// rejected, becomes [`Unexplained`] structure, and its columns with the significant members'
+/// stay in the design as nuisance terms. Returns whether any effect failed.
+fn check_families(
+    prep: &Prepared,
+    model: &GyroModel,
+    ids: &[EffectId],
+    st: &mut FamilyState<'_>,
+    y: &[f64],
+    noise: &BinNoise,
+    level: f64,
+) -> bool {
+    let n = prep.bins.len();
+    let all: Vec<usize> = (0..n).collect();
+    let mut changed = false;
+    for &id in ids {
+        let Some(i) = st.accepted.iter().position(|a| a.0 == id) else { continue };
+        let others: Vec<Vec<f64>> = st
+            .base_design
+            .iter()
+            .cloned()
+            .chain(
+                st.accepted
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .flat_map(|(_, a)| a.2.iter().cloned()),
+            )
+            .collect();
+        let (p, cols) = (st.accepted[i].1, st.accepted[i].2.clone());
+        // Structure found to be unexplained since may hold this effect's part too.
+        let thr = st.thresholds.get(&id).copied().unwrap_or(0.0);
+        let still = Projector::new(&others, &all).ok().and_then(|po| po.test(&cols, y, noise));
+        if still.as_ref().is_none_or(|t| t.wald <= thr) {
+            changed = true;
+            st.accepted.remove(i);
+            if let Some(pos) = st.findings.iter().position(|f| f.effect == id) {
+                let mut f = st.findings.remove(pos);
+                f.accepted = false;
+                let w = still.map_or(0.0, |t| t.wald);
+                f.rejected_because = Some(format!(
+                    "explained by the unexplained structure once that is in the model \
+                     (Wald {w:.1} ≤ {thr:.1})"
+                ));
+                st.rejected.push(f);
+            }
+            continue;
+        }
+        let Some(g) =
+            family::gate(prep, id, p, &cols, &others, st.base_design, y, noise, level, model)
+        else {
+            continue;
+        };
+        let k = match id {
+            EffectId::OncePerRevolution => Some(1.0),
+            EffectId::AngleHarmonic | EffectId::RateRipple => Some(p),
+            _ => None,
+        };
+        let rd = k.and_then(|k| family::rate_dependence(prep, k, &others, y, noise, level));
+        let Some(pos) = st.findings.iter().position(|f| f.effect == id) else { continue };
+        st.findings[pos].family = Some(g.check.clone());
+        st.findings[pos].rate_dependence = rd;
+        if g.check.passed {
+            continue;
+        }
+        changed = true;
+        st.accepted.remove(i);
+        let mut f = st.findings.remove(pos);
+        f.accepted = false;
+        f.rejected_because = Some(format!("not named: {}", g.check.reason()));
+        // What the effect and its significant relatives hold together, as unexplained.
+        let mut design = others.clone();
+        design.extend(cols.iter().cloned());
+        for m in &g.nuisance {
+            design.extend(m.cols.iter().cloned());
+        }
+        // Fitted values are stable where a split of coefficients between near-collinear
+        // columns is not: the contribution is what the extra columns add to the fit.
+        let fitted_gain = |d: &[Vec<f64>]| Projector::new(d, &all).map(|pd| pd.residual(y, n));
+        let contribution = match (fitted_gain(&others), fitted_gain(&design)) {
+            (Ok(r_o), Ok(r_d)) => r_o.iter().zip(&r_d).map(|(a, b)| a - b).collect(),
+            _ => vec![0.0; n],
+        };
+        let effect_size = f
+            .parameters
+            .iter()
+            .find(|q| q.unit == "rad/s")
+            .map_or(String::new(), |q| format!(" of {:.2e} rad/s", q.value));
+        let correlates_with = match &g.check.strongest {
+            Some(m) if m.wald > m.threshold => format!(
+                "{}, {:.2e} rad/s (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
+                m.name,
+                m.size_rad_s,
+                m.wald,
+                m.threshold,
+                id.key()
+            ),
+            Some(m) => format!(
+                "a {}-like term{effect_size} whose size moves {:.1}σ when {} is freed",
+                id.key(),
+                g.check.size_change_z,
+                m.name
+            ),
+            None => format!("a {}-like term{effect_size}", id.key()),
+        };
+        let sel: Vec<f64> = contribution.iter().copied().filter(|v| *v != 0.0).collect();
+        st.downgraded.push(Unexplained {
+            windows_s: windows_of(&prep.bins, &contribution),
+            correlates_with,
+            rms: rms(&sel),
+        });
+        st.base_design.extend(cols);
+        for m in g.nuisance {
+            st.base_design.extend(m.cols);
+        }
+        st.rejected.push(f);
+    }
+    changed
 }
 
 /// What a candidate search needs that does not change between rounds.
@@ -1307,6 +1538,8 @@ fn search(
             windows_s: windows_of(&ctx.prep.bins, &contribution),
             accepted: false,
             rejected_because: None,
+            family: None,
+            rate_dependence: None,
         };
         if id == EffectId::EarthRate {
             // Consistency with Earth's rate is part of its test.
@@ -1413,7 +1646,20 @@ fn effect_parameters(
         EffectId::TemperatureQuadratic => vec![lin("coeff_rad_s_per_c2", "rad/s/°C²", 0)],
         EffectId::ScaleFactorTemperature => vec![lin("coeff_per_c", "1/°C", 0)],
         EffectId::ThermalHysteresis => vec![lin("half_width_rad_s", "rad/s", 0)],
-        EffectId::OncePerRevolution => amplitude_phase(t),
+        EffectId::OncePerRevolution => {
+            let mut v = amplitude_phase(t);
+            v.insert(
+                1,
+                EffectParameter { name: "cycles_per_rev", value: 1.0, sigma: 0.0, unit: "1" },
+            );
+            v
+        }
+        EffectId::AngleHarmonic => {
+            let mut v = amplitude_phase(t);
+            let sigma = if profile.len() > 1 { grid_sigma() } else { 0.0 };
+            v.insert(1, EffectParameter { name: "cycles_per_rev", value: p, sigma, unit: "1" });
+            v
+        }
         EffectId::RateRipple => {
             let mut v = amplitude_phase(t);
             v[0].name = "relative_amplitude";
@@ -1519,6 +1765,10 @@ fn apply_effect(e: &mut Effects, id: EffectId, p: f64, th: &[(f64, f64)], model:
         EffectId::RateRipple => {
             e.rate_ripple =
                 Some(RateRipple { relative_amplitude: amp, cycles_per_rev: p, phase_rad: phase })
+        }
+        EffectId::AngleHarmonic => {
+            e.angle_harmonic =
+                Some(AngleHarmonic { amplitude_rad_s: amp, cycles_per_rev: p, phase_rad: phase })
         }
     }
 }

@@ -43,6 +43,54 @@ pub struct DiagnoseArgs {
     pub quiet: bool,
 }
 
+/// The family check and rate dependence of each finding, the effects not named for their
+/// family's sake, and the verdict's identifiability caveats.
+fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
+    for f in &d.findings {
+        let Some(c) = &f.family else { continue };
+        let strongest = c.strongest.as_ref().map_or(String::new(), |m| {
+            format!("; strongest: {} (Wald {:.1}, threshold {:.1})", m.name, m.wald, m.threshold)
+        });
+        println!(
+            "  {} family check ({}, {} members): {}{strongest}; size moves {:.1}σ when it is freed",
+            f.effect.key(),
+            c.family,
+            c.members,
+            if c.passed { "passed" } else { "FAILED — not named" },
+            c.size_change_z
+        );
+        if let Some(r) = &f.rate_dependence {
+            println!(
+                "  {} at {} cycles/rev belongs to the {}: rate-independent Wald {:.1}, \
+                 ∝ table rate Wald {:.1} (threshold {:.1}, each with the other in)",
+                f.effect.key(),
+                r.cycles_per_rev,
+                match r.verdict() {
+                    "gyro" => "gyro",
+                    "table" => "table's rate ripple",
+                    "both" => "gyro and the table's rate ripple both",
+                    _ => "gyro or the table: this run cannot tell",
+                },
+                r.gyro_wald,
+                r.ripple_wald,
+                r.threshold
+            );
+        }
+    }
+    for c in d.identifiability.iter().filter(|c| c.effect_accepted) {
+        println!(
+            "  {} and {} are nearly collinear on this recording (ρ = {:.3}, σ ×{:.1})",
+            c.effect.key(),
+            c.with,
+            c.rho,
+            c.sigma_inflation
+        );
+    }
+    for c in d.verdict_caveats() {
+        println!("caveat: {c}");
+    }
+}
+
 /// Diagnose and write the outputs. Exit code 0 for `consistent`, 6 for `parameters_only`,
 /// 7 for `missing_physics` ([`Exit`]).
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
@@ -87,6 +135,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
             f.effect.description()
         );
     }
+    print_checks(d);
     for u in &d.unexplained {
         println!(
             "unexplained: {} window(s), RMS {:.3e} °/h, correlates with {}",

@@ -801,6 +801,7 @@ warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900 }
 bias_step = { time_s = 100, step_rad_s = 1e-6 }
 periodic_bias = { amplitude_rad_s = 3e-8, period_s = 1200, phase_rad = -1 }
 rate_ripple = { relative_amplitude = 1e-5, cycles_per_rev = 16, phase_rad = 0 }
+angle_harmonic = { amplitude_rad_s = 6e-8, cycles_per_rev = 2, phase_rad = -0.4 }
 [simulation.truth.effects.rate_squared]
 coeff_s_per_rad = 2e-3
 [[step]]
@@ -835,6 +836,11 @@ wait = "1 s"
             relative_amplitude: 1e-5,
             cycles_per_rev: 16.0,
             phase_rad: 0.0,
+        }),
+        angle_harmonic: Some(bench_physics::effects::AngleHarmonic {
+            amplitude_rad_s: 6e-8,
+            cycles_per_rev: 2.0,
+            phase_rad: -0.4,
         }),
     };
     assert_eq!(p.sim.truth_effects, truth);
@@ -878,7 +884,7 @@ fn effect_errors_are_located() {
         ),
         "{e}"
     );
-    assert!(e.ends_with("`rate_squared`, `periodic_bias`, `rate_ripple`"), "{e}");
+    assert!(e.ends_with("`periodic_bias`, `rate_ripple`, `angle_harmonic`"), "{e}");
     // An unknown parameter and the missing one are both reported.
     let e = errs(&with_head(&format!(
         "{head}warm_up = {{ amplitude_rad_s = 1e-7, tau_s = 9 }}\n{step}"

@@ -40,8 +40,35 @@ fn finding(f: &Finding) -> Value {
             "windows_s": windows(&f.windows_s),
         },
     });
-    if let (Some(why), Some(o)) = (&f.rejected_because, v.as_object_mut()) {
+    let Some(o) = v.as_object_mut() else { return v };
+    if let Some(why) = &f.rejected_because {
         o.insert("rejected_because".into(), json!(why));
+    }
+    if let Some(c) = &f.family {
+        o.insert(
+            "family_check".into(),
+            json!({
+                "family": c.family,
+                "members": c.members,
+                "passed": c.passed,
+                "size_change_z": num(c.size_change_z),
+                "strongest": c.strongest.as_ref().map(|m| json!({
+                    "name": m.name, "wald": num(m.wald), "threshold": num(m.threshold),
+                    "size_rad_s": num(m.size_rad_s)})),
+            }),
+        );
+    }
+    if let Some(r) = &f.rate_dependence {
+        o.insert(
+            "rate_dependence".into(),
+            json!({
+                "cycles_per_rev": num(r.cycles_per_rev),
+                "belongs_to": r.verdict(),
+                "gyro_wald": num(r.gyro_wald),
+                "ripple_wald": num(r.ripple_wald),
+                "threshold": num(r.threshold),
+            }),
+        );
     }
     v
 }
@@ -71,6 +98,16 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
         "recording": recording,
         "nominal_model": o.nominal.2,
         "verdict": d.verdict.key(),
+        "verdict_caveats": d.verdict_caveats(),
+        "identifiability": d.identifiability.iter().map(|c| json!({
+            "effect": c.effect.key(),
+            "effect_in_model": c.effect_accepted,
+            "with": c.with,
+            "rho": num(c.rho),
+            "sigma_inflation": num(c.sigma_inflation),
+            "bound": {"parameter": c.parameter, "value": num(c.bound), "unit": c.unit,
+                      "confidence": 0.95},
+        })).collect::<Vec<_>>(),
         "parameter_updates": updates,
         "parameters_wald": {"value": num(d.parameters_wald.0), "threshold": num(d.parameters_wald.1)},
         "findings": d.findings.iter().filter(|f| f.accepted).map(finding).collect::<Vec<_>>(),

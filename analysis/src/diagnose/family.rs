@@ -1,0 +1,485 @@
+//! The residual check of an accepted effect: is what it leaves free of structure of its own
+//! kind, and does its fitted size hold when that kind is freed?
+//!
+//! A term that fits well is not yet the right term: over 120° arcs `sin θ` takes up most of a
+//! `sin 2θ`, and a sinusoid takes up a sawtooth's fundamental. Each effect therefore has a
+//! **family** of near relatives ([`members`]):
+//!
+//! | accepted | family |
+//! | --- | --- |
+//! | `once_per_revolution`, `angle_harmonic` k | the other angle harmonics 1..K, and the table's rate ripple at k (∝ rate) |
+//! | `rate_ripple` N | the gyro's angle harmonic at N (independent of rate), ripple at N ± 1, 2N |
+//! | `periodic_bias` P | periods P/2 … P/16 (down to four bins: a shape that is not a sinusoid) and 2P |
+//! | `warm_up` τ | decays with τ/3 and 3τ, a linear drift |
+//! | `bias_step` t_s | a second step (every grid instant), a ramp from t_s |
+//! | temperature terms | (T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating only, (T − T0)·Ω, the lag at τ/2 and 2τ |
+//! | `rate_squared`, `scale_factor_temperature` | \|Ω\|, Ω·(T − T0)² |
+//! | `time_offset` | \|dΩ/dt\| (a bias at rate changes), dΩ/dt by direction |
+//!
+//! With the effect in the model each member is tested (Wald, noise model) at the effect's
+//! share of the family-wise α, Bonferroni over the members; then the strongest member is freed
+//! and the effect refitted: its size must not move by more than 3σ. An effect failing either
+//! is not named: it is reported as unexplained structure, with the member that shows what the
+//! effect does not explain, and its columns and the significant members stay in the design as
+//! nuisance terms so that no other effect is named for what they hold.
+
+use bench_physics::allan::chi2_quantile;
+use bench_physics::effects::EffectId;
+use bench_physics::GyroModel;
+
+use super::fit::{Projector, TermTest};
+use super::noise::BinNoise;
+use super::series::bin_mean;
+use super::{candidate_columns, grid, Prepared};
+
+/// Most harmonics of a periodic bias's period in its family.
+const PERIODIC_HARMONICS: u32 = 16;
+
+/// Most family members kept as nuisance terms for an effect that fails its check.
+const NUISANCE_MAX: usize = 16;
+
+/// Size change (in σ of the freed fit) above which an effect's size is not stable.
+pub const SIZE_CHANGE_Z: f64 = 3.0;
+
+/// A near relative of an effect, as regressors.
+#[derive(Debug, Clone)]
+pub(super) struct Member {
+    /// What it is, precisely ("table angle, 2 cycles/rev").
+    pub name: String,
+    /// Its columns (bin means); two for a sinusoid (sin, cos).
+    pub cols: Vec<Vec<f64>>,
+}
+
+/// A member of the family found in the residual.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FamilyMember {
+    /// What it is ("table angle, 2 cycles/rev").
+    pub name: String,
+    /// Wald statistic with the effect in the model.
+    pub wald: f64,
+    /// The threshold it had to stay below.
+    pub threshold: f64,
+    /// Its fitted size: a sinusoid's amplitude, else the RMS of its contribution, rad/s.
+    pub size_rad_s: f64,
+}
+
+/// The residual check of one effect ([module docs](self)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FamilyCheck {
+    /// What the family is, in words.
+    pub family: String,
+    /// Members tested.
+    pub members: usize,
+    /// The strongest member (largest Wald over its threshold), if any was testable.
+    pub strongest: Option<FamilyMember>,
+    /// Change of the effect's fitted size when the strongest member is freed, in σ.
+    pub size_change_z: f64,
+    /// Whether the effect passes: no member significant and its size stable.
+    pub passed: bool,
+}
+
+impl FamilyCheck {
+    /// Why the effect was not named, for people (only meaningful when it failed).
+    pub fn reason(&self) -> String {
+        match &self.strongest {
+            Some(m) if m.wald > m.threshold => format!(
+                "its residual still holds {} ({:.2e} rad/s, Wald {:.1} > {:.1})",
+                m.name, m.size_rad_s, m.wald, m.threshold
+            ),
+            Some(m) => {
+                format!("its size moves by {:.1}σ when {} is freed", self.size_change_z, m.name)
+            }
+            None => "its family could not be tested".into(),
+        }
+    }
+}
+
+/// How a per-revolution term depends on the table's rate: the gyro's (independent of rate) or
+/// the table's rate ripple (∝ rate), each tested with the other in the model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateDependence {
+    /// Cycles per revolution.
+    pub cycles_per_rev: f64,
+    /// Wald of the rate-independent (gyro) term with the ripple in the model.
+    pub gyro_wald: f64,
+    /// Wald of the rate-proportional (ripple) term with the gyro term in the model.
+    pub ripple_wald: f64,
+    /// χ²₂ threshold both are judged against.
+    pub threshold: f64,
+}
+
+impl RateDependence {
+    /// `gyro`, `table`, `both` or `undecided`.
+    pub fn verdict(&self) -> &'static str {
+        match (self.gyro_wald > self.threshold, self.ripple_wald > self.threshold) {
+            (true, false) => "gyro",
+            (false, true) => "table",
+            (true, true) => "both",
+            (false, false) => "undecided",
+        }
+    }
+}
+
+/// Most angle harmonics searched: a bin must not average a harmonic away (its angle span at
+/// most a quarter of the harmonic's period: attenuation ≤ 10 %), and never beyond 64.
+pub(super) fn harmonic_max(prep: &Prepared) -> u32 {
+    let span = prep
+        .bins
+        .iter()
+        .filter(|b| !b.transition && b.table_rate_rad_s.abs() > 1e-6)
+        .map(|b| b.table_rate_rad_s.abs() * b.span_s())
+        .fold(0.0f64, f64::max);
+    if span <= 0.0 {
+        return 1;
+    }
+    let k = (std::f64::consts::FRAC_PI_2 / span).floor();
+    k.clamp(1.0, 64.0) as u32
+}
+
+fn sin_cos(prep: &Prepared, k: f64) -> Vec<Vec<f64>> {
+    let nat = &prep.native;
+    let s = bin_mean(&prep.bins, &nat.dt, |i| (k * nat.angle_mid_rad[i]).sin());
+    let c = bin_mean(&prep.bins, &nat.dt, |i| (k * nat.angle_mid_rad[i]).cos());
+    vec![s, c]
+}
+
+fn ripple(prep: &Prepared, k: f64) -> Vec<Vec<f64>> {
+    let nat = &prep.native;
+    let (tr, th, axis) = (&nat.table_rate_rad_s, &nat.angle_mid_rad, prep.axis);
+    let s = bin_mean(&prep.bins, &nat.dt, |i| axis * tr[i] * (k * th[i]).sin());
+    let c = bin_mean(&prep.bins, &nat.dt, |i| axis * tr[i] * (k * th[i]).cos());
+    vec![s, c]
+}
+
+fn periodic(prep: &Prepared, period_s: f64) -> Vec<Vec<f64>> {
+    let nat = &prep.native;
+    let w = std::f64::consts::TAU / period_s;
+    let s = bin_mean(&prep.bins, &nat.dt, |i| (w * nat.t[i]).sin());
+    let c = bin_mean(&prep.bins, &nat.dt, |i| (w * nat.t[i]).cos());
+    vec![s, c]
+}
+
+fn one(prep: &Prepared, f: impl Fn(usize) -> f64) -> Vec<Vec<f64>> {
+    vec![bin_mean(&prep.bins, &prep.native.dt, f)]
+}
+
+/// The family of effect `id` at grid value `p` ([module docs](self)): its description and
+/// members.
+pub(super) fn members(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    model: &GyroModel,
+) -> (String, Vec<Member>) {
+    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols };
+    let nat = &prep.native;
+    let t0 = prep.t0;
+    let dtemp = |i: usize| prep.temp[i] - t0;
+    let input = |i: usize| prep.axis * nat.table_rate_rad_s[i] + prep.earth_in;
+    match id {
+        EffectId::OncePerRevolution | EffectId::AngleHarmonic => {
+            let k = if id == EffectId::OncePerRevolution { 1.0 } else { p };
+            let kmax = harmonic_max(prep);
+            let mut v: Vec<Member> = (1..=kmax)
+                .map(f64::from)
+                .filter(|&j| j != k)
+                .map(|j| m(format!("table angle, {j} cycles/rev"), sin_cos(prep, j)))
+                .collect();
+            v.push(m(format!("table rate ripple, {k} cycles/rev (∝ rate)"), ripple(prep, k)));
+            (format!("angle harmonics 1..{kmax} and the table's rate ripple at {k}"), v)
+        }
+        EffectId::RateRipple => {
+            let mut v = vec![m(
+                format!("table angle, {p} cycles/rev (independent of rate)"),
+                sin_cos(prep, p),
+            )];
+            for j in [p - 1.0, p + 1.0, 2.0 * p] {
+                if j >= 1.0 {
+                    v.push(m(format!("table rate ripple, {j} cycles/rev"), ripple(prep, j)));
+                }
+            }
+            (
+                format!(
+                    "the gyro's angle harmonic at {p}, ripple at {}, {}, {}",
+                    p - 1.0,
+                    p + 1.0,
+                    2.0 * p
+                ),
+                v,
+            )
+        }
+        EffectId::PeriodicBias => {
+            // The cycle's harmonics down to four bins a period (a sawtooth has them all), and
+            // twice the period.
+            let bin_s = prep.bins.first().map_or(10.0, |b| b.span_s());
+            let hmax = ((p / (4.0 * bin_s)).floor() as u32).clamp(2, PERIODIC_HARMONICS);
+            let mut v: Vec<Member> = (2..=hmax)
+                .map(|h| {
+                    let q = p / f64::from(h);
+                    m(format!("time, period {q:.0} s (P/{h})"), periodic(prep, q))
+                })
+                .collect();
+            v.push(m(format!("time, period {:.0} s (2P)", 2.0 * p), periodic(prep, 2.0 * p)));
+            (format!("the harmonics P/2..P/{hmax} and 2P of a {p:.0} s cycle (its shape)"), v)
+        }
+        EffectId::WarmUp => {
+            let tm = nat.t.iter().sum::<f64>() / nat.t.len().max(1) as f64;
+            let v = vec![
+                m(
+                    format!("a decay with τ = {:.0} s", p / 3.0),
+                    one(prep, |i| (-nat.t[i] * 3.0 / p).exp()),
+                ),
+                m(
+                    format!("a decay with τ = {:.0} s", 3.0 * p),
+                    one(prep, |i| (-nat.t[i] / (3.0 * p)).exp()),
+                ),
+                m("a linear drift in time".into(), one(prep, |i| nat.t[i] - tm)),
+            ];
+            (format!("decays at τ/3 and 3τ of {p:.0} s, a drift"), v)
+        }
+        EffectId::BiasStep => {
+            let mut v: Vec<Member> = grid(prep, EffectId::BiasStep)
+                .into_iter()
+                .filter(|&q| (q - p).abs() > 2.0 * prep.bins.first().map_or(10.0, |b| b.span_s()))
+                .map(|q| {
+                    m(
+                        format!("a second bias step at {q:.0} s"),
+                        vec![prep
+                            .bins
+                            .iter()
+                            .map(|b| f64::from(u8::from(b.start_s >= q)))
+                            .collect()],
+                    )
+                })
+                .collect();
+            v.push(m(format!("a drift from {p:.0} s"), one(prep, |i| (nat.t[i] - p).max(0.0))));
+            ("a second step, a drift after the step".into(), v)
+        }
+        EffectId::TemperatureQuadratic
+        | EffectId::ScaleFactorTemperature
+        | EffectId::ThermalHysteresis
+        | EffectId::ThermalLag => {
+            let mut v = Vec::new();
+            for other in [
+                EffectId::TemperatureQuadratic,
+                EffectId::ScaleFactorTemperature,
+                EffectId::ThermalHysteresis,
+            ] {
+                if other != id {
+                    let name = match other {
+                        EffectId::TemperatureQuadratic => "(T − T0)²",
+                        EffectId::ScaleFactorTemperature => "(T − T0)·Ω_in (scale factor vs T)",
+                        _ => "heating vs cooling (hysteresis)",
+                    };
+                    v.push(m(name.into(), candidate_columns(prep, other, f64::NAN, model)));
+                }
+            }
+            v.push(m("(T − T0)³".into(), one(prep, |i| dtemp(i).powi(3))));
+            v.push(m("dT/dt while heating only".into(), one(prep, |i| prep.temp_rate[i].max(0.0))));
+            if id == EffectId::ThermalLag {
+                for q in [0.5 * p, 2.0 * p] {
+                    v.push(m(
+                        format!("the thermal terms through a {q:.0} s lag"),
+                        candidate_columns(prep, EffectId::ThermalLag, q, model),
+                    ));
+                }
+            }
+            ("(T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating, T·Ω".into(), v)
+        }
+        EffectId::RateSquared => {
+            let v = vec![
+                m(
+                    "|Ω_in| (linear in speed, either direction)".into(),
+                    one(prep, |i| input(i).abs()),
+                ),
+                m("Ω_in·(T − T0)²".into(), one(prep, |i| input(i) * dtemp(i).powi(2))),
+            ];
+            ("|Ω|, Ω·(T − T0)²".into(), v)
+        }
+        EffectId::TimeOffset => {
+            let bins = &prep.bins;
+            let v = vec![
+                m(
+                    "|dΩ/dt| (a bias at every rate change)".into(),
+                    vec![bins.iter().map(|b| b.table_accel_rad_s2.abs()).collect()],
+                ),
+                m(
+                    "dΩ/dt while speeding up only".into(),
+                    vec![bins
+                        .iter()
+                        .map(|b| {
+                            let speeding = b.table_accel_rad_s2 * b.table_rate_rad_s > 0.0;
+                            if speeding {
+                                b.table_accel_rad_s2
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect()],
+                ),
+            ];
+            ("|dΩ/dt|, dΩ/dt while speeding up".into(), v)
+        }
+        EffectId::EarthRate => (String::new(), Vec::new()),
+    }
+}
+
+/// Amplitude (two columns: hypot) or |θ| of a fitted term, and its σ (delta method).
+fn size(t: &TermTest) -> (f64, f64) {
+    if t.theta.len() == 2 {
+        let (a, b) = (t.theta[0], t.theta[1]);
+        let amp = a.hypot(b);
+        let var = if amp > 0.0 {
+            (a * a * t.cov[(0, 0)] + b * b * t.cov[(1, 1)] + 2.0 * a * b * t.cov[(0, 1)])
+                / (amp * amp)
+        } else {
+            t.cov[(0, 0)].max(t.cov[(1, 1)])
+        };
+        (amp, var.max(0.0).sqrt())
+    } else {
+        let a = t.theta.first().copied().unwrap_or(0.0);
+        (a.abs(), t.sigma(0))
+    }
+}
+
+/// Fitted size of a member in rad/s: a sinusoid's amplitude, else its contribution's RMS.
+fn member_size(cols: &[Vec<f64>], t: &TermTest) -> f64 {
+    let n = cols.first().map_or(0, Vec::len);
+    let c: Vec<f64> =
+        (0..n).map(|i| cols.iter().zip(&t.theta).map(|(col, th)| col[i] * th).sum()).collect();
+    let rms = (c.iter().map(|x| x * x).sum::<f64>() / n.max(1) as f64).sqrt();
+    if cols.len() == 2 {
+        std::f64::consts::SQRT_2 * rms
+    } else {
+        rms
+    }
+}
+
+/// The outcome of [`gate`]: the check, and the members to keep as nuisance terms when it
+/// failed (the significant ones, strongest first).
+pub(super) struct Gate {
+    pub check: FamilyCheck,
+    pub nuisance: Vec<Member>,
+}
+
+/// Check effect `id` (grid value `p`, columns `cols`) against its family with the rest of the
+/// model `others` (design without the effect) in; `base` is the design without any effect (the
+/// parameters and earlier nuisance terms); `level` is the effect's share of α.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn gate(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    cols: &[Vec<f64>],
+    others: &[Vec<f64>],
+    base: &[Vec<f64>],
+    y: &[f64],
+    noise: &BinNoise,
+    level: f64,
+    model: &GyroModel,
+) -> Option<Gate> {
+    let (family, members) = members(prep, id, p, model);
+    let all: Vec<usize> = (0..prep.bins.len()).collect();
+    if members.is_empty() {
+        let check =
+            FamilyCheck { family, members: 0, strongest: None, size_change_z: 0.0, passed: true };
+        return Some(Gate { check, nuisance: Vec::new() });
+    }
+    let mut with: Vec<Vec<f64>> = others.to_vec();
+    with.extend(cols.iter().cloned());
+    let p_with = Projector::new(&with, &all).ok()?;
+    let m = members.len() as f64;
+    // Each member: Wald with the effect in, its threshold at level / members.
+    let mut tested: Vec<(usize, FamilyMember)> = Vec::new();
+    for (j, mem) in members.iter().enumerate() {
+        let Some(t) = p_with.test(&mem.cols, y, noise) else { continue };
+        let thr = chi2_quantile(1.0 - level / m, mem.cols.len() as f64);
+        tested.push((
+            j,
+            FamilyMember {
+                name: mem.name.clone(),
+                wald: t.wald,
+                threshold: thr,
+                size_rad_s: member_size(&mem.cols, &t),
+            },
+        ));
+    }
+    tested.sort_by(|a, b| (b.1.wald / b.1.threshold).total_cmp(&(a.1.wald / a.1.threshold)));
+    let strongest = tested.first().cloned();
+    // Stability: the effect refitted with the strongest member freed.
+    let mut size_change_z = 0.0;
+    if let Some((j, _)) = &strongest {
+        let p_o = Projector::new(others, &all).ok()?;
+        let mut freed = others.to_vec();
+        freed.extend(members[*j].cols.iter().cloned());
+        let p_f = Projector::new(&freed, &all).ok()?;
+        if let (Some(t0), Some(tf)) = (p_o.test(cols, y, noise), p_f.test(cols, y, noise)) {
+            let (s0, _) = size(&t0);
+            let (sf, sigf) = size(&tf);
+            if sigf > 0.0 {
+                size_change_z = (sf - s0).abs() / sigf;
+            }
+        }
+    }
+    let significant = strongest.as_ref().is_some_and(|(_, s)| s.wald > s.threshold);
+    let passed = !significant && size_change_z <= SIZE_CHANGE_Z;
+    // Nuisance when it fails: the significant members, added greedily (each tested with the
+    // effect, the earlier ones and `base` in: not the other effects, which may hold part of
+    // this structure only because it was left out).
+    let mut nuisance = Vec::new();
+    if !passed {
+        let mut design = base.to_vec();
+        design.extend(cols.iter().cloned());
+        let mut left: Vec<usize> = (0..members.len()).collect();
+        for _ in 0..members.len().min(NUISANCE_MAX) {
+            let Ok(pd) = Projector::new(&design, &all) else { break };
+            let best = left
+                .iter()
+                .filter_map(|&j| {
+                    let t = pd.test(&members[j].cols, y, noise)?;
+                    let thr = chi2_quantile(1.0 - level / m, members[j].cols.len() as f64);
+                    (t.wald > thr).then_some((j, t.wald / thr))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            let Some((j, _)) = best else { break };
+            left.retain(|&x| x != j);
+            design.extend(members[j].cols.iter().cloned());
+            nuisance.push(members[j].clone());
+        }
+    }
+    let check = FamilyCheck {
+        family,
+        members: tested.len(),
+        strongest: strongest.map(|(_, s)| s),
+        size_change_z,
+        passed,
+    };
+    Some(Gate { check, nuisance })
+}
+
+/// Rate dependence of a per-revolution term at `k` cycles per revolution against `others`
+/// (the design without it).
+pub(super) fn rate_dependence(
+    prep: &Prepared,
+    k: f64,
+    others: &[Vec<f64>],
+    y: &[f64],
+    noise: &BinNoise,
+    level: f64,
+) -> Option<RateDependence> {
+    let all: Vec<usize> = (0..prep.bins.len()).collect();
+    let g = sin_cos(prep, k);
+    let q = ripple(prep, k);
+    let mut with_q = others.to_vec();
+    with_q.extend(q.iter().cloned());
+    let mut with_g = others.to_vec();
+    with_g.extend(g.iter().cloned());
+    let tg = Projector::new(&with_q, &all).ok()?.test(&g, y, noise);
+    let tq = Projector::new(&with_g, &all).ok()?.test(&q, y, noise);
+    Some(RateDependence {
+        cycles_per_rev: k,
+        gyro_wald: tg.map_or(0.0, |t| t.wald),
+        ripple_wald: tq.map_or(0.0, |t| t.wald),
+        threshold: chi2_quantile(1.0 - level, 2.0),
+    })
+}
