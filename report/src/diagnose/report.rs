@@ -160,7 +160,11 @@ fn effect_figures(o: &DiagnoseOutcome) -> Vec<Figure> {
 }
 
 fn region_panel(title: &str, rs: &[Region]) -> Plot {
-    let mut p = Plot::new(title, Axis::linear("class"), Axis::linear("mean residual ± 2σ, °/h"));
+    // The class names on the axis, without the prefix they share (`angle 0..45°` → `0..45°`).
+    let names =
+        rs.iter().map(|r| r.name.strip_prefix("angle ").unwrap_or(&r.name).to_owned()).collect();
+    let mut p =
+        Plot::new(title, Axis::categories(title, names), Axis::linear("mean residual ± 2σ, °/h"));
     p.items.push(Item::Markers {
         label: None,
         colour: colour::BLUE,
@@ -174,13 +178,6 @@ fn region_panel(title: &str, rs: &[Region]) -> Plot {
             })
             .collect(),
     });
-    p.note = Some(
-        rs.iter()
-            .enumerate()
-            .map(|(i, r)| format!("{i}: {}", r.name))
-            .collect::<Vec<_>>()
-            .join("; "),
-    );
     p
 }
 
@@ -198,7 +195,7 @@ fn location_figure(o: &DiagnoseOutcome) -> Figure {
             region_panel("temperature band", &l.temperature),
             region_panel("table angle", &l.angle),
         ],
-        size: (1600, 480),
+        size: (2000, 480),
     }
 }
 
