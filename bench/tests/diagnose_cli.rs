@@ -84,3 +84,80 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     assert_ne!(a["verdict"], "missing_physics", "{:#}", a["findings"]);
     assert_ne!(again.status.code(), Some(7));
 }
+
+/// Whether `cell` is a number followed by a unit (`0.0147 ± 0.0036 °/h`, `45 ± 11 °`).
+fn number_with_unit(cell: &str) -> bool {
+    let cell = cell.trim();
+    let Some(unit_at) = cell.rfind(' ') else { return false };
+    let (number, unit) = (&cell[..unit_at], &cell[unit_at + 1..]);
+    let numbers_ok = number.split(" ± ").all(|n| n.parse::<f64>().is_ok());
+    numbers_ok && !unit.is_empty() && unit.parse::<f64>().is_err()
+}
+
+#[test]
+fn diagnose_shows_every_number_with_its_unit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../recordings/demo-once-per-revolution.mcap");
+    let rec = rec.to_str().expect("utf-8 path");
+    let out = bench(&["diagnose", rec, "--out", "out", "--json", "d.json", "-q"], dir.path());
+    assert_eq!(out.status.code(), Some(7), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).expect("utf-8");
+
+    // No bare SI rates: nothing in exponent form (7.1e-8 rad/s), no rad/s anywhere.
+    let exponent = text.as_bytes().windows(3).any(|w| w[0].is_ascii_digit() && w[1] == b'e');
+    assert!(!text.contains("rad/s") && !exponent, "{text}");
+    let rms = text.lines().find(|l| l.starts_with("residual RMS")).expect("RMS line");
+    assert_eq!(rms.matches(" °/h").count(), 3, "{rms}");
+
+    // The parameter table: every cell but the key and z is a number with its unit, and each
+    // coefficient in its engineering unit.
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| parameter") && !l.starts_with("| ---"))
+        .map(|l| l.trim_matches('|').split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 4, "{text}");
+    let want = [
+        ("bias", "°/h"),
+        ("scale_factor_error", "ppm"),
+        ("temp_coeff", "°/h/°C"),
+        ("temp_rate_coeff", "°/h/(°C/min)"),
+    ];
+    for (row, (key, unit)) in rows.iter().zip(want) {
+        assert_eq!(row[0], key, "{row:?}");
+        for cell in &row[1..3] {
+            assert!(number_with_unit(cell), "{key}: `{cell}` is not a number with a unit");
+            assert!(cell.ends_with(&format!(" {unit}")), "{key}: `{cell}` not in {unit}");
+        }
+        assert!(row[3].parse::<f64>().is_ok(), "z `{}`", row[3]);
+        // σ sets the digits: the value has as many decimals as its σ.
+        let (value, sigma) = row[2].trim_end_matches(unit).trim().split_once(" ± ").expect("±");
+        let decimals = |s: &str| s.split_once('.').map_or(0, |(_, d)| d.len());
+        assert_eq!(decimals(value), decimals(sigma), "{key}: `{}`", row[2]);
+    }
+
+    // The finding: amplitude in °/h, phase in °, agreeing with the JSON's SI values.
+    let found = text.lines().find(|l| l.starts_with("found once_per_revolution")).expect("found");
+    let j = json(&dir.path().join("d.json"));
+    let f = j["findings"]
+        .as_array()
+        .expect("findings")
+        .iter()
+        .find(|f| f["effect"] == "once_per_revolution")
+        .expect("once_per_revolution in the JSON");
+    let amp_rad_s = f["parameters"]["amplitude_rad_s"]["value"].as_f64().expect("amplitude");
+    assert_eq!(f["parameters"]["amplitude_rad_s"]["unit"], "rad/s");
+    let shown = found.split("amplitude = ").nth(1).expect("amplitude shown");
+    let amp_deg_h: f64 = shown.split(' ').next().expect("value").parse().expect("number");
+    assert!(shown.split(", ").next().expect("cell").ends_with(" °/h"), "{found}");
+    let expected = amp_rad_s * 180.0 / std::f64::consts::PI * 3600.0;
+    assert!((amp_deg_h / expected - 1.0).abs() < 0.01, "{amp_deg_h} °/h vs {expected} °/h");
+    assert!(found.contains("phase = ") && found.contains(" ° (ΔBIC"), "{found}");
+    assert!(found.contains("RMS ") && found.matches(" °/h").count() >= 3, "{found}");
+
+    // The report's effects table: parameters on lines of their own, no escaped markup.
+    let html = std::fs::read_to_string(dir.path().join("out/report.html")).expect("report.html");
+    assert!(!html.contains("&lt;br&gt;"), "an escaped <br> in the report");
+    assert!(html.contains("amplitude = ") && html.contains(" °/h<br>phase = "), "effects table");
+}

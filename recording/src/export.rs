@@ -8,6 +8,13 @@
 //! or a Parquet NULL. Channels whose message encoding is not `json` are skipped and reported.
 //! Any readable recording exports, a cut one up to its cut.
 //!
+//! Parquet tables start with `timestamp`, the log time as TIMESTAMP(NANOS, UTC), and carry the
+//! unit of every column that has one in the file's key-value metadata (`unit.<column>` =
+//! `rad/s`, and all of them as one JSON object under `bench.units`). With `merged`, one more
+//! table, `merged`: every gyro sample with the latest table and chamber readings logged at or
+//! before it (an as-of join: nothing from the future, nothing interpolated) and the label of
+//! the record window it falls in ([`MERGED`]).
+//!
 //! ```no_run
 //! use bench_recording::export::{export_file, Format};
 //! let report = export_file("run.mcap".as_ref(), "out".as_ref(), Format::Csv)?;
@@ -104,6 +111,33 @@ pub struct ExportReport {
     pub skipped: Vec<(String, String)>,
     /// Where the recording was cut, if it was.
     pub cut: Option<(u64, String)>,
+}
+
+/// The topic name given to the as-of-merged table in an [`ExportReport`].
+pub const MERGED: &str = "(merged)";
+
+/// The SI unit of a column of a contract channel (or of the merged table), as the recording
+/// format defines it; `None` for a column without one.
+pub fn column_unit(topic: &str, column: &str) -> Option<&'static str> {
+    let (topic, column) = match (topic, column) {
+        (MERGED, c) => match c.split_once('_') {
+            Some(("gyro", rest)) => ("/gyro/rate", rest),
+            Some(("table", rest)) => ("/table/state", rest),
+            Some(("chamber", rest)) => ("/chamber/state", rest),
+            _ if c == "bench_time_s" => return Some("s"),
+            _ => (topic, c),
+        },
+        other => other,
+    };
+    match (topic, column) {
+        (_, "log_time_ns" | "publish_time_ns") => Some("ns"),
+        ("/gyro/rate" | "/table/state", "rate") => Some("rad/s"),
+        ("/table/state", "rate_command") => Some("rad/s"),
+        ("/table/state", "angle") => Some("rad"),
+        ("/gyro/rate" | "/chamber/state", "temperature") => Some("°C"),
+        ("/chamber/state", "setpoint") => Some("°C"),
+        _ => None,
+    }
 }
 
 /// A column's type, the narrowest that holds every value.
@@ -270,7 +304,17 @@ pub fn export_file(
     out_dir: &Path,
     format: Format,
 ) -> Result<ExportReport, ExportError> {
-    export(RecordingReader::open(input)?, out_dir, format)
+    export_file_with(input, out_dir, format, false)
+}
+
+/// [`export_file`], and with `merged` the as-of-merged table too (`merged.csv|parquet`).
+pub fn export_file_with(
+    input: &Path,
+    out_dir: &Path,
+    format: Format,
+    merged: bool,
+) -> Result<ExportReport, ExportError> {
+    export_with(RecordingReader::open(input)?, out_dir, format, merged)
 }
 
 /// Export a recording from any reader (e.g. `RecordingReader::new(&bytes[..])`) into
@@ -280,35 +324,186 @@ pub fn export<R: std::io::Read>(
     out_dir: &Path,
     format: Format,
 ) -> Result<ExportReport, ExportError> {
+    export_with(reader, out_dir, format, false)
+}
+
+/// [`export`], and with `merged` the as-of-merged table too.
+pub fn export_with<R: std::io::Read>(
+    reader: RecordingReader<R>,
+    out_dir: &Path,
+    format: Format,
+    merged: bool,
+) -> Result<ExportReport, ExportError> {
     let (channels, cut) = collect(reader)?;
     std::fs::create_dir_all(out_dir)
         .map_err(|source| ExportError::Write { path: out_dir.to_path_buf(), source })?;
     let mut report = ExportReport { cut, ..ExportReport::default() };
-    for (topic, ch) in channels {
+    let merged_table = merged.then(|| merge(&channels));
+    let tables = channels.iter().map(|(t, ch)| (t.as_str(), ch, table_name(t)));
+    let tables = tables.chain(merged_table.iter().map(|ch| (MERGED, ch, "merged".to_owned())));
+    for (topic, ch, name) in tables {
         if ch.encoding != "json" {
-            report.skipped.push((topic, ch.encoding));
+            report.skipped.push((topic.to_owned(), ch.encoding.clone()));
             continue;
         }
-        let path = out_dir.join(format!("{}.{}", table_name(&topic), format.extension()));
-        let types: Vec<ColumnType> = (0..ch.columns.len())
-            .map(|c| {
-                ch.rows
-                    .iter()
-                    .flatten()
-                    .filter(|(i, _)| *i == c)
-                    .fold(ColumnType::Null, |t, (_, v)| t.widen(v))
-            })
-            .collect();
-        match format {
-            Format::Csv => write_csv(&path, &ch, &types)?,
-            Format::Parquet => write_parquet(&path, &ch, &types)?,
-        }
+        let path = out_dir.join(format!("{name}.{}", format.extension()));
+        let types = column_types(ch);
         let mut columns: Vec<String> =
             ["log_time_ns", "publish_time_ns", "sequence"].map(String::from).to_vec();
+        match format {
+            Format::Csv => write_csv(&path, ch, &types)?,
+            Format::Parquet => {
+                write_parquet(&path, topic, ch, &types)?;
+                columns.insert(0, timestamp_name(ch).to_owned());
+            }
+        }
         columns.extend(ch.columns.iter().cloned());
-        report.tables.push(Table { topic, path, rows: ch.rows.len(), columns });
+        report.tables.push(Table { topic: topic.to_owned(), path, rows: ch.rows.len(), columns });
     }
     Ok(report)
+}
+
+/// Each column's type: the narrowest that holds all its values.
+fn column_types(ch: &Channel) -> Vec<ColumnType> {
+    let mut types = vec![ColumnType::Null; ch.columns.len()];
+    for (c, v) in ch.rows.iter().flatten() {
+        if let Some(t) = types.get_mut(*c) {
+            *t = t.widen(v);
+        }
+    }
+    types
+}
+
+/// The Parquet timestamp column's name: `timestamp`, or `log_timestamp` when the channel has
+/// a field of that name.
+fn timestamp_name(ch: &Channel) -> &'static str {
+    if ch.index.contains_key("timestamp") {
+        "log_timestamp"
+    } else {
+        "timestamp"
+    }
+}
+
+/// A channel's rows in log-time order (stable: equal times keep file order).
+fn by_time(ch: &Channel) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..ch.rows.len()).collect();
+    order.sort_by_key(|&r| ch.log[r]);
+    order
+}
+
+/// The as-of merge: one row per gyro sample (its log time, publish time and sequence), the
+/// gyro's fields as `gyro_<field>`, `bench_time_s` (s from the recording's time zero: the
+/// earliest message of the four contract channels), the latest `/table/state` and
+/// `/chamber/state` messages logged at or before the sample as `table_<field>` and
+/// `chamber_<field>` with their `table_log_time_ns` / `chamber_log_time_ns` (null before the
+/// first), and `record_window`: the label of the `record…` step whose start ≤ t < end (its
+/// abort, or the end of the recording when it has none), empty outside.
+fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
+    let empty = Channel {
+        encoding: "json".into(),
+        columns: Vec::new(),
+        index: HashMap::new(),
+        log: Vec::new(),
+        publish: Vec::new(),
+        sequence: Vec::new(),
+        rows: Vec::new(),
+    };
+    let gyro = channels.get("/gyro/rate").filter(|c| c.encoding == "json").unwrap_or(&empty);
+    let t0 = ["/gyro/rate", "/table/state", "/chamber/state", "/bench/step"]
+        .iter()
+        .filter_map(|t| channels.get(*t))
+        .filter_map(|c| c.log.iter().min().copied())
+        .min()
+        .unwrap_or(0);
+    let mut out = empty.clone_empty();
+    let add = |out: &mut Channel, name: String| {
+        out.columns.push(name.clone());
+        out.index.insert(name, out.columns.len() - 1);
+        out.columns.len() - 1
+    };
+    let bench_time = add(&mut out, "bench_time_s".into());
+    let gyro_cols: Vec<usize> =
+        gyro.columns.iter().map(|c| add(&mut out, format!("gyro_{c}"))).collect();
+    // (channel, its rows by time, its log times in that order, log-time column, field columns)
+    let mut joined = Vec::new();
+    for (topic, prefix) in [("/table/state", "table"), ("/chamber/state", "chamber")] {
+        let Some(ch) = channels.get(topic).filter(|c| c.encoding == "json") else { continue };
+        let order = by_time(ch);
+        let times: Vec<i64> = order.iter().map(|&r| ch.log[r]).collect();
+        let log_col = add(&mut out, format!("{prefix}_log_time_ns"));
+        let cols: Vec<usize> =
+            ch.columns.iter().map(|c| add(&mut out, format!("{prefix}_{c}"))).collect();
+        joined.push((ch, order, times, log_col, cols));
+    }
+    let window_col = add(&mut out, "record_window".into());
+    let windows = record_windows(channels.get("/bench/step"));
+    for r in by_time(gyro) {
+        let t = gyro.log[r];
+        let mut row = vec![(bench_time, Value::from((t - t0) as f64 * 1e-9))];
+        row.extend(gyro.rows[r].iter().map(|(c, v)| (gyro_cols[*c], v.clone())));
+        for (ch, order, times, log_col, cols) in &joined {
+            // The last reading logged at or before t.
+            let Some(k) = times.partition_point(|&x| x <= t).checked_sub(1) else { continue };
+            let src = order[k];
+            row.push((*log_col, Value::from(ch.log[src])));
+            row.extend(ch.rows[src].iter().map(|(c, v)| (cols[*c], v.clone())));
+        }
+        let label = windows
+            .iter()
+            .find(|(a, b, _)| *a <= t && t < *b)
+            .map_or(String::new(), |(_, _, l)| l.clone());
+        row.push((window_col, Value::from(label)));
+        out.log.push(t);
+        out.publish.push(gyro.publish[r]);
+        out.sequence.push(gyro.sequence[r]);
+        out.rows.push(row);
+    }
+    out
+}
+
+impl Channel {
+    fn clone_empty(&self) -> Channel {
+        Channel {
+            encoding: self.encoding.clone(),
+            columns: Vec::new(),
+            index: HashMap::new(),
+            log: Vec::new(),
+            publish: Vec::new(),
+            sequence: Vec::new(),
+            rows: Vec::new(),
+        }
+    }
+
+    fn field(&self, row: usize, name: &str) -> Option<&Value> {
+        let c = *self.index.get(name)?;
+        self.rows.get(row)?.iter().find(|(i, _)| *i == c).map(|(_, v)| v)
+    }
+}
+
+/// The record windows of `/bench/step`: (start, end, label) in log time, ns, for each step
+/// whose label begins with `record`; a window with no `end`/`abort` runs to the end of time.
+fn record_windows(steps: Option<&Channel>) -> Vec<(i64, i64, String)> {
+    let Some(st) = steps.filter(|c| c.encoding == "json") else { return Vec::new() };
+    let mut open: HashMap<i64, (i64, String)> = HashMap::new();
+    let mut out = Vec::new();
+    for r in by_time(st) {
+        let index = st.field(r, "index").and_then(Value::as_i64).unwrap_or(-1);
+        let label = st.field(r, "label").and_then(Value::as_str).unwrap_or("");
+        match st.field(r, "event").and_then(Value::as_str) {
+            Some("start") if label.starts_with("record") => {
+                open.insert(index, (st.log[r], label.to_owned()));
+            }
+            Some("end" | "abort") => {
+                if let Some((a, l)) = open.remove(&index) {
+                    out.push((a, st.log[r], l));
+                }
+            }
+            _ => {}
+        }
+    }
+    out.extend(open.into_values().map(|(a, l)| (a, i64::MAX, l)));
+    out.sort_by_key(|w| w.0);
+    out
 }
 
 /// A cell's text: integers as integers, floats in the shortest form that reads back the same,
@@ -357,9 +552,17 @@ fn write_csv(path: &Path, ch: &Channel, _types: &[ColumnType]) -> Result<(), Exp
     inner.into_inner().map_err(|e| io(e.into_error()))?.sync_all().map_err(io)
 }
 
-fn write_parquet(path: &Path, ch: &Channel, types: &[ColumnType]) -> Result<(), ExportError> {
-    use parquet::basic::{Compression, LogicalType, Repetition, Type as Physical, ZstdLevel};
+fn write_parquet(
+    path: &Path,
+    topic: &str,
+    ch: &Channel,
+    types: &[ColumnType],
+) -> Result<(), ExportError> {
+    use parquet::basic::{
+        Compression, LogicalType, Repetition, TimeUnit, Type as Physical, ZstdLevel,
+    };
     use parquet::data_type::{BoolType, ByteArray, ByteArrayType, DoubleType, Int64Type};
+    use parquet::file::metadata::KeyValue;
     use parquet::file::properties::WriterProperties;
     use parquet::file::writer::SerializedFileWriter;
     use parquet::schema::types::Type;
@@ -371,7 +574,14 @@ fn write_parquet(path: &Path, ch: &Channel, types: &[ColumnType]) -> Result<(), 
             .with_repetition(Repetition::REQUIRED)
             .build()
     };
+    // The log time as a timestamp, nanoseconds since the Unix epoch, UTC.
+    let timestamp = Type::primitive_type_builder(timestamp_name(ch), Physical::INT64)
+        .with_logical_type(Some(LogicalType::timestamp(true, TimeUnit::NANOS)))
+        .with_repetition(Repetition::REQUIRED)
+        .build()
+        .map_err(pq)?;
     let mut fields = vec![
+        Arc::new(timestamp),
         Arc::new(required("log_time_ns").map_err(pq)?),
         Arc::new(required("publish_time_ns").map_err(pq)?),
         Arc::new(required("sequence").map_err(pq)?),
@@ -390,15 +600,27 @@ fn write_parquet(path: &Path, ch: &Channel, types: &[ColumnType]) -> Result<(), 
     }
     let schema =
         Arc::new(Type::group_type_builder("schema").with_fields(fields).build().map_err(pq)?);
+    // Units: `unit.<column>` each, and all of them as one JSON object under `bench.units`.
+    let names =
+        ["log_time_ns", "publish_time_ns"].into_iter().chain(ch.columns.iter().map(String::as_str));
+    let units: Vec<(&str, &str)> =
+        names.filter_map(|c| column_unit(topic, c).map(|u| (c, u))).collect();
+    let mut kv: Vec<KeyValue> =
+        units.iter().map(|(c, u)| KeyValue::new(format!("unit.{c}"), (*u).to_owned())).collect();
+    let all: serde_json::Map<String, Value> =
+        units.iter().map(|(c, u)| ((*c).to_owned(), Value::from(*u))).collect();
+    kv.push(KeyValue::new("bench.units".to_owned(), Value::Object(all).to_string()));
+    kv.push(KeyValue::new("bench.topic".to_owned(), topic.to_owned()));
     let props = Arc::new(
         WriterProperties::builder()
             .set_compression(Compression::ZSTD(ZstdLevel::try_new(1).map_err(pq)?))
+            .set_key_value_metadata(Some(kv))
             .build(),
     );
     let file = File::create(path).map_err(io)?;
     let mut writer = SerializedFileWriter::new(file, schema, props).map_err(pq)?;
     let mut group = writer.next_row_group().map_err(pq)?;
-    for fixed in [&ch.log, &ch.publish, &ch.sequence] {
+    for fixed in [&ch.log, &ch.log, &ch.publish, &ch.sequence] {
         if let Some(mut col) = group.next_column().map_err(pq)? {
             col.typed::<Int64Type>().write_batch(fixed, None, None).map_err(pq)?;
             col.close().map_err(pq)?;

@@ -44,6 +44,19 @@ impl Judgement {
     }
 }
 
+/// The display unit of a limit's key (`bias_rad_s` → °/h, …); a pure number for an unknown key.
+pub fn limit_unit(key: &str) -> crate::display::Unit {
+    use crate::display;
+    match key {
+        "bias_rad_s" | "bias_instability_rad_s" => display::RATE,
+        "scale_factor_error" => display::PPM,
+        "temp_coeff_rad_s_per_c" => display::TEMP_COEFF,
+        "temp_rate_coeff_rad_s_per_c_s" => display::TEMP_RATE_COEFF,
+        "arw_rad_per_sqrt_s" => display::ARW,
+        _ => display::ONE,
+    }
+}
+
 /// One coefficient against its limit.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Check {

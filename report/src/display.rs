@@ -2,7 +2,7 @@
 //! °/h/(°C/min)), SI in files. One table, used by the terminal, the JSON's display fields and
 //! the reports.
 
-use bench_physics::units::DEG_PER_H;
+use bench_physics::units::{ARCSEC, DEG, DEG_PER_H, DEG_PER_SQRT_H};
 use bench_physics::ModelKey;
 
 /// A display unit: its name and how many of it make one SI unit of the quantity.
@@ -30,6 +30,19 @@ pub const TEMP_COEFF: Unit = Unit { name: "°/h/°C", per_si: 1.0 / DEG_PER_H };
 /// Bias per temperature rate: °/h per (°C/min) — one °C/min is 1/60 °C/s.
 pub const TEMP_RATE_COEFF: Unit = Unit { name: "°/h/(°C/min)", per_si: 1.0 / (60.0 * DEG_PER_H) };
 
+/// Angle random walk: °/√h.
+pub const ARW: Unit = Unit { name: "°/√h", per_si: 1.0 / DEG_PER_SQRT_H };
+/// Angle: degrees.
+pub const DEGREES: Unit = Unit { name: "°", per_si: 1.0 / DEG };
+/// Small angle: arc seconds.
+pub const ARC_SECONDS: Unit = Unit { name: "″", per_si: 1.0 / ARCSEC };
+/// Time: s.
+pub const SECONDS: Unit = Unit { name: "s", per_si: 1.0 };
+/// Temperature: °C.
+pub const CELSIUS: Unit = Unit { name: "°C", per_si: 1.0 };
+/// A pure number shown as it is (a count, a gain, a flag).
+pub const ONE: Unit = Unit { name: "", per_si: 1.0 };
+
 /// The display unit of a calibrated coefficient (`None` for the model's other keys).
 pub fn coefficient_unit(key: ModelKey) -> Option<Unit> {
     match key {
@@ -38,6 +51,110 @@ pub fn coefficient_unit(key: ModelKey) -> Option<Unit> {
         ModelKey::TempCoeff => Some(TEMP_COEFF),
         ModelKey::TempRateCoeff => Some(TEMP_RATE_COEFF),
         _ => None,
+    }
+}
+
+/// The display unit of any key of the gyro model.
+pub fn model_key_unit(key: ModelKey) -> Unit {
+    coefficient_unit(key).unwrap_or(match key {
+        ModelKey::ReferenceTemperature => CELSIUS,
+        ModelKey::Arw => ARW,
+        ModelKey::BiasInstability => RATE,
+        ModelKey::ThermalTimeConstant => SECONDS,
+        _ => ONE,
+    })
+}
+
+/// The display unit of a quantity the analysis names by its SI unit (an effect's parameter:
+/// `rad/s`, `rad`, `deg`, `s`, `1/°C`, `rad/s/°C²`, `s/rad`, `1`); an unknown unit is shown
+/// as it is.
+pub fn for_si(si: &'static str) -> Unit {
+    match si {
+        "rad/s" => RATE,
+        "rad/s/°C" => TEMP_COEFF,
+        "rad/s/(°C/s)" => TEMP_RATE_COEFF,
+        "rad/s/°C²" => Unit { name: "°/h/°C²", per_si: 1.0 / DEG_PER_H },
+        "1/°C" => Unit { name: "ppm/°C", per_si: 1e6 },
+        // A relative error per rate: ppm per °/s.
+        "s/rad" => Unit { name: "ppm/(°/s)", per_si: 1e6 * DEG },
+        "rad" => DEGREES,
+        "deg" => Unit { name: "°", per_si: 1.0 },
+        "rad/√s" => ARW,
+        "s" => SECONDS,
+        "°C" => CELSIUS,
+        "1" => ONE,
+        other => Unit { name: other, per_si: 1.0 },
+    }
+}
+
+/// An effect parameter's name for display, without the SI unit its key carries
+/// (`amplitude_rad_s` → `amplitude`, `time_constant_s` → `time constant`): the value beside it
+/// is in display units.
+pub fn parameter_name(key: &str) -> String {
+    const SUFFIXES: [&str; 7] =
+        ["_rad_s_per_c2", "_s_per_rad", "_per_c", "_rad_s", "_rad", "_deg", "_s"];
+    let bare = SUFFIXES.iter().find_map(|s| key.strip_suffix(s)).unwrap_or(key);
+    bare.replace('_', " ")
+}
+
+/// `x` to `digits` significant digits (plain between 1e-3 and 1e5, else `1.23e-5`), `n/a`
+/// when not finite: a number with no σ to set its digits.
+pub fn sig(x: f64, digits: usize) -> String {
+    crate::render::sig(x, digits)
+}
+
+/// Decimals that show `sigma` to two significant digits (`None` when σ is not a positive
+/// finite number, or too small or large for plain decimals).
+fn sigma_decimals(sigma: f64) -> Option<usize> {
+    if !(sigma.is_finite() && sigma > 0.0) {
+        return None;
+    }
+    // σ rounded to two digits first (0.0996 → 0.10), so the exponent is the rounded one's.
+    let e: i32 = format!("{sigma:.1e}").split_once('e')?.1.parse().ok()?;
+    let decimals = 1 - e;
+    (-6..=12).contains(&decimals).then_some(decimals.max(0) as usize)
+}
+
+/// `value ± σ` in display units (both already converted) with the unit: σ to two significant
+/// digits and the value to the same decimal place (`12.346 ± 0.021 °/h`); when σ is missing,
+/// zero or not finite, the value to 4 significant digits and `± n/a` for a non-finite σ.
+pub fn value_sigma(value: f64, sigma: f64, unit: &str) -> String {
+    let body = match sigma_decimals(sigma) {
+        Some(d) => format!("{value:.d$} ± {sigma:.d$}"),
+        None if sigma.is_finite() && sigma > 0.0 => {
+            format!("{} ± {}", sig(value, 4), sig(sigma, 2))
+        }
+        None if sigma.is_nan() || sigma.is_infinite() => format!("{} ± n/a", sig(value, 4)),
+        None => sig(value, 4),
+    };
+    with_unit(body, unit)
+}
+
+/// A value with no σ in display units, to the decimals `sigma` sets when there is one (so it
+/// lines up with a `value ± σ` beside it), else 4 significant digits; with the unit.
+pub fn value_like(value: f64, sigma: f64, unit: &str) -> String {
+    let body = match sigma_decimals(sigma) {
+        Some(d) => format!("{value:.d$}"),
+        None => sig(value, 4),
+    };
+    with_unit(body, unit)
+}
+
+/// An SI `value ± σ` shown in `unit`.
+pub fn si_value_sigma(unit: Unit, value_si: f64, sigma_si: f64) -> String {
+    value_sigma(unit.of(value_si), unit.of(sigma_si), unit.name)
+}
+
+/// An SI value shown in `unit` to `digits` significant digits.
+pub fn si_value(unit: Unit, value_si: f64, digits: usize) -> String {
+    with_unit(sig(unit.of(value_si), digits), unit.name)
+}
+
+fn with_unit(body: String, unit: &str) -> String {
+    if unit.is_empty() {
+        body
+    } else {
+        format!("{body} {unit}")
     }
 }
 
@@ -56,5 +173,23 @@ mod tests {
             assert!(coefficient_unit(k).is_some(), "{}", k.key());
         }
         assert_eq!(coefficient_unit(ModelKey::Arw), None);
+    }
+
+    #[test]
+    fn sigma_sets_the_digits() {
+        assert_eq!(value_sigma(12.34567, 0.02134, "°/h"), "12.346 ± 0.021 °/h");
+        assert_eq!(value_sigma(2998.2, 5.0, "s"), "2998.2 ± 5.0 s");
+        assert_eq!(value_sigma(601.0, 63.0, "s"), "601 ± 63 s");
+        assert_eq!(value_sigma(0.5, 0.0996, "°"), "0.50 ± 0.10 °");
+        assert_eq!(value_sigma(1.5, f64::INFINITY, "ppm"), "1.500 ± n/a ppm");
+        assert_eq!(value_like(3.0, 0.021, "°/h"), "3.000 °/h");
+        assert_eq!(value_sigma(0.3, 0.02, ""), "0.300 ± 0.020");
+        // 7.1e-8 ± 1.7e-8 rad/s is 0.0146 ± 0.0035 °/h.
+        assert_eq!(si_value_sigma(for_si("rad/s"), 7.1e-8, 1.7e-8), "0.0146 ± 0.0035 °/h");
+        assert_eq!(si_value_sigma(for_si("rad"), 0.78, 0.2), "45 ± 11 °");
+        assert_eq!(parameter_name("amplitude_rad_s"), "amplitude");
+        assert_eq!(parameter_name("time_constant_s"), "time constant");
+        assert_eq!(parameter_name("coeff_per_c"), "coeff");
+        assert_eq!(parameter_name("gain"), "gain");
     }
 }

@@ -176,6 +176,7 @@ fn a_python_file_exports_to_parquet() {
     assert_eq!(r.metadata().file_metadata().num_rows(), 300);
     let last = r.get_row_iter(None).expect("rows").last().expect("row").expect("row");
     let cols = last.into_columns();
-    assert_eq!(cols[3].0, "temperature");
-    assert_eq!(cols[4], ("setpoint".to_string(), parquet::record::Field::Double(25.0)));
+    assert_eq!(cols[0].0, "timestamp");
+    assert_eq!(cols[4].0, "temperature");
+    assert_eq!(cols[5], ("setpoint".to_string(), parquet::record::Field::Double(25.0)));
 }

@@ -116,16 +116,21 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
     })?;
     let (t0, t1) = (gt[0], gt[gt.len() - 1]);
     println!(
-        "{}: {what} {t0:.1}..{t1:.1} s, {} samples at {:.4} s, table rate {:.4e} rad/s taken out",
+        "{}: {what} {t0:.1}..{t1:.1} s, {} samples at {:.4} s, table rate {} °/s taken out",
         args.recording.display(),
         gr.len(),
         dt,
-        table_rate
+        bench_report::display::sig(table_rate.to_degrees(), 6)
     );
-    println!("| tau s | ADEV °/h | terms |");
+    println!("| τ | ADEV | terms |");
     println!("| --- | --- | --- |");
     for p in &curve {
-        println!("| {:.4} | {:.4e} | {} |", p.tau_s, p.adev / DEG_PER_H, p.n_terms);
+        println!(
+            "| {} s | {} °/h | {} |",
+            bench_report::display::sig(p.tau_s, 4),
+            bench_report::display::sig(p.adev / DEG_PER_H, 4),
+            p.n_terms
+        );
     }
     let bound = |t: &NoiseTerm| if t.upper_bound { "≤ " } else { "" };
     println!(

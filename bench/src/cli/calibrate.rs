@@ -11,7 +11,7 @@ use bench_physics::units::DEG_PER_H;
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_report::calibrate::{calibrate_recording, json, report, CalibrateSettings};
-use bench_report::display::coefficient_unit;
+use bench_report::display::{self, coefficient_unit};
 
 /// Arguments of `bench calibrate`.
 #[derive(clap::Args, Debug)]
@@ -73,12 +73,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     );
     if let Ok(a) = &cal.allan {
         println!(
-            "noise: N = {:.3e} °/√h, B = {:.3e} °/h (floor {:.3e} °/h), K = {}{:.3e} °/h/√h",
-            a.fit.arw_deg_per_sqrt_h().value,
-            a.fit.bias_instability_deg_per_h().value,
-            a.fit.flicker_floor().value / DEG_PER_H,
+            "noise: N = {} °/√h, B = {} °/h (floor {} °/h), K = {}{} °/h/√h",
+            display::sig(a.fit.arw_deg_per_sqrt_h().value, 3),
+            display::sig(a.fit.bias_instability_deg_per_h().value, 3),
+            display::sig(a.fit.flicker_floor().value / DEG_PER_H, 3),
             if a.fit.rate_random_walk.upper_bound { "≤ " } else { "" },
-            a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value,
+            display::sig(a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value, 3),
         );
     }
     if let Ok(j) = &cal.joint {
@@ -134,13 +134,18 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     for (j, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
         let Some(unit) = coefficient_unit(key) else { continue };
         let pm = |v: Option<(f64, f64)>| {
-            v.map_or("—".to_owned(), |(v, s)| format!("{:.4e} ± {:.1e}", unit.of(v), unit.of(s)))
+            v.map_or("—".to_owned(), |(v, s)| display::si_value_sigma(unit, v, s))
         };
-        let one = |v: Option<f64>| v.map_or("—".to_owned(), |v| format!("{:.4e}", unit.of(v)));
+        // A value with no σ to the decimals of the rate-domain σ, for comparison.
+        let sigma_si = joint.and_then(|f| f.estimate(key)).map_or(f64::NAN, |e| e.std_err);
+        let one = |v: Option<f64>| {
+            v.map_or("—".to_owned(), |v| {
+                display::value_like(unit.of(v), unit.of(sigma_si), unit.name)
+            })
+        };
         println!(
-            "| {} {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} |",
             key.key(),
-            unit.name,
             pm(joint.and_then(|f| f.estimate(key)).map(|e| (e.value, e.std_err))),
             pm(angle.map(|a| a.estimates()[j]).map(|e| (e.value, e.std_err))),
             one(seed.and_then(|s| s.coefficient(key))),
@@ -233,13 +238,27 @@ fn print_acceptance(a: &bench_report::acceptance::Acceptance) {
         eprintln!("note: {p}");
     }
     for c in &a.checks {
+        let u = bench_report::acceptance::limit_unit(&c.key);
         let shown = match (c.value, c.interval) {
             (Some(v), Some((lo, hi))) => {
-                format!("{v:.3e} (|·| within {lo:.3e}..{hi:.3e} at ≈95 %)")
+                let v = match c.sigma {
+                    Some(s) => display::si_value_sigma(u, v, s),
+                    None => display::si_value(u, v, 4),
+                };
+                format!(
+                    "{v} (|·| within {}..{} at ≈95 %)",
+                    display::sig(u.of(lo), 4),
+                    display::si_value(u, hi, 4)
+                )
             }
             _ => "not estimated".to_string(),
         };
-        println!("acceptance {}: {shown} vs limit {:.3e}: {}", c.key, c.limit, c.judgement.key());
+        println!(
+            "acceptance {}: {shown} vs limit {}: {}",
+            c.key,
+            display::si_value(u, c.limit, 4),
+            c.judgement.key()
+        );
     }
     println!("acceptance: {}", a.result.key().to_uppercase());
 }

@@ -8,10 +8,10 @@ use super::exit::Exit;
 
 use anyhow::Context as _;
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
-use bench_physics::units::DEG_PER_H;
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_report::diagnose::{diagnose_recording, json, report};
+use bench_report::display;
 
 /// Arguments of `bench diagnose`.
 #[derive(clap::Args, Debug)]
@@ -106,48 +106,69 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         .map_or_else(|| args.recording.display().to_string(), |n| n.to_string_lossy().into_owned());
     let d = &out.diagnosis;
     println!("{name}: verdict {} (nominal model: {})", d.verdict.key(), out.nominal.2);
+    let rms = |v: f64| display::si_value(display::RATE, v, 3);
     println!(
-        "residual RMS of {} s bins: nominal {:.3e} °/h, parameters refitted {:.3e} °/h, with \
-         effects {:.3e} °/h",
-        opts.bin_s,
-        d.rms.0 / DEG_PER_H,
-        d.rms.1 / DEG_PER_H,
-        d.rms.2 / DEG_PER_H
+        "residual RMS of {} bins: nominal {}, parameters refitted {}, with effects {}",
+        display::si_value(display::SECONDS, opts.bin_s, 3),
+        rms(d.rms.0),
+        rms(d.rms.1),
+        rms(d.rms.2)
     );
-    println!("| parameter | nominal | fitted ± 1σ |");
-    println!("| --- | --- | --- |");
+    println!("| parameter | nominal | fitted ± 1σ | z |");
+    println!("| --- | --- | --- | --- |");
     for u in &d.parameter_updates {
-        println!("| {} | {:.4e} | {:.4e} ± {:.1e} |", u.key.key(), u.nominal, u.fitted, u.sigma);
+        let unit = display::model_key_unit(u.key);
+        println!(
+            "| {} | {} | {} | {} |",
+            u.key.key(),
+            display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name),
+            display::si_value_sigma(unit, u.fitted, u.sigma),
+            display::sig((u.fitted - u.nominal) / u.sigma, 2)
+        );
     }
     for f in d.findings.iter().filter(|f| f.accepted) {
         let params: Vec<String> = f
             .parameters
             .iter()
-            .map(|p| format!("{} = {:.4e} ± {:.1e} {}", p.name, p.value, p.sigma, p.unit))
+            .map(|p| {
+                format!(
+                    "{} = {}",
+                    display::parameter_name(p.name),
+                    display::si_value_sigma(display::for_si(p.unit), p.value, p.sigma)
+                )
+            })
             .collect();
         println!(
-            "found {}: {} (ΔBIC {:.1}, RMS {:.3e} → {:.3e} °/h) — {}",
+            "found {}: {} (ΔBIC {}, RMS {} → {}) — {}",
             f.effect.key(),
             params.join(", "),
-            f.delta_bic,
-            f.rms_before / DEG_PER_H,
-            f.rms_after / DEG_PER_H,
+            display::sig(f.delta_bic, 3),
+            rms(f.rms_before),
+            rms(f.rms_after),
             f.effect.description()
         );
     }
     print_checks(d);
     for u in &d.unexplained {
+        let windows: Vec<String> = u
+            .windows_s
+            .iter()
+            .map(|(a, b)| {
+                format!("{}–{}", display::sig(*a, 5), display::si_value(display::SECONDS, *b, 5))
+            })
+            .collect();
         println!(
-            "unexplained: {} window(s), RMS {:.3e} °/h, correlates with {}",
+            "unexplained: {} window(s) ({}), RMS {}, correlates with {}",
             u.windows_s.len(),
-            u.rms / DEG_PER_H,
+            windows.join(", "),
+            rms(u.rms),
             u.correlates_with
         );
     }
     if let Some(r) = &out.resimulated {
         println!(
-            "re-simulated with the updated model: residual RMS {:.3e} °/h, verdict {}",
-            r.rms.0 / DEG_PER_H,
+            "re-simulated with the updated model: residual RMS {}, verdict {}",
+            rms(r.rms.0),
             r.verdict.key()
         );
     }

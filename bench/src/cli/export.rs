@@ -1,4 +1,5 @@
-//! `bench export REC.mcap --format csv|parquet [--out DIR]`: one table per channel.
+//! `bench export REC.mcap --format csv|parquet [--out DIR] [--merged]`: one table per channel,
+//! and with `--merged` the gyro samples with the table and chamber readings as of each.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,6 +27,10 @@ pub struct ExportArgs {
     /// Output directory (default: the recording's name without `.mcap`, beside it).
     #[arg(long, short)]
     pub out: Option<PathBuf>,
+    /// Also write `merged.csv|parquet`: one row per gyro sample with the latest table and
+    /// chamber readings at or before it (as-of join) and its record window's label.
+    #[arg(long)]
+    pub merged: bool,
 }
 
 /// Export and list the tables written.
@@ -35,8 +40,9 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         FormatArg::Csv => Format::Csv,
         FormatArg::Parquet => Format::Parquet,
     };
-    let report = bench_recording::export::export_file(&args.recording, &out, format)
-        .with_context(|| format!("cannot export {}", args.recording.display()))?;
+    let report =
+        bench_recording::export::export_file_with(&args.recording, &out, format, args.merged)
+            .with_context(|| format!("cannot export {}", args.recording.display()))?;
     for t in &report.tables {
         println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
     }

@@ -147,8 +147,8 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
         if mc.lab { " with a lab's traits" } else { "" },
         started.elapsed().as_secs_f64()
     );
-    println!("| coefficient | unit | estimator | RMS error | RMS σ | 95 % coverage | mean z |");
-    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    println!("| coefficient | estimator | RMS error | RMS σ | 95 % coverage | mean z |");
+    println!("| --- | --- | --- | --- | --- | --- |");
     for c in &mc.coefficients {
         let (u, s) = unit(&c.key);
         for e in &c.estimators {
@@ -157,12 +157,17 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
             }
             let pct =
                 |x: f64| if x.is_finite() { format!("{:.0} %", 100.0 * x) } else { "—".into() };
-            let num = |x: f64| if x.is_finite() { format!("{:.3e}", x / s) } else { "—".into() };
+            let num = |x: f64| {
+                if x.is_finite() {
+                    format!("{} {u}", bench_report::display::sig(x / s, 3)).trim_end().to_owned()
+                } else {
+                    "—".into()
+                }
+            };
             let z = if e.mean_z.is_finite() { format!("{:+.2}", e.mean_z) } else { "—".into() };
             println!(
-                "| {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} |",
                 c.key,
-                u,
                 e.estimator,
                 num(e.rms_error),
                 num(e.rms_sigma),

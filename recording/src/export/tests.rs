@@ -88,8 +88,18 @@ fn parquet_tables_read_back_with_types_and_nulls() {
     let names: Vec<&str> = r7.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(
         names,
-        ["log_time_ns", "publish_time_ns", "sequence", "rate", "temperature", "seq", "status"]
+        [
+            "timestamp",
+            "log_time_ns",
+            "publish_time_ns",
+            "sequence",
+            "rate",
+            "temperature",
+            "seq",
+            "status"
+        ]
     );
+    let r7 = &r7[1..];
     assert_eq!(r7[0].1, Field::Long((EPOCH + 350_000_000) as i64));
     assert_eq!(r7[1].1, Field::Long((EPOCH + 350_000_003) as i64));
     assert_eq!(r7[2].1, Field::Long(7));
@@ -97,13 +107,31 @@ fn parquet_tables_read_back_with_types_and_nulls() {
     assert_eq!(r7[4].1, Field::Double(-12.5));
     assert_eq!(r7[5].1, Field::Long(1007));
     assert_eq!(r7[6].1, Field::Long(1));
-    assert_eq!(rows[6][4].1, Field::Null);
+    assert_eq!(rows[6][5].1, Field::Null);
+    // The timestamp: the log time, nanoseconds, UTC; the units in the key-value metadata.
+    let schema = reader.metadata().file_metadata().schema_descr();
+    let ts = schema.column(0);
+    assert_eq!(
+        ts.logical_type_ref(),
+        Some(&parquet::basic::LogicalType::timestamp(true, parquet::basic::TimeUnit::NANOS))
+    );
+    let kv: BTreeMap<String, Option<String>> = reader
+        .metadata()
+        .file_metadata()
+        .key_value_metadata()
+        .expect("key-value metadata")
+        .iter()
+        .map(|k| (k.key.clone(), k.value.clone()))
+        .collect();
+    assert_eq!(kv.get("unit.rate"), Some(&Some("rad/s".to_owned())));
+    assert_eq!(kv.get("unit.temperature"), Some(&Some("°C".to_owned())));
+    assert_eq!(kv.get("unit.seq"), None);
     let chamber = report.tables.iter().find(|t| t.topic == "/chamber/state").expect("chamber");
     let reader =
         SerializedFileReader::new(std::fs::File::open(&chamber.path).expect("file")).expect("pq");
     let first = reader.get_row_iter(None).expect("rows").next().expect("row").expect("row");
     let cols = first.into_columns();
-    assert_eq!(cols[4], ("setpoint".to_string(), Field::Double(21.25)));
+    assert_eq!(cols[5], ("setpoint".to_string(), Field::Double(21.25)));
     let log = report.tables.iter().find(|t| t.topic == "/log").expect("log");
     let reader =
         SerializedFileReader::new(std::fs::File::open(&log.path).expect("file")).expect("pq");
@@ -125,4 +153,34 @@ fn column_types_widen() {
     assert_eq!(t(&[json!([1, 2])]), ColumnType::Text);
     assert_eq!(t(&[json!(null)]), ColumnType::Null);
     assert_eq!(table_name("/gyro/rate"), "gyro_rate");
+}
+
+#[test]
+fn the_merged_table_takes_the_latest_prior_readings_and_the_record_window() {
+    // Gyro and chamber every 50 ms from 0 to 2.45 s; the chamber slowed to every 150 ms (from
+    // 50 ms) by keeping one reading in three. The record step opened at 0 never ends here, so
+    // it runs to the end.
+    let bytes = file();
+    let mut channels = collect(RecordingReader::new(&bytes[..])).expect("collect").0;
+    let chamber = channels.get_mut("/chamber/state").expect("chamber");
+    let keep: Vec<usize> = (0..chamber.rows.len()).filter(|r| r % 3 == 1).collect();
+    chamber.rows = keep.iter().map(|&r| chamber.rows[r].clone()).collect();
+    chamber.log = keep.iter().map(|&r| chamber.log[r]).collect();
+    let m = merge(&channels);
+    assert_eq!(m.rows.len(), 50);
+    let get = |r: usize, name: &str| m.field(r, name).cloned();
+    // Sample 0 (t = 0) is before the first kept chamber reading (50 ms): none.
+    assert_eq!(get(0, "chamber_log_time_ns"), None);
+    // Sample 3 (150 ms): the reading of 50 ms, held (the next is at 200 ms).
+    assert_eq!(get(3, "chamber_log_time_ns"), Some(Value::from(EPOCH as i64 + 50_000_000)));
+    // Sample 4 (200 ms): the reading of 200 ms itself (at or before).
+    assert_eq!(get(4, "chamber_log_time_ns"), Some(Value::from(EPOCH as i64 + 200_000_000)));
+    assert_eq!(get(4, "chamber_setpoint"), Some(Value::from(21.25)));
+    assert_eq!(get(4, "gyro_seq"), Some(Value::from(1004)));
+    assert_eq!(get(4, "bench_time_s"), Some(Value::from(0.2)));
+    // The step labelled `record, "quoted"` started at 0 and has no end: every sample is in it.
+    assert_eq!(get(49, "record_window"), Some(Value::from("record, \"quoted\"")));
+    assert_eq!(column_unit(MERGED, "chamber_setpoint"), Some("°C"));
+    assert_eq!(column_unit(MERGED, "gyro_rate"), Some("rad/s"));
+    assert_eq!(column_unit(MERGED, "record_window"), None);
 }

@@ -114,11 +114,14 @@ mod tests {
 
         // The coefficient table holds the joint values in report units.
         let j = out.calibration.joint.as_ref().expect("joint fit on the short run");
-        let bias = crate::render::sig(j.bias.value / bench_physics::units::DEG_PER_H, 4);
-        let tc = crate::render::sig(j.temp_coeff.value / bench_physics::units::DEG_PER_H, 4);
-        let sf = crate::render::sig(j.scale_factor_error.value * 1e6, 4);
-        for v in [&bias, &tc, &sf] {
-            assert!(html.contains(&format!("<td>{v} ± ")), "joint value {v} in the table");
+        // Digits set by σ (display::value_sigma).
+        use crate::display::{si_value_sigma, PPM, RATE, TEMP_COEFF};
+        let bias = si_value_sigma(RATE, j.bias.value, j.bias.std_err);
+        let tc = si_value_sigma(TEMP_COEFF, j.temp_coeff.value, j.temp_coeff.std_err);
+        let sf = si_value_sigma(PPM, j.scale_factor_error.value, j.scale_factor_error.std_err);
+        for (v, unit) in [(&bias, RATE), (&tc, TEMP_COEFF), (&sf, PPM)] {
+            let v = v.trim_end_matches(unit.name).trim_end();
+            assert!(html.contains(&format!("<td>{v}</td>")), "joint value {v} in the table");
         }
         assert!(html.contains("°/h/(°C/min)"));
 

@@ -19,6 +19,7 @@ use bench_physics::noise::bias_instability_adev;
 use bench_physics::units::DEG_PER_H;
 
 use super::DiagnoseOutcome;
+use crate::display;
 use crate::render::plot::{colour, Axis, Item, Marker, Plot, Span};
 use crate::render::{
     escape, figures_html, io_err, render, sig, Figure, ReportError, ReportFiles, STYLE,
@@ -159,7 +160,11 @@ fn effect_figures(o: &DiagnoseOutcome) -> Vec<Figure> {
 }
 
 fn region_panel(title: &str, rs: &[Region]) -> Plot {
-    let mut p = Plot::new(title, Axis::linear("class"), Axis::linear("mean residual ± 2σ, °/h"));
+    // The class names on the axis, without the prefix they share (`angle 0..45°` → `0..45°`).
+    let names =
+        rs.iter().map(|r| r.name.strip_prefix("angle ").unwrap_or(&r.name).to_owned()).collect();
+    let mut p =
+        Plot::new(title, Axis::categories(title, names), Axis::linear("mean residual ± 2σ, °/h"));
     p.items.push(Item::Markers {
         label: None,
         colour: colour::BLUE,
@@ -173,13 +178,6 @@ fn region_panel(title: &str, rs: &[Region]) -> Plot {
             })
             .collect(),
     });
-    p.note = Some(
-        rs.iter()
-            .enumerate()
-            .map(|(i, r)| format!("{i}: {}", r.name))
-            .collect::<Vec<_>>()
-            .join("; "),
-    );
     p
 }
 
@@ -197,7 +195,7 @@ fn location_figure(o: &DiagnoseOutcome) -> Figure {
             region_panel("temperature band", &l.temperature),
             region_panel("table angle", &l.angle),
         ],
-        size: (1600, 480),
+        size: (2000, 480),
     }
 }
 
@@ -235,15 +233,15 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
             None => String::new(),
         }
     );
-    h.push_str("<h2>Parameters</h2>\n<table><tr><th class=l>key</th><th>nominal</th><th>fitted</th><th>σ</th><th>z</th></tr>\n");
+    h.push_str("<h2>Parameters</h2>\n<table><tr><th class=l>key</th><th>nominal</th><th>fitted ± 1σ</th><th>z</th></tr>\n");
     for u in &d.parameter_updates {
+        let unit = display::model_key_unit(u.key);
         let _ = writeln!(
             h,
-            "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             u.key.key(),
-            sig(u.nominal, 4),
-            sig(u.fitted, 4),
-            sig(u.sigma, 2),
+            escape(&display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name)),
+            escape(&display::si_value_sigma(unit, u.fitted, u.sigma)),
             sig((u.fitted - u.nominal) / u.sigma, 2)
         );
     }
@@ -255,10 +253,17 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
     );
     h.push_str("<h2>Effects tested</h2>\n<table><tr><th class=l>effect</th><th class=l>parameters</th><th>W</th><th>threshold</th><th>ΔBIC</th><th>held-out z</th><th class=l>verdict</th></tr>\n");
     for f in &d.findings {
+        // One line per parameter: each escaped, joined by real line breaks.
         let params = f
             .parameters
             .iter()
-            .map(|p| format!("{} = {} ± {} {}", p.name, sig(p.value, 4), sig(p.sigma, 2), p.unit))
+            .map(|p| {
+                escape(&format!(
+                    "{} = {}",
+                    display::parameter_name(p.name),
+                    display::si_value_sigma(display::for_si(p.unit), p.value, p.sigma)
+                ))
+            })
             .collect::<Vec<_>>()
             .join("<br>");
         let _ = writeln!(
@@ -267,7 +272,7 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
              <td>{}</td><td class=l>{}</td></tr>",
             escape(f.effect.description()),
             f.effect.key(),
-            escape(&params),
+            params,
             sig(f.wald, 3),
             sig(f.threshold, 3),
             sig(f.delta_bic, 3),

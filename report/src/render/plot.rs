@@ -54,16 +54,23 @@ pub(crate) struct Axis {
     pub log: bool,
     /// Fixed range; `None` fits the data.
     pub range: Option<(f64, f64)>,
+    /// Named categories at 0, 1, 2, …: a category axis, labelled by name at whole numbers only.
+    pub categories: Vec<String>,
 }
 
 impl Axis {
     /// A linear axis fitted to the data.
     pub fn linear(label: impl Into<String>) -> Self {
-        Self { label: label.into(), log: false, range: None }
+        Self { label: label.into(), log: false, range: None, categories: Vec::new() }
+    }
+    /// A category axis: `names[i]` at `i`, nothing between.
+    pub fn categories(label: impl Into<String>, names: Vec<String>) -> Self {
+        let n = names.len().max(1) as f64;
+        Self { label: label.into(), log: false, range: Some((-0.5, n - 0.5)), categories: names }
     }
     /// A logarithmic axis fitted to the data.
     pub fn log(label: impl Into<String>) -> Self {
-        Self { label: label.into(), log: true, range: None }
+        Self { label: label.into(), log: true, range: None, categories: Vec::new() }
     }
 }
 
@@ -179,7 +186,13 @@ fn fit_range(axis: &Axis, values: impl Iterator<Item = f64>) -> (f64, f64) {
         if !(lo.is_finite() && hi.is_finite()) {
             return (0.1, 10.0);
         }
-        decades(lo, hi)
+        if hi / lo >= 100.0 {
+            return decades(lo, hi);
+        }
+        // Under two decades: the data with a margin, down to a power of ten at least so that
+        // the axis has a labelled decade (its 1, 2, 5 labelled too, see `tick_label`).
+        let decade = 10f64.powf(hi.log10().floor());
+        ((lo / 1.2).min(decade), hi * 1.2)
     } else {
         if !(lo.is_finite() && hi.is_finite()) {
             return (0.0, 1.0);
@@ -229,7 +242,20 @@ impl Plot {
         for s in &self.spans {
             xs.extend([s.x0, s.x1]);
         }
-        (fit_range(&self.x, xs.into_iter()), fit_range(&self.y, ys.into_iter()))
+        let (y0, mut y1) = fit_range(&self.y, ys.into_iter());
+        // Room at the top for the legend (upper left) and the note (upper right), so neither
+        // covers the data.
+        let labelled = self.spans.iter().any(|s| !s.label.is_empty())
+            || self.items.iter().any(|i| match i {
+                Item::Line { label, .. }
+                | Item::Band { label, .. }
+                | Item::Markers { label, .. } => label.is_some(),
+            });
+        if (labelled || self.note.is_some()) && !self.y.log && self.y.range.is_none() {
+            let lines = self.note.as_deref().map_or(0, |n| n.lines().count());
+            y1 += (y1 - y0) * (0.06 * lines.max(2) as f64 + 0.06);
+        }
+        (fit_range(&self.x, xs.into_iter()), (y0, y1))
     }
 }
 
@@ -264,11 +290,43 @@ pub(crate) fn tick(v: &f64) -> String {
     }
 }
 
+/// A tick's label: a category's name at a whole number (nothing between); on a log axis of a
+/// few decades (`decades`, rounded: 0 under ≈ 3×) only 1, 2 and 5 of each decade, or every
+/// whole mantissa when under one; else [`tick`].
+fn tick_label(v: f64, span: f64, decades: Option<usize>, categories: &[String]) -> String {
+    if !categories.is_empty() {
+        let i = v.round();
+        return match categories.get(i.max(0.0) as usize) {
+            Some(name) if (v - i).abs() < 1e-6 && i >= 0.0 => name.clone(),
+            _ => String::new(),
+        };
+    }
+    if let (Some(n), true) = (decades, v > 0.0) {
+        // Under a decade every whole mantissa, else 1, 2 and 5.
+        let m = v / 10f64.powf(v.log10().floor());
+        let whole = (m - m.round()).abs() < 1e-6 * m;
+        if !(whole && (n == 0 || [1.0, 2.0, 5.0, 10.0].contains(&m.round()))) {
+            return String::new();
+        }
+    }
+    // Key points computed as multiples of a step can miss zero by rounding (1.7e-18).
+    tick(&if v.abs() < 1e-9 * span { 0.0 } else { v })
+}
+
 type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
 /// Draw `plot` into `area`.
 fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, plot: &Plot) -> DrawResult<DB> {
-    let ((x0, x1), (y0, y1)) = plot.ranges();
+    let ((mut x0, mut x1), (mut y0, mut y1)) = plot.ranges();
+    // A log range from a power of ten: plotters finds its first key point as 10^ceil(log10
+    // start), which rounding can put a decade up (log10(0.001) = -2.9999999999999996), losing
+    // the labels of the first decade. A hair wider keeps the power of ten inside.
+    if plot.x.log {
+        (x0, x1) = (x0 * (1.0 - 1e-9), x1 * (1.0 + 1e-9));
+    }
+    if plot.y.log {
+        (y0, y1) = (y0 * (1.0 - 1e-9), y1 * (1.0 + 1e-9));
+    }
     let mut b = ChartBuilder::on(area);
     b.caption(&plot.title, ("sans-serif", 17))
         .margin(10)
@@ -306,15 +364,29 @@ where
     X: Ranged<ValueType = f64> + ValueFormatter<f64>,
     Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
-    // Key points computed as multiples of a step can miss zero by rounding (1.7e-18).
-    let snap = |span: f64| move |v: &f64| tick(&if v.abs() < 1e-9 * span { 0.0 } else { *v });
     let (xr, yr) = (chart.x_range(), chart.y_range());
-    let x_tick = snap((xr.end - xr.start).abs());
-    let y_tick = snap((yr.end - yr.start).abs());
+    // A log axis over one or two decades: labels at 1, 2 and 5 of each decade too (plotters
+    // labels only the decades, which leaves one or two labels).
+    let few_decades = |log: bool, r: &std::ops::Range<f64>| {
+        let n = (r.end / r.start).abs().log10().round();
+        (log && n <= 2.0).then_some(n as usize)
+    };
+    let (x_dec, y_dec) = (few_decades(plot.x.log, &xr), few_decades(plot.y.log, &yr));
+    let label_count = |dec: Option<usize>, categories: usize| match (dec, categories) {
+        (Some(n), _) => 10 * n.max(1) + 1,
+        (None, 0) => 10,
+        (None, c) => c + 1,
+    };
+    let x_span = (xr.end - xr.start).abs();
+    let y_span = (yr.end - yr.start).abs();
+    let x_tick = |v: &f64| tick_label(*v, x_span, x_dec, &plot.x.categories);
+    let y_tick = |v: &f64| tick_label(*v, y_span, y_dec, &plot.y.categories);
     chart
         .configure_mesh()
         .x_desc(plot.x.label.as_str())
         .y_desc(plot.y.label.as_str())
+        .x_labels(label_count(x_dec, plot.x.categories.len()))
+        .y_labels(label_count(y_dec, plot.y.categories.len()))
         .x_label_formatter(&x_tick)
         .y_label_formatter(&y_tick)
         .label_style(("sans-serif", 13))
@@ -537,8 +609,26 @@ mod tests {
         let (lo, hi) = fit_range(&a, [0.0, 10.0, f64::NAN].into_iter());
         assert!((lo + 0.4).abs() < 1e-12 && (hi - 10.4).abs() < 1e-12);
         let l = Axis::log("x");
-        assert_eq!(fit_range(&l, [-1.0, 2.0, 100.0].into_iter()), (1.0, 100.0));
-        assert_eq!(fit_range(&l, [0.002, 0.04].into_iter()), (0.001, 0.1));
-        assert_eq!(fit_range(&l, [1.0].into_iter()), (1.0, 10.0));
+        assert_eq!(fit_range(&l, [-1.0, 2.0, 1000.0].into_iter()), (1.0, 1000.0));
+        let close =
+            |a: (f64, f64), b: (f64, f64)| (a.0 / b.0 - 1.0).abs() + (a.1 / b.1 - 1.0).abs() < 1e-9;
+        // Under two decades: the data with a margin, a power of ten always inside.
+        assert!(close(fit_range(&l, [0.002, 0.04].into_iter()), (0.002 / 1.2, 0.048)));
+        assert!(close(fit_range(&l, [0.003, 0.008].into_iter()), (0.001, 0.0096)));
+        assert!(close(fit_range(&l, [1.0].into_iter()), (1.0 / 1.2, 1.2)));
+    }
+
+    #[test]
+    fn category_and_short_log_axes_are_labelled() {
+        let names = vec!["cw".to_owned(), "ccw".to_owned()];
+        assert_eq!(tick_label(1.0, 2.0, None, &names), "ccw");
+        assert_eq!(tick_label(0.5, 2.0, None, &names), "");
+        assert_eq!(tick_label(2.0, 2.0, None, &names), "");
+        assert_eq!(tick_label(0.002, 0.01, Some(1), &[]), "0.002");
+        assert_eq!(tick_label(0.005, 0.01, Some(1), &[]), "0.005");
+        assert_eq!(tick_label(0.003, 0.01, Some(1), &[]), "");
+        assert_eq!(tick_label(0.003, 0.01, Some(0), &[]), "0.003");
+        assert_eq!(tick_label(0.0035, 0.01, Some(0), &[]), "");
+        assert_eq!(tick_label(0.003, 0.01, None, &[]), "0.003");
     }
 }

@@ -15,9 +15,9 @@ use crate::calibrate::{CalibrationOutcome, FunctionErrors};
 use crate::display::{Unit, PPM, RATE, TEMP_COEFF, TEMP_RATE_COEFF};
 use crate::render::{escape, figures_html, sig, STYLE};
 
-/// `value ± σ`.
+/// `value ± σ` (display units, the unit in its own column), digits set by σ.
 fn pm(value: f64, sigma: f64) -> String {
-    format!("{} ± {}", sig(value, 4), sig(sigma, 2))
+    crate::display::value_sigma(value, sigma, "")
 }
 
 fn kind_text(k: WindowKind) -> &'static str {
