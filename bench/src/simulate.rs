@@ -10,6 +10,7 @@ use anyhow::Context as _;
 use bench_drivers::clock::VirtualClock;
 use bench_drivers::Clock;
 use bench_physics::effects::{Effects, RateRipple};
+use bench_recording::RunInfo;
 use bench_sim::{SimBench, SimConfig};
 
 use crate::plan::RunPlan;
@@ -141,4 +142,53 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
     info.gyro_model_role = bench_recording::ModelRole::Simulation;
     run_virtual(plan, devices, &clock, info, writer, opts.run_options(console))
+}
+
+/// The simulated bench's devices for `plan` on `clock`, and the run info of a simulated run
+/// (the truth model recorded, role `simulation`).
+fn sim_devices(
+    plan: &RunPlan,
+    config: SimConfig,
+    clock: Arc<dyn Clock>,
+    epoch_ns: u64,
+) -> anyhow::Result<(Devices, RunInfo)> {
+    let recorded = recorded_effects(plan, &config);
+    let sim = SimBench::new(config, clock)
+        .context("the scenario asks for a simulator configuration it cannot run")?;
+    let (table, chamber, gyro) = sim.into_parts();
+    let devices =
+        Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
+    let mut info = run_info(plan, epoch_ns);
+    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
+    info.gyro_model_role = bench_recording::ModelRole::Simulation;
+    Ok((devices, info))
+}
+
+/// [`run_plan`] with the runner's options given whole (flush interval, time marks, policy).
+pub fn run_plan_opts<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    writer: W,
+    seed: u64,
+    epoch_ns: u64,
+    opts: RunOptions,
+) -> anyhow::Result<(RunReport, W)> {
+    let clock = VirtualClock::new();
+    let (devices, info) =
+        sim_devices(plan, sim_config(plan, seed), Arc::new(clock.clone()), epoch_ns)?;
+    run_virtual(plan, devices, &clock, info, writer, opts)
+}
+
+/// The simulated bench in real time × `time_scale` on the current tokio runtime, as a bench
+/// with real devices runs (bench time zero at [`SIM_EPOCH_NS`]).
+pub async fn run_plan_realtime<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    writer: W,
+    seed: u64,
+    time_scale: f64,
+    opts: RunOptions,
+) -> anyhow::Result<(RunReport, W)> {
+    let clock = bench_drivers::SystemClock::new(time_scale);
+    let (devices, info) =
+        sim_devices(plan, sim_config(plan, seed), Arc::new(clock.clone()), SIM_EPOCH_NS)?;
+    crate::runner::run_realtime(plan, devices, clock, info, writer, opts).await
 }

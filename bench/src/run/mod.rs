@@ -17,6 +17,7 @@ pub mod logging;
 mod sequencer;
 pub mod threaded;
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -191,9 +192,21 @@ pub type ConsoleLayer =
     Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>;
 
 /// Asks a running [`execute`] to abort (e.g. on Ctrl-C): the current step ends with an `abort`
-/// event, the bench goes to its safe state and the fault is [`FaultCause::Operator`].
+/// event, the bench goes to its safe state and the fault is [`FaultCause::Operator`]. A second
+/// request (or [`Stopper::stop_now`]) stops at once: the safe-state commands are still sent,
+/// but each is waited for at most [`HURRIED_SAFE_STATE_TIMEOUT`], and the tail of recording
+/// after them is skipped.
 #[derive(Clone, Debug)]
-pub struct Stopper(mpsc::UnboundedSender<String>);
+pub struct Stopper(mpsc::UnboundedSender<StopRequest>);
+
+/// What a [`Stopper`] asks.
+#[derive(Debug, Clone, PartialEq)]
+enum StopRequest {
+    /// Abort to the safe state with this reason.
+    Abort(String),
+    /// Stop now (a second interrupt).
+    Now,
+}
 
 impl Stopper {
     /// A stopper and the signal to hand to [`ExecOptions::stop`].
@@ -202,15 +215,26 @@ impl Stopper {
         (Self(tx), StopSignal(rx))
     }
 
-    /// Abort the run with `reason` (ignored once the run has ended).
+    /// Abort the run with `reason` (ignored once the run has ended). A second call stops at
+    /// once, as [`Stopper::stop_now`].
     pub fn stop(&self, reason: impl Into<String>) {
-        let _ = self.0.unbounded_send(reason.into());
+        let _ = self.0.unbounded_send(StopRequest::Abort(reason.into()));
+    }
+
+    /// Stop at once: abort if not yet aborting, and cut the safe state short (the commands
+    /// are still sent).
+    pub fn stop_now(&self) {
+        let _ = self.0.unbounded_send(StopRequest::Now);
     }
 }
 
 /// The receiving end of a [`Stopper`].
 #[derive(Debug)]
-pub struct StopSignal(mpsc::UnboundedReceiver<String>);
+pub struct StopSignal(mpsc::UnboundedReceiver<StopRequest>);
+
+/// After a second stop request, how long each safe-state command is still waited for, bench
+/// time.
+pub const HURRIED_SAFE_STATE_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// Options of [`execute`].
 #[derive(Default)]
@@ -237,6 +261,8 @@ pub(crate) struct Ctx {
     pub fault: Mutex<Option<Fault>>,
     pub fault_notify: mpsc::UnboundedSender<()>,
     pub policy: FaultPolicy,
+    /// A second stop request came: the safe state is cut short.
+    pub hurry: AtomicBool,
 }
 
 impl Ctx {
@@ -252,6 +278,10 @@ impl Ctx {
             *f = Some(fault);
             let _ = self.fault_notify.unbounded_send(());
         }
+    }
+
+    pub fn hurried(&self) -> bool {
+        self.hurry.load(Ordering::SeqCst)
     }
 
     pub fn fault(&self) -> Option<Fault> {
@@ -439,6 +469,7 @@ pub async fn execute<S: EventSink>(
         fault: Mutex::new(None),
         fault_notify: fault_tx,
         policy,
+        hurry: AtomicBool::new(false),
     });
 
     let recording = recorder_task(rx, sink, ctx.clone());
@@ -455,7 +486,20 @@ pub async fn execute<S: EventSink>(
     if let Some(StopSignal(mut rx)) = stop {
         let c = ctx.clone();
         device_tasks.push(Box::pin(async move {
-            if let Some(reason) = rx.next().await {
+            let mut requests = 0;
+            while let Some(request) = rx.next().await {
+                requests += 1;
+                let now = requests > 1 || request == StopRequest::Now;
+                let reason = match request {
+                    StopRequest::Abort(reason) if requests == 1 => reason,
+                    _ => "stopped at once by the operator".to_string(),
+                };
+                if now {
+                    tracing::warn!(
+                        "second interrupt: stopping now; the safe-state commands are still sent"
+                    );
+                    c.hurry.store(true, Ordering::SeqCst);
+                }
                 c.raise_fault(Fault::new(FaultCause::Operator, reason));
             }
         }));
@@ -489,8 +533,9 @@ pub async fn execute<S: EventSink>(
             None => tracing::info!("run completed"),
         }
         sequencer::safe_state(plan, &ctx).await;
-        // Keep recording briefly so the safe-state commands show in the streams.
-        ctx.clock.sleep(SAFE_STATE_TAIL).await;
+        // Keep recording briefly so the safe-state commands show in the streams (not after a
+        // second stop request).
+        sequencer::sleep_unless_hurried(&ctx, SAFE_STATE_TAIL).await;
         let duration = ctx.clock.now();
         aborts.iter().for_each(AbortHandle::abort);
         ctx.tx.close_channel();
