@@ -128,7 +128,10 @@ async fn a_silent_table_aborts_to_the_safe_state_keeping_the_data() {
     let rec = run_with(Duration::from_secs(30), |f| f.table.inject(Fault::Silence)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
-    assert!(outcome.contains("rate table data stale: no good reading for"), "{outcome}");
+    assert!(
+        outcome.contains("stream_stale: rate table data stale: no good reading for"),
+        "{outcome}"
+    );
     assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
     // The gyro kept streaming until the end: every sample up to the abort is there, in order.
     let abort_t = rec.steps.last().map_or(0, |s| s.log_time_ns);
@@ -159,6 +162,7 @@ async fn a_stuck_table_fails_to_settle_and_the_run_aborts() {
     let rec = run_with(Duration::ZERO, |f| f.table.inject(Fault::StuckTable)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 0 (table spin cw)"), "{outcome}");
+    assert!(outcome.contains("table_stall: table rate"), "{outcome}");
     assert!(outcome.contains("did not settle on -2.908882e-3 rad/s"), "{outcome}");
     assert!(rec.table.iter().all(|t| t.msg.rate_rad_s.abs() < 1e-4), "the axis never moved");
     assert_eq!(last_step_event(&rec), ("spin cw".into(), "abort".into()));

@@ -12,6 +12,7 @@
 //! and on tokio in real time (real devices): it only sleeps through the clock and spawns through
 //! a [`futures::task::Spawn`].
 
+pub mod interlocks;
 pub mod live;
 pub mod logging;
 mod sequencer;
@@ -134,9 +135,16 @@ pub enum FaultCause {
         /// `table`, `chamber` or `gyro`.
         device: &'static str,
     },
-    /// A step's condition was not met within its time (rate not settled, temperature or ramp
-    /// end not reached).
+    /// A step's condition was not met within its time (temperature or ramp end not reached).
     StepTimeout,
+    /// A run-time interlock tripped (`[interlocks]`); `name` is one of the names in
+    /// [`interlocks`] (`table_overspeed`, `table_stall`, `rate_disagreement`,
+    /// `chamber_over_temperature`, `chamber_under_temperature`, `setpoint_not_tracked`,
+    /// `gyro_status`) and leads the fault's message.
+    Interlock {
+        /// The interlock's name.
+        name: &'static str,
+    },
     /// The operator (or a signal) asked the run to stop.
     Operator,
     /// The recording could not be written.
@@ -263,6 +271,9 @@ pub(crate) struct Ctx {
     pub policy: FaultPolicy,
     /// A second stop request came: the safe state is cut short.
     pub hurry: AtomicBool,
+    /// Interlock thresholds and the monitor's state.
+    pub interlocks: crate::plan::Interlocks,
+    pub monitor: Mutex<interlocks::Monitor>,
 }
 
 impl Ctx {
@@ -277,6 +288,20 @@ impl Ctx {
             tracing::error!("{}", fault.message);
             *f = Some(fault);
             let _ = self.fault_notify.unbounded_send(());
+        }
+    }
+
+    /// Check a reading against the interlocks; a violation raises its fault.
+    fn check(
+        &self,
+        f: impl FnOnce(&mut interlocks::Monitor, &crate::plan::Interlocks) -> Option<Fault>,
+    ) {
+        let fault = {
+            let mut m = self.monitor.lock().unwrap_or_else(|p| p.into_inner());
+            f(&mut m, &self.interlocks)
+        };
+        if let Some(fault) = fault {
+            self.raise_fault(fault);
         }
     }
 
@@ -327,6 +352,7 @@ async fn gyro_task(ctx: Arc<Ctx>, mut gyro: Box<dyn Gyro>) {
                 let t = ctx.clock.now();
                 ctx.live.set_gyro(s.rate_rad_s, s.temperature_c);
                 ctx.live.set_fresh(Stream::Gyro, t);
+                ctx.check(|m, lim| m.gyro(lim, t, &s));
                 ctx.send(Event::Gyro(t, s));
             }
             Err(e) => {
@@ -352,6 +378,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
             let r = table.read().await?;
             let t = ctx.clock.now();
             ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
+            ctx.check(|m, lim| m.table(lim, t, &r));
             Ok((t, Event::Table(t, r)))
         }
         Stream::Chamber => {
@@ -360,6 +387,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
             let r = chamber.read().await?;
             let t = ctx.clock.now();
             ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
+            ctx.check(|m, lim| m.chamber(lim, t, &r));
             Ok((t, Event::Chamber(t, r)))
         }
         // The gyro streams by itself (`gyro_task`).
@@ -407,7 +435,8 @@ async fn watchdog_task(ctx: Arc<Ctx>) {
                 ctx.raise_fault(Fault::new(
                     FaultCause::Stale { device: s.device() },
                     format!(
-                        "{} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                        "{}: {} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                        interlocks::STREAM_STALE,
                         s.device(),
                         (now - last).as_secs_f64(),
                         limit.as_secs_f64()
@@ -470,6 +499,8 @@ pub async fn execute<S: EventSink>(
         fault_notify: fault_tx,
         policy,
         hurry: AtomicBool::new(false),
+        interlocks: plan.interlocks.clone(),
+        monitor: Mutex::new(interlocks::Monitor::default()),
     });
 
     let recording = recorder_task(rx, sink, ctx.clone());

@@ -202,10 +202,11 @@ async fn wait_table_rate(
             return Ok(());
         }
         if ctx.clock.now() - start >= timeout {
+            let name = super::interlocks::TABLE_STALL;
             return Err(Fault::new(
-                FaultCause::StepTimeout,
+                FaultCause::Interlock { name },
                 format!(
-                    "table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
+                    "{name}: table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
                     s.table_rate_rad_s,
                     timeout.as_secs_f64()
                 ),
