@@ -88,6 +88,8 @@ pub struct RunPlan {
     pub safe_decel_rad_s2: f64,
     /// Chamber set point of the safe state, °C.
     pub safe_temp_c: f64,
+    /// `[safe] chamber_hold`: the chamber keeps its set point in the safe state (no command).
+    pub safe_chamber_hold: bool,
     /// Run-time interlock thresholds (`[interlocks]`).
     pub interlocks: Interlocks,
     /// The unit under test, operator, station and acceptance limits (`bench.station`,

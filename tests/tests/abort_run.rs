@@ -281,3 +281,33 @@ fn a_second_stop_request_cuts_the_safe_state_short() {
     assert!(end >= second + hurried, "ended at {end:?}");
     assert!(end <= second + hurried + Duration::from_millis(100), "ended at {end:?}");
 }
+
+#[test]
+fn a_chamber_told_to_hold_keeps_its_set_point_in_the_safe_state() {
+    let text = IMPOSSIBLE_WAIT.replace(
+        "[[step]]\nlabel = \"spin cw\"",
+        "[safe]\nchamber_hold = true\n\n[[step]]\nlabel = \"spin cw\"",
+    );
+    let plan = bench::scenario::parse(&text, "abort.toml", &capabilities()).expect("valid");
+    assert!(plan.safe_chamber_hold);
+    let (report, cursor) =
+        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
+    assert_eq!(report.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
+    let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
+    // Heating on at 1 °C/min through the abort and the tail: the set point does not turn down.
+    let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    let at_abort = rec.chamber.iter().rfind(|c| c.log_time_ns <= abort_ns).expect("reading");
+    let last = rec.chamber.last().expect("readings");
+    assert!(last.msg.setpoint_c >= at_abort.msg.setpoint_c, "{:?} → {:?}", at_abort.msg, last.msg);
+    // The run said so in /log, and sent no safe set point.
+    let logs: Vec<String> = mcap::MessageStream::new(cursor.get_ref())
+        .expect("mcap")
+        .filter_map(Result::ok)
+        .filter(|m| m.channel.topic == "/log")
+        .map(|m| String::from_utf8_lossy(&m.data).into_owned())
+        .collect();
+    assert!(logs.iter().any(|l| l.contains("chamber holds its set point")), "{logs:?}");
+    assert!(!logs.iter().any(|l| l.contains("safe state: chamber set point")), "{logs:?}");
+    // The table still went to rest.
+    assert_eq!(rec.table.last().map(|t| t.msg.rate_command_rad_s), Some(0.0));
+}

@@ -272,6 +272,9 @@ pub(super) async fn safe_state(plan: &RunPlan, ctx: &Ctx) {
         t.stop(plan.safe_decel_rad_s2).await
     });
     let chamber = bounded(ctx, async {
+        if plan.safe_chamber_hold {
+            return Ok(());
+        }
         let mut c = ctx.chamber.lock().await;
         c.set_target(plan.safe_temp_c, None).await
     });
@@ -282,6 +285,9 @@ pub(super) async fn safe_state(plan: &RunPlan, ctx: &Ctx) {
         None => tracing::error!("safe state: table stop not answered {}", late(ctx, limit)),
     }
     match chamber {
+        Some(Ok(())) if plan.safe_chamber_hold => {
+            tracing::info!("safe state: chamber holds its set point ([safe] chamber_hold)")
+        }
         Some(Ok(())) => tracing::info!("safe state: chamber set point {} °C", plan.safe_temp_c),
         Some(Err(e)) => tracing::error!("safe state: chamber set point failed: {e}"),
         None => {

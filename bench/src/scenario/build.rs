@@ -621,12 +621,16 @@ impl<'a> Builder<'a> {
         // [safe]
         let mut safe_decel = 10.0 * bench_physics::units::DEG;
         let mut safe_temp = 20.0;
+        let mut safe_hold = false;
         if let Ok(Some(t)) = self.table(top, "safe") {
             self.check_keys(
                 t,
-                &["decel", "decel_rad_s2", "temperature", "temperature_c"],
+                &["decel", "decel_rad_s2", "temperature", "temperature_c", "chamber_hold"],
                 "[safe]",
             );
+            if let Ok(Some(hold)) = self.boolean(t, "chamber_hold") {
+                safe_hold = hold;
+            }
             if let Ok(Some((q, span))) = self.quantity(t, "decel", Dim::AngularAccel) {
                 self.check_accel(&q, &span, "safe-state deceleration");
                 safe_decel = q.si;
@@ -703,6 +707,7 @@ impl<'a> Builder<'a> {
             sim,
             safe_decel_rad_s2: safe_decel,
             safe_temp_c: safe_temp,
+            safe_chamber_hold: safe_hold,
             interlocks: self.interlocks.clone(),
             station,
             steps: std::mem::take(&mut self.steps),
