@@ -128,3 +128,25 @@ fn a_second_ctrl_c_stops_at_once_with_the_safe_state_commands_sent() {
         end - abort.log_time_ns
     );
 }
+
+#[test]
+fn bad_time_scales_and_flush_intervals_are_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("signals.toml"), SCENARIO).expect("scenario");
+    for (args, says) in [
+        (&["--flush-interval-s", "0"][..], "--flush-interval-s must be a number of seconds"),
+        (&["--time-marks-s", "nan"][..], "--time-marks-s must be a number of seconds"),
+        (&["--time-scale", "0"][..], "--time-scale must be a positive number, got 0"),
+    ] {
+        let r = Command::new(env!("CARGO_BIN_EXE_bench"))
+            .args(["run", "signals.toml", "-q", "-o", "out.mcap"])
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .expect("bench runs");
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+        assert!(!dir.path().join("out.mcap").exists(), "{args:?}: nothing recorded");
+    }
+}

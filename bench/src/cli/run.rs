@@ -143,11 +143,6 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
             scale.is_finite() && scale > 0.0,
             "--time-scale must be a positive number, got {scale}"
         );
-        anyhow::ensure!(
-            args.bench.as_ref().is_none_or(|b| !b.to_string_lossy().starts_with("replay:")),
-            "--time-scale applies to the embedded simulated bench (a replay takes `speed` in \
-             its config)"
-        );
     }
     let out = match &args.out {
         Some(out) if out.exists() && !args.force => anyhow::bail!(
@@ -177,6 +172,16 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
                 }
             };
             match source {
+                BenchSource::Replay(_) | BenchSource::Devices(_)
+                    if args.time_scale.is_some()
+                        && !matches!(&source, BenchSource::Devices(c) if c.is_simulated()) =>
+                {
+                    anyhow::bail!(
+                        "--time-scale runs the embedded simulated bench in real time; this \
+                         bench config names devices or a replay (their time scale is the \
+                         config's `[bench] time_scale` or `[replay] speed`)"
+                    )
+                }
                 BenchSource::Replay(replay) => {
                     run_on_replay(&args, &replay, &out, progress, verbose)?
                 }
