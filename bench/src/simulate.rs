@@ -33,21 +33,30 @@ pub struct SimOptions {
     pub progress: bool,
     /// Also show the streams in a Foxglove live view (default none).
     pub live: Option<Arc<crate::live_view::LiveView>>,
+    /// Kill-safety bound of the recording, bench time (default `None`:
+    /// [`crate::runner::DEFAULT_FLUSH_INTERVAL`]); [`SimOptions::IN_MEMORY`] for runs into
+    /// memory, which a kill loses whole anyway.
+    pub flush_interval: Option<std::time::Duration>,
 }
 
 impl Default for SimOptions {
     fn default() -> Self {
-        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false, live: None }
+        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false, live: None, flush_interval: None }
     }
 }
 
 impl SimOptions {
+    /// A flush interval for runs recorded into memory (the studies): long, so chunks fill
+    /// and the run is not held to the recorder thread.
+    pub const IN_MEMORY: Option<std::time::Duration> = Some(std::time::Duration::from_secs(3600));
+
     /// The runner's options for these, with a terminal log layer.
     pub fn run_options(&self, console: Option<ConsoleLayer>) -> RunOptions {
         RunOptions {
             progress: self.progress,
             live: self.live.clone(),
             console,
+            flush_interval: self.flush_interval,
             ..Default::default()
         }
     }

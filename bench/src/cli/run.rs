@@ -253,7 +253,13 @@ fn run_simulated(
     let rt = runtime()?;
     let live = start_live(&rt, args)?;
     let (flush_interval, time_marks) = args.recording_options()?;
-    let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
+    let opts = SimOptions {
+        seed: args.seed,
+        epoch_ns: SIM_EPOCH_NS,
+        progress,
+        live,
+        flush_interval: None,
+    };
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let writer = std::io::BufWriter::new(file);
