@@ -13,6 +13,58 @@ use bench_physics::table::{RateTableModel, TableParams};
 use bench_physics::units::quantise;
 use bench_physics::GyroModel;
 
+/// Run-time interlock thresholds (`[interlocks]`): each violation aborts the run with a named
+/// fault (`bench::run::interlocks`). Defaults derive from the devices' capabilities and the
+/// gyro's ratings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Interlocks {
+    /// `table_overspeed` above this measured |rate|, rad/s (default: the lesser of the table's
+    /// maximum rate and the gyro's input range).
+    pub table_max_rate_rad_s: f64,
+    /// `rate_disagreement`: how far the rate may leave its command once reached, rad/s
+    /// (default 0.1 °/s).
+    pub rate_tolerance_rad_s: f64,
+    /// … for how long (default 5 s).
+    pub rate_disagreement_for: Duration,
+    /// `chamber_over_temperature` above this air temperature, °C (default: the gyro's
+    /// operating maximum + 5 °C, at most the chamber's maximum).
+    pub chamber_max_temp_c: f64,
+    /// `chamber_under_temperature` below this, °C (default: the gyro's operating minimum −
+    /// 5 °C, at least the chamber's minimum).
+    pub chamber_min_temp_c: f64,
+    /// `setpoint_not_tracked`: how far the air may be from the working set point, °C
+    /// (default 10 °C).
+    pub setpoint_tolerance_c: f64,
+    /// … for how long (default 30 min).
+    pub setpoint_not_tracked_for: Duration,
+    /// `gyro_status`: how long the gyro may flag its samples invalid or failing built-in test
+    /// (default 5 s).
+    pub gyro_status_for: Duration,
+}
+
+impl Interlocks {
+    /// The defaults for devices with these capabilities.
+    pub fn defaults(caps: &crate::scenario::Capabilities) -> Self {
+        let deg = bench_physics::units::DEG;
+        let (glo, ghi) = caps.gyro.capabilities.operating_temp_c;
+        let c = &caps.chamber.capabilities;
+        Self {
+            table_max_rate_rad_s: caps
+                .table
+                .capabilities
+                .max_rate_rad_s
+                .min(caps.gyro.capabilities.max_rate_rad_s),
+            rate_tolerance_rad_s: 0.1 * deg,
+            rate_disagreement_for: Duration::from_secs(5),
+            chamber_max_temp_c: (ghi + 5.0).min(c.max_temp_c),
+            chamber_min_temp_c: (glo - 5.0).max(c.min_temp_c),
+            setpoint_tolerance_c: 10.0,
+            setpoint_not_tracked_for: Duration::from_secs(1800),
+            gyro_status_for: Duration::from_secs(5),
+        }
+    }
+}
+
 /// A validated, fully expanded scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunPlan {
@@ -36,6 +88,10 @@ pub struct RunPlan {
     pub safe_decel_rad_s2: f64,
     /// Chamber set point of the safe state, °C.
     pub safe_temp_c: f64,
+    /// `[safe] chamber_hold`: the chamber keeps its set point in the safe state (no command).
+    pub safe_chamber_hold: bool,
+    /// Run-time interlock thresholds (`[interlocks]`).
+    pub interlocks: Interlocks,
     /// The unit under test, operator, station and acceptance limits (`bench.station`,
     /// `bench.acceptance`).
     pub station: Station,

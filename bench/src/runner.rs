@@ -15,7 +15,7 @@ use bench_drivers::clock::{run_virtual as run_on_virtual_executor, TokioSpawner,
 use bench_drivers::{Clock, SystemClock};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
-use bench_recording::{Outcome, Recorder, RunInfo};
+use bench_recording::{Outcome, Recorder, RecorderOptions, RunInfo};
 
 use crate::live_view::{LiveTee, LiveView};
 use crate::plan::RunPlan;
@@ -65,6 +65,23 @@ pub struct RunOptions {
     pub stop: Option<StopSignal>,
     /// Limits of the fault handling.
     pub policy: FaultPolicy,
+    /// Kill-safety: at most this much bench time of data is lost if the process is killed
+    /// (SIGKILL) mid-run; `None`: [`DEFAULT_FLUSH_INTERVAL`]. See [`kill_safe_split`].
+    pub flush_interval: Option<Duration>,
+    /// Print a time mark on stderr every this much bench time (`bench run --time-marks-s`).
+    pub time_marks: Option<Duration>,
+}
+
+/// Default of [`RunOptions::flush_interval`]: 1 s of bench time.
+pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+
+/// How a kill-safety bound `loss` of bench time is split: the recorder flushes every ¾ of
+/// it, and in virtual time the run may run ahead of the recorder thread by at most ¼ of it
+/// (in real time the hand-over is immediate, one event at a time). Returns (flush interval,
+/// lag limit).
+pub fn kill_safe_split(loss: Duration) -> (Duration, Duration) {
+    let flush = loss * 3 / 4;
+    (flush, loss - flush)
 }
 
 /// The recording side of a run: started before the devices move, finished after.
@@ -76,8 +93,8 @@ struct Session<W: Write + Seek + Send + 'static> {
 }
 
 /// Start the recording of `plan` into `writer` with `info`. `batch`: events per hand-over to
-/// the recorder thread (large in virtual time, where it amortises; 1 in real time, so a crash
-/// loses no more than the recorder's unflushed tail).
+/// the recorder thread (large in virtual time, where it amortises, bounded by the lag limit;
+/// 1 in real time, so a crash loses no more than the recorder's unflushed tail).
 fn start<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     info: RunInfo,
@@ -86,9 +103,19 @@ fn start<W: Write + Seek + Send + 'static>(
     batch: usize,
 ) -> anyhow::Result<Session<W>> {
     let epoch_ns = info.epoch_ns;
-    let recorder = Recorder::new(writer, info).context("cannot start the recording")?;
+    let (flush, lag) = kill_safe_split(opts.flush_interval.unwrap_or(DEFAULT_FLUSH_INTERVAL));
+    let options = RecorderOptions { flush_interval: Some(flush), ..RecorderOptions::default() };
+    let recorder =
+        Recorder::with_options(writer, info, options).context("cannot start the recording")?;
     // Serialising and compressing run on the second core.
-    let sink = ThreadedSink::new(recorder, batch).context("cannot start the recorder thread")?;
+    let mut sink =
+        ThreadedSink::new(recorder, batch).context("cannot start the recorder thread")?;
+    if batch > 1 {
+        sink = sink.lag_limit(lag);
+    }
+    if let Some(every) = opts.time_marks {
+        sink = sink.time_marks(every, epoch_ns);
+    }
     let sink = LiveTee::new(sink, opts.live.clone(), epoch_ns);
     let live = Arc::new(Live::default());
     let progress = opts.progress.then(|| crate::progress::Progress::start(live.clone(), plan));
@@ -150,7 +177,8 @@ pub fn run_virtual<W: Write + Seek + Send + 'static>(
 /// Run `plan` on `devices` with `clock` on the current tokio runtime, in real time (or scaled,
 /// for simulators and replays), recording into `writer` with `info`. Events reach the file
 /// through the recorder thread one by one, so a crash loses at most the recorder's unflushed
-/// tail (it flushes every few seconds and at every step end).
+/// tail (it flushes every ¾ of [`RunOptions::flush_interval`] of bench time and at every
+/// step end).
 pub async fn run_realtime<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     devices: Devices,
@@ -176,12 +204,40 @@ pub async fn run_realtime<W: Write + Seek + Send + 'static>(
     finish(&live, wall, result)
 }
 
-/// A stop signal raised by the operator's Ctrl-C, listened for on the current tokio runtime.
-pub fn stop_on_ctrl_c() -> StopSignal {
+/// A stop signal raised by the operator, listened for on the current tokio runtime: the first
+/// Ctrl-C (SIGINT) or SIGTERM aborts the run to its safe state; a second one stops at once (the
+/// safe-state commands are still sent, each waited for at most
+/// [`crate::run::HURRIED_SAFE_STATE_TIMEOUT`]).
+pub fn stop_on_signals() -> StopSignal {
     let (stopper, stop) = Stopper::new();
     tokio::spawn(async move {
-        if tokio::signal::ctrl_c().await.is_ok() {
-            stopper.stop("interrupted by the operator (Ctrl-C)");
+        #[cfg(unix)]
+        let mut term =
+            tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
+        let mut first = true;
+        loop {
+            #[cfg(unix)]
+            let sigterm = async {
+                match term.as_mut() {
+                    Some(t) => t.recv().await,
+                    None => futures::future::pending().await,
+                }
+            };
+            #[cfg(not(unix))]
+            let sigterm = futures::future::pending::<Option<()>>();
+            let what = tokio::select! {
+                r = tokio::signal::ctrl_c() => match r {
+                    Ok(()) => "Ctrl-C",
+                    Err(_) => return,
+                },
+                Some(()) = sigterm => "SIGTERM",
+            };
+            if first {
+                stopper.stop(format!("interrupted by the operator ({what})"));
+                first = false;
+            } else {
+                stopper.stop_now();
+            }
         }
     });
     stop

@@ -10,6 +10,7 @@ use anyhow::Context as _;
 use bench_drivers::clock::VirtualClock;
 use bench_drivers::Clock;
 use bench_physics::effects::{Effects, RateRipple};
+use bench_recording::RunInfo;
 use bench_sim::{SimBench, SimConfig};
 
 use crate::plan::RunPlan;
@@ -32,21 +33,30 @@ pub struct SimOptions {
     pub progress: bool,
     /// Also show the streams in a Foxglove live view (default none).
     pub live: Option<Arc<crate::live_view::LiveView>>,
+    /// Kill-safety bound of the recording, bench time (default `None`:
+    /// [`crate::runner::DEFAULT_FLUSH_INTERVAL`]); [`SimOptions::IN_MEMORY`] for runs into
+    /// memory, which a kill loses whole anyway.
+    pub flush_interval: Option<std::time::Duration>,
 }
 
 impl Default for SimOptions {
     fn default() -> Self {
-        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false, live: None }
+        Self { seed: 1, epoch_ns: SIM_EPOCH_NS, progress: false, live: None, flush_interval: None }
     }
 }
 
 impl SimOptions {
+    /// A flush interval for runs recorded into memory (the studies): long, so chunks fill
+    /// and the run is not held to the recorder thread.
+    pub const IN_MEMORY: Option<std::time::Duration> = Some(std::time::Duration::from_secs(3600));
+
     /// The runner's options for these, with a terminal log layer.
     pub fn run_options(&self, console: Option<ConsoleLayer>) -> RunOptions {
         RunOptions {
             progress: self.progress,
             live: self.live.clone(),
             console,
+            flush_interval: self.flush_interval,
             ..Default::default()
         }
     }
@@ -141,4 +151,53 @@ pub fn run_plan_with<W: Write + Seek + Send + 'static>(
     info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
     info.gyro_model_role = bench_recording::ModelRole::Simulation;
     run_virtual(plan, devices, &clock, info, writer, opts.run_options(console))
+}
+
+/// The simulated bench's devices for `plan` on `clock`, and the run info of a simulated run
+/// (the truth model recorded, role `simulation`).
+fn sim_devices(
+    plan: &RunPlan,
+    config: SimConfig,
+    clock: Arc<dyn Clock>,
+    epoch_ns: u64,
+) -> anyhow::Result<(Devices, RunInfo)> {
+    let recorded = recorded_effects(plan, &config);
+    let sim = SimBench::new(config, clock)
+        .context("the scenario asks for a simulator configuration it cannot run")?;
+    let (table, chamber, gyro) = sim.into_parts();
+    let devices =
+        Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
+    let mut info = run_info(plan, epoch_ns);
+    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
+    info.gyro_model_role = bench_recording::ModelRole::Simulation;
+    Ok((devices, info))
+}
+
+/// [`run_plan`] with the runner's options given whole (flush interval, time marks, policy).
+pub fn run_plan_opts<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    writer: W,
+    seed: u64,
+    epoch_ns: u64,
+    opts: RunOptions,
+) -> anyhow::Result<(RunReport, W)> {
+    let clock = VirtualClock::new();
+    let (devices, info) =
+        sim_devices(plan, sim_config(plan, seed), Arc::new(clock.clone()), epoch_ns)?;
+    run_virtual(plan, devices, &clock, info, writer, opts)
+}
+
+/// The simulated bench in real time × `time_scale` on the current tokio runtime, as a bench
+/// with real devices runs (bench time zero at [`SIM_EPOCH_NS`]).
+pub async fn run_plan_realtime<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    writer: W,
+    seed: u64,
+    time_scale: f64,
+    opts: RunOptions,
+) -> anyhow::Result<(RunReport, W)> {
+    let clock = bench_drivers::SystemClock::new(time_scale);
+    let (devices, info) =
+        sim_devices(plan, sim_config(plan, seed), Arc::new(clock.clone()), SIM_EPOCH_NS)?;
+    crate::runner::run_realtime(plan, devices, clock, info, writer, opts).await
 }

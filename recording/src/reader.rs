@@ -299,7 +299,7 @@ struct Body {
 }
 
 /// Largest record or chunk accepted when the file size is unknown.
-const MAX_RECORD: usize = 1 << 30;
+pub(crate) const MAX_RECORD: usize = 1 << 30;
 
 impl RecordingReader<BufReader<File>> {
     /// Open a file.

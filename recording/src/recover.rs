@@ -183,7 +183,11 @@ pub fn recover<R: Read, W: Write + Seek>(
 ) -> Result<(RecoverReport, W), RecoverError> {
     // Emit chunks whole, so that each event is one top-level record and its end is a byte
     // position of the file; their messages are read with a second reader.
-    let options = LinearReaderOptions::default().with_emit_chunks(true);
+    // A record longer than the reader's limit is damage: a killed writer leaves its last chunk
+    // with the length still a placeholder (u64::MAX), which must end the input, not overflow.
+    let options = LinearReaderOptions::default()
+        .with_emit_chunks(true)
+        .with_record_length_limit(crate::reader::MAX_RECORD);
     let mut reader = LinearReader::new_with_options(options);
     let mut at_byte: u64 = 0;
     let mut end_of_last: u64 = 0;
@@ -467,6 +471,46 @@ mod tests {
                 assert!(report.to_string().contains(&format!("breaks at byte {}", brk.at_byte)));
             }
         }
+    }
+
+    /// A writer killed mid-chunk leaves the chunk's length as a placeholder (u64::MAX): the
+    /// recovery stops there (this overflowed the mcap reader's arithmetic and panicked).
+    #[test]
+    fn a_killed_writers_open_chunk_ends_the_input() {
+        #[derive(Clone, Default)]
+        struct Shared(std::rc::Rc<std::cell::RefCell<Cursor<Vec<u8>>>>);
+        impl std::io::Write for Shared {
+            fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+                self.0.borrow_mut().write(b)
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        impl std::io::Seek for Shared {
+            fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+                self.0.borrow_mut().seek(pos)
+            }
+        }
+        let info = RunInfo::new(1_000, "t", "", Site::at_latitude(1.0), BTreeMap::new());
+        let opts = RecorderOptions {
+            flush_interval: Some(Duration::from_secs(1)),
+            compression: None,
+            ..RecorderOptions::default()
+        };
+        let sink = Shared::default();
+        let mut r = Recorder::with_options(sink.clone(), info, opts).expect("start");
+        for i in 0..130u64 {
+            let s = GyroMsg { rate_rad_s: 0.0, temperature_c: None, seq: i, status: 0 };
+            r.gyro(Duration::from_millis(50 * i), None, &s).expect("gyro");
+        }
+        let killed = sink.0.borrow().get_ref().clone();
+        drop(r);
+        let (report, out) = recover_bytes(&killed);
+        assert!(!report.complete);
+        // Flushed at 1, 2, …, 6 s: samples 0..=120 are kept, the open chunk is not.
+        assert_eq!(report.messages.get("/gyro/rate"), Some(&121));
+        assert!(Recording::from_bytes(&out).expect("recovered").complete);
     }
 
     #[test]

@@ -21,7 +21,7 @@ use std::{
     fs::File,
     io::{BufWriter, Seek, Write},
     path::Path,
-    time::{Duration, Instant},
+    time::Duration,
 };
 
 use mcap::{records::MessageHeader, Compression, WriteOptions};
@@ -194,9 +194,12 @@ pub struct RecorderOptions {
     /// Width of the gyro's own sample counter in bits (1..=64), for detecting counter gaps
     /// across wrap-around. Default 64 (drivers widen wrapping counters to u64).
     pub gyro_seq_bits: u32,
-    /// Close the current chunk and flush the file at least this often in wall time, so a crash
-    /// (SIGKILL, power loss) loses at most this much. Default 5 s; `None`: only when chunks fill,
-    /// on [`Recorder::flush`], at step ends and at the finish.
+    /// Close the current chunk and flush the sink whenever a message's bench time has moved
+    /// this far past the last flush, so a crash (SIGKILL) loses at most this much **bench
+    /// time** of data, however fast the run goes (virtual time, scaled time). Default 1 s;
+    /// `None`: only when chunks fill, on [`Recorder::flush`], at step ends and at the finish.
+    /// The flush hands the data to the operating system (it survives the process, not a power
+    /// loss before the OS writes it back).
     pub flush_interval: Option<Duration>,
     /// Also close the chunk and flush at every step end or abort. Default true.
     pub flush_on_step_end: bool,
@@ -214,7 +217,7 @@ impl Default for RecorderOptions {
             compression: Some(Compression::Zstd),
             chunk_size: 1024 * 1024,
             gyro_seq_bits: 64,
-            flush_interval: Some(Duration::from_secs(5)),
+            flush_interval: Some(Duration::from_secs(1)),
             flush_on_step_end: true,
             compression_threads: 0,
             compression_level: 1,
@@ -309,8 +312,10 @@ pub struct Recorder<W: Write + Seek> {
     gyro_seq_gaps: u64,
     flush_interval: Option<Duration>,
     flush_on_step_end: bool,
-    last_flush: Instant,
-    since_clock_check: u32,
+    /// Bench time of the last flush (the latest message time then).
+    last_flush_t: Duration,
+    /// Latest message time seen, any channel.
+    latest_t: Duration,
 }
 
 impl Recorder<BufWriter<File>> {
@@ -414,8 +419,8 @@ impl<W: Write + Seek> Recorder<W> {
             gyro_seq_gaps: 0,
             flush_interval: options.flush_interval,
             flush_on_step_end: options.flush_on_step_end,
-            last_flush: Instant::now(),
-            since_clock_check: 0,
+            last_flush_t: Duration::ZERO,
+            latest_t: Duration::ZERO,
         })
     }
 
@@ -546,7 +551,7 @@ impl<W: Write + Seek> Recorder<W> {
     /// if the process dies next.
     pub fn flush(&mut self) -> Result<(), RecordError> {
         self.writer.flush().map_err(mcap_err("flushing"))?;
-        self.last_flush = Instant::now();
+        self.last_flush_t = self.latest_t;
         Ok(())
     }
 
@@ -603,20 +608,11 @@ impl<W: Write + Seek> Recorder<W> {
         ch.next_sequence = ch.next_sequence.wrapping_add(1);
         ch.last_log_time = log_time;
         ch.last_t = t;
-        self.maybe_flush()
-    }
-
-    fn maybe_flush(&mut self) -> Result<(), RecordError> {
-        if let Some(interval) = self.flush_interval {
-            self.since_clock_check += 1;
-            if self.since_clock_check >= 16 {
-                self.since_clock_check = 0;
-                if self.last_flush.elapsed() >= interval {
-                    self.flush()?;
-                }
-            }
+        self.latest_t = self.latest_t.max(t);
+        match self.flush_interval {
+            Some(interval) if self.latest_t >= self.last_flush_t + interval => self.flush(),
+            _ => Ok(()),
         }
-        Ok(())
     }
 }
 

@@ -152,3 +152,162 @@ fn a_hanging_stream_is_caught_by_the_watchdog() {
     assert!(rec.gyro.is_empty() && !rec.table.is_empty());
     assert_eq!(rec.steps.last().map(|s| s.msg.event.as_str()), Some("abort"));
 }
+
+/// A table that never answers the stop command (it hangs), otherwise the simulator's.
+struct DeafToStop(Box<dyn bench_drivers::RateTable>);
+
+#[async_trait::async_trait]
+impl bench_drivers::RateTable for DeafToStop {
+    fn info(&self) -> &bench_drivers::DeviceInfo<bench_drivers::TableCapabilities> {
+        self.0.info()
+    }
+    async fn set_rate(
+        &mut self,
+        rate_rad_s: f64,
+        accel_rad_s2: f64,
+    ) -> bench_drivers::DeviceResult<()> {
+        self.0.set_rate(rate_rad_s, accel_rad_s2).await
+    }
+    async fn stop(&mut self, _decel_rad_s2: f64) -> bench_drivers::DeviceResult<()> {
+        futures::future::pending().await
+    }
+    async fn read(&mut self) -> bench_drivers::DeviceResult<bench_drivers::TableReading> {
+        self.0.read().await
+    }
+}
+
+/// Run IMPOSSIBLE_WAIT with a table deaf to stop; `stop_at`: stop requests at these bench
+/// times. Returns the run's end, the abort event's time and the recording.
+fn run_deaf(
+    stop_at: &[std::time::Duration],
+) -> (std::time::Duration, std::time::Duration, Recording, bench::run::RunResult<()>) {
+    use bench_drivers::clock::{run_virtual, VirtualClock};
+    use bench_drivers::Clock;
+    use futures::task::SpawnExt;
+    use std::sync::Arc;
+
+    let plan = bench::scenario::parse(IMPOSSIBLE_WAIT, "abort.toml", &capabilities())
+        .expect("valid scenario");
+    let clock = VirtualClock::new();
+    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let sim = bench_sim::SimBench::new(bench::simulate::sim_config(&plan, 1), shared.clone())
+        .expect("sim");
+    let (table, chamber, gyro) = sim.into_parts();
+    let devices = bench::run::Devices {
+        table: Box::new(DeafToStop(Box::new(table))),
+        chamber: Box::new(chamber),
+        gyro: Box::new(gyro),
+    };
+    let recorder = bench_recording::Recorder::new(
+        Cursor::new(Vec::new()),
+        bench::runner::run_info(&plan, bench::simulate::SIM_EPOCH_NS),
+    )
+    .expect("recorder");
+    let (stopper, stop) = bench::run::Stopper::new();
+    let live = Arc::new(bench::run::Live::default());
+    let times = stop_at.to_vec();
+    let result = run_virtual(&clock, |spawner| {
+        let c = shared.clone();
+        spawner
+            .spawn(async move {
+                for t in times {
+                    c.sleep_until(t).await;
+                    stopper.stop("interrupted by the test");
+                }
+            })
+            .expect("spawned");
+        bench::run::execute(
+            &plan,
+            devices,
+            shared.clone(),
+            recorder,
+            spawner,
+            live,
+            bench::run::ExecOptions { stop: Some(stop), ..Default::default() },
+        )
+    })
+    .expect("the teardown does not hang");
+    let outcome = result.outcome();
+    let bytes = result.sink.finish(&outcome).expect("finished").into_inner();
+    let rec = Recording::from_bytes(&bytes).expect("readable");
+    let abort = rec
+        .steps
+        .iter()
+        .find(|s| s.msg.event.as_str() == "abort")
+        .map(|s| std::time::Duration::from_nanos(s.log_time_ns - bench::simulate::SIM_EPOCH_NS))
+        .expect("an abort event");
+    let r = bench::run::RunResult { fault: result.fault, sink: (), duration: result.duration };
+    (result.duration, abort, rec, r)
+}
+
+#[test]
+fn a_table_deaf_to_the_stop_command_cannot_hang_the_teardown() {
+    use std::time::Duration;
+    let (end, abort, rec, r) = run_deaf(&[]);
+    // The wait times out at 10 min; the safe state gives the stop its 10 s and goes on.
+    assert_eq!(r.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
+    let timeout = bench::run::FaultPolicy::default().safe_state_timeout;
+    let spent = end - abort;
+    assert!(spent >= timeout, "the stop was given its {timeout:?} (ended after {spent:?})");
+    assert!(
+        spent <= timeout + bench::run::SAFE_STATE_TAIL + Duration::from_millis(100),
+        "teardown took {spent:?}"
+    );
+    // The chamber's safe-state command went out beside the hanging one: its working set point,
+    // heating towards 60 °C until the abort, turns down towards the safe 20 °C.
+    let abort_ns = abort.as_nanos() as u64 + bench::simulate::SIM_EPOCH_NS;
+    let at_abort = rec.chamber.iter().rfind(|c| c.log_time_ns <= abort_ns).expect("reading");
+    let last = rec.chamber.last().expect("chamber readings");
+    assert!(
+        last.msg.setpoint_c < at_abort.msg.setpoint_c - 0.1,
+        "set point {} °C at the abort, {} °C at the end",
+        at_abort.msg.setpoint_c,
+        last.msg.setpoint_c
+    );
+}
+
+#[test]
+fn a_second_stop_request_cuts_the_safe_state_short() {
+    use std::time::Duration;
+    let first = Duration::from_secs(120);
+    let second = first + Duration::from_secs(2);
+    let (end, abort, _rec, r) = run_deaf(&[first, second]);
+    assert_eq!(r.fault.as_ref().map(|f| f.cause), Some(FaultCause::Operator));
+    let message = r.fault.map(|f| f.message).unwrap_or_default();
+    assert!(message.ends_with("interrupted by the test"), "{message}");
+    assert_eq!(abort, first, "the first request aborts the step at once");
+    // The second request, 2 s in, leaves the stop 1 more second, and no tail.
+    let hurried = bench::run::HURRIED_SAFE_STATE_TIMEOUT;
+    assert!(end >= second + hurried, "ended at {end:?}");
+    assert!(end <= second + hurried + Duration::from_millis(100), "ended at {end:?}");
+}
+
+#[test]
+fn a_chamber_told_to_hold_keeps_its_set_point_in_the_safe_state() {
+    let text = IMPOSSIBLE_WAIT.replace(
+        "[[step]]\nlabel = \"spin cw\"",
+        "[safe]\nchamber_hold = true\n\n[[step]]\nlabel = \"spin cw\"",
+    );
+    let plan = bench::scenario::parse(&text, "abort.toml", &capabilities()).expect("valid");
+    assert!(plan.safe_chamber_hold);
+    let (report, cursor) =
+        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
+    assert_eq!(report.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
+    let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
+    // Heating on at 1 °C/min through the abort and the tail: the set point does not turn down.
+    let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    let at_abort = rec.chamber.iter().rfind(|c| c.log_time_ns <= abort_ns).expect("reading");
+    let last = rec.chamber.last().expect("readings");
+    assert!(last.msg.setpoint_c >= at_abort.msg.setpoint_c, "{:?} → {:?}", at_abort.msg, last.msg);
+    // The run said so in /log, and sent no safe set point.
+    let logs: Vec<String> = mcap::MessageStream::new(cursor.get_ref())
+        .expect("mcap")
+        .filter_map(Result::ok)
+        .filter(|m| m.channel.topic == "/log")
+        .map(|m| String::from_utf8_lossy(&m.data).into_owned())
+        .collect();
+    assert!(logs.iter().any(|l| l.contains("chamber holds its set point")), "{logs:?}");
+    assert!(!logs.iter().any(|l| l.contains("safe state: chamber set point")), "{logs:?}");
+    // The table still went to rest.
+    assert_eq!(rec.table.last().map(|t| t.msg.rate_command_rad_s), Some(0.0));
+}

@@ -48,7 +48,16 @@ stop = "table"
 /// rate command) cannot be left to a spawned task: on a loaded host that task may be polled
 /// only after the command was served, and the run then completes.
 async fn run_with(at: Duration, inject: impl FnOnce(&BenchFaults) + Send + 'static) -> Recording {
-    let plan = bench::scenario::parse(MINI, "faults.toml", &capabilities()).expect("valid");
+    run_text_with(MINI, at, inject).await
+}
+
+/// [`run_with`] for the scenario `text`.
+async fn run_text_with(
+    text: &str,
+    at: Duration,
+    inject: impl FnOnce(&BenchFaults) + Send + 'static,
+) -> Recording {
+    let plan = bench::scenario::parse(text, "faults.toml", &capabilities()).expect("valid");
     let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
     let served = serve_bench(sim_config(&plan, 5), sim_clock.clone()).await.expect("served");
     let mut config =
@@ -128,7 +137,10 @@ async fn a_silent_table_aborts_to_the_safe_state_keeping_the_data() {
     let rec = run_with(Duration::from_secs(30), |f| f.table.inject(Fault::Silence)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
-    assert!(outcome.contains("rate table data stale: no good reading for"), "{outcome}");
+    assert!(
+        outcome.contains("stream_stale: rate table data stale: no good reading for"),
+        "{outcome}"
+    );
     assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
     // The gyro kept streaming until the end: every sample up to the abort is there, in order.
     let abort_t = rec.steps.last().map_or(0, |s| s.log_time_ns);
@@ -159,6 +171,7 @@ async fn a_stuck_table_fails_to_settle_and_the_run_aborts() {
     let rec = run_with(Duration::ZERO, |f| f.table.inject(Fault::StuckTable)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 0 (table spin cw)"), "{outcome}");
+    assert!(outcome.contains("table_stall: table rate"), "{outcome}");
     assert!(outcome.contains("did not settle on -2.908882e-3 rad/s"), "{outcome}");
     assert!(rec.table.iter().all(|t| t.msg.rate_rad_s.abs() < 1e-4), "the axis never moved");
     assert_eq!(last_step_event(&rec), ("spin cw".into(), "abort".into()));
@@ -178,4 +191,27 @@ async fn a_short_table_line_outage_is_ridden_out() {
         .map(|w| (w[1].log_time_ns - w[0].log_time_ns) as f64 * 1e-9)
         .fold(0.0, f64::max);
     assert!((1.0..30.0).contains(&longest), "longest table gap {longest:.2} s");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_chamber_overshooting_through_the_wire_trips_chamber_over_temperature() {
+    // The served controller's process value overshoots each new set point by up to 20 °C: on
+    // the way to 30 °C the air reads above the 35 °C interlock.
+    let text = "[scenario]\nname = \"overshoot\"\n[site]\nlatitude_deg = 48.0\n\
+                [interlocks]\nchamber_max_temp = \"35 °C\"\n\
+                [[step]]\nchamber = \"30 °C\"\n\
+                [[step]]\nlabel = \"record hot\"\nrecord = \"30 min\"\n";
+    let rec = run_text_with(text, Duration::ZERO, |f| {
+        f.chamber.inject(Fault::ChamberOvershoot { overshoot_c: 20.0 })
+    })
+    .await;
+    let outcome = rec.outcome_text().unwrap_or_default().to_string();
+    assert!(outcome.starts_with("aborted: step 1 (record record hot)"), "{outcome}");
+    assert!(outcome.contains(": chamber_over_temperature: chamber air"), "{outcome}");
+    assert!(outcome.contains("above the limit 35 °C"), "{outcome}");
+    assert_eq!(last_step_event(&rec), ("record hot".into(), "abort".into()));
+    // The reading that tripped it is recorded, and it is the first above the limit.
+    let abort_t = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    let first_hot = rec.chamber.iter().find(|c| c.msg.temperature_c > 35.0).expect("a hot reading");
+    assert!(first_hot.log_time_ns <= abort_t);
 }

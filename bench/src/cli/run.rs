@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use super::exit::Exit;
 use std::sync::Arc;
@@ -9,7 +10,7 @@ use std::sync::Arc;
 use anyhow::Context as _;
 use bench::bench_config::{BenchConfig, BenchSource, ReplayBenchConfig};
 use bench::plan::RunPlan;
-use bench::runner::{run_info, stop_on_ctrl_c, wall_epoch_ns, RunOptions, RunReport};
+use bench::runner::{run_info, stop_on_signals, wall_epoch_ns, RunOptions, RunReport};
 use bench::scenario::{Capabilities, LoadError};
 use bench::simulate::{SimOptions, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
@@ -62,6 +63,34 @@ pub struct RunArgs {
     /// the simulated gyro follows (replacing `[gyro.model]` and `[simulation.truth]`).
     #[arg(long)]
     pub gyro_model: Option<PathBuf>,
+    /// Kill-safety: the recording is flushed so that a SIGKILL or crash loses at most this
+    /// many seconds of bench time of data (`bench recover` restores the rest).
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    pub flush_interval_s: f64,
+    /// Run the embedded simulated bench in real time × this factor on tokio, as a real bench
+    /// runs (signals abort to the safe state), instead of in virtual time.
+    #[arg(long, value_name = "FACTOR")]
+    pub time_scale: Option<f64>,
+    /// Print `bench time T s (log time N ns)` on stderr each time the run passes a multiple
+    /// of this many seconds of bench time (for logs and supervisors).
+    #[arg(long, value_name = "SECONDS")]
+    pub time_marks_s: Option<f64>,
+}
+
+impl RunArgs {
+    /// `--flush-interval-s` and `--time-marks-s` as durations, checked.
+    fn recording_options(&self) -> anyhow::Result<(Duration, Option<Duration>)> {
+        let seconds = |name: &str, v: f64| -> anyhow::Result<Duration> {
+            anyhow::ensure!(
+                v.is_finite() && v > 0.0 && v <= 3600.0,
+                "{name} must be a number of seconds in (0, 3600], got {v}"
+            );
+            Ok(Duration::from_secs_f64(v))
+        };
+        let flush = seconds("--flush-interval-s", self.flush_interval_s)?;
+        let marks = self.time_marks_s.map(|v| seconds("--time-marks-s", v)).transpose()?;
+        Ok((flush, marks))
+    }
 }
 
 /// Apply `--unit-serial`, `--operator`, `--station` over the scenario's `[station]`.
@@ -108,6 +137,13 @@ fn load_plan(path: &Path, caps: &Capabilities) -> anyhow::Result<Option<RunPlan>
 
 /// Run on the embedded simulated bench, or on the bench a config describes.
 pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
+    args.recording_options()?;
+    if let Some(scale) = args.time_scale {
+        anyhow::ensure!(
+            scale.is_finite() && scale > 0.0,
+            "--time-scale must be a positive number, got {scale}"
+        );
+    }
     let out = match &args.out {
         Some(out) if out.exists() && !args.force => anyhow::bail!(
             "{} exists: bench does not overwrite a recording (--force does, or choose another \
@@ -136,6 +172,16 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
                 }
             };
             match source {
+                BenchSource::Replay(_) | BenchSource::Devices(_)
+                    if args.time_scale.is_some()
+                        && !matches!(&source, BenchSource::Devices(c) if c.is_simulated()) =>
+                {
+                    anyhow::bail!(
+                        "--time-scale runs the embedded simulated bench in real time; this \
+                         bench config names devices or a replay (their time scale is the \
+                         config's `[bench] time_scale` or `[replay] speed`)"
+                    )
+                }
                 BenchSource::Replay(replay) => {
                     run_on_replay(&args, &replay, &out, progress, verbose)?
                 }
@@ -206,15 +252,30 @@ fn run_simulated(
     apply_station(&mut plan, args);
     let rt = runtime()?;
     let live = start_live(&rt, args)?;
-    let opts = SimOptions { seed: args.seed, epoch_ns: SIM_EPOCH_NS, progress, live };
+    let (flush_interval, time_marks) = args.recording_options()?;
+    let opts = SimOptions {
+        seed: args.seed,
+        epoch_ns: SIM_EPOCH_NS,
+        progress,
+        live,
+        flush_interval: None,
+    };
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
-    let (report, writer) = bench::simulate::run_plan(
-        &plan,
-        std::io::BufWriter::new(file),
-        &opts,
-        Some(super::console_layer(verbose)),
-    )?;
+    let writer = std::io::BufWriter::new(file);
+    let mut run_opts = opts.run_options(Some(super::console_layer(verbose)));
+    run_opts.flush_interval = Some(flush_interval);
+    run_opts.time_marks = time_marks;
+    if let Some(config) = config {
+        run_opts.policy = config.bench.policy();
+    }
+    let (report, writer) = match args.time_scale {
+        None => bench::simulate::run_plan_opts(&plan, writer, args.seed, opts.epoch_ns, run_opts)?,
+        Some(scale) => rt.block_on(async {
+            run_opts.stop = Some(stop_on_signals());
+            bench::simulate::run_plan_realtime(&plan, writer, args.seed, scale, run_opts).await
+        })?,
+    };
     finish_file(writer, out)?;
     Ok(Some(report))
 }
@@ -257,6 +318,7 @@ fn run_on_bench(
         .with_context(|| format!("cannot read {}", config_path.display()))?;
     let rt = runtime()?;
     let live = start_live(&rt, args)?;
+    let (flush_interval, time_marks) = args.recording_options()?;
     rt.block_on(async {
         let clock = SystemClock::new(config.bench.time_scale);
         // Bench time zero is now: log times are wall-clock times (scaled around this instant
@@ -302,10 +364,12 @@ fn run_on_bench(
             std::io::BufWriter::new(file),
             RunOptions {
                 progress,
-                stop: Some(stop_on_ctrl_c()),
+                stop: Some(stop_on_signals()),
                 console: Some(super::console_layer(verbose)),
                 policy: config.bench.policy(),
                 live,
+                flush_interval: Some(flush_interval),
+                time_marks,
             },
         )
         .await?;
@@ -341,11 +405,13 @@ fn run_on_replay(
         console: Some(super::console_layer(verbose)),
         stop: None,
         policy: config.bench.policy(),
+        flush_interval: Some(args.recording_options()?.0),
+        time_marks: args.recording_options()?.1,
     };
     let (report, writer) = match config.replay.speed {
         None => bench::replay::run_virtual(&plan, &data, writer, opts)?,
         Some(speed) => rt.block_on(async {
-            let opts = RunOptions { stop: Some(stop_on_ctrl_c()), ..opts };
+            let opts = RunOptions { stop: Some(stop_on_signals()), ..opts };
             bench::replay::run_realtime(&plan, &data, speed, writer, opts).await
         })?,
     };

@@ -12,11 +12,13 @@
 //! and on tokio in real time (real devices): it only sleeps through the clock and spawns through
 //! a [`futures::task::Spawn`].
 
+pub mod interlocks;
 pub mod live;
 pub mod logging;
 mod sequencer;
 pub mod threaded;
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -133,9 +135,16 @@ pub enum FaultCause {
         /// `table`, `chamber` or `gyro`.
         device: &'static str,
     },
-    /// A step's condition was not met within its time (rate not settled, temperature or ramp
-    /// end not reached).
+    /// A step's condition was not met within its time (temperature or ramp end not reached).
     StepTimeout,
+    /// A run-time interlock tripped (`[interlocks]`); `name` is one of the names in
+    /// [`interlocks`] (`table_overspeed`, `table_stall`, `rate_disagreement`,
+    /// `chamber_over_temperature`, `chamber_under_temperature`, `setpoint_not_tracked`,
+    /// `gyro_status`) and leads the fault's message.
+    Interlock {
+        /// The interlock's name.
+        name: &'static str,
+    },
     /// The operator (or a signal) asked the run to stop.
     Operator,
     /// The recording could not be written.
@@ -191,9 +200,21 @@ pub type ConsoleLayer =
     Box<dyn tracing_subscriber::Layer<tracing_subscriber::Registry> + Send + Sync>;
 
 /// Asks a running [`execute`] to abort (e.g. on Ctrl-C): the current step ends with an `abort`
-/// event, the bench goes to its safe state and the fault is [`FaultCause::Operator`].
+/// event, the bench goes to its safe state and the fault is [`FaultCause::Operator`]. A second
+/// request (or [`Stopper::stop_now`]) stops at once: the safe-state commands are still sent,
+/// but each is waited for at most [`HURRIED_SAFE_STATE_TIMEOUT`], and the tail of recording
+/// after them is skipped.
 #[derive(Clone, Debug)]
-pub struct Stopper(mpsc::UnboundedSender<String>);
+pub struct Stopper(mpsc::UnboundedSender<StopRequest>);
+
+/// What a [`Stopper`] asks.
+#[derive(Debug, Clone, PartialEq)]
+enum StopRequest {
+    /// Abort to the safe state with this reason.
+    Abort(String),
+    /// Stop now (a second interrupt).
+    Now,
+}
 
 impl Stopper {
     /// A stopper and the signal to hand to [`ExecOptions::stop`].
@@ -202,15 +223,26 @@ impl Stopper {
         (Self(tx), StopSignal(rx))
     }
 
-    /// Abort the run with `reason` (ignored once the run has ended).
+    /// Abort the run with `reason` (ignored once the run has ended). A second call stops at
+    /// once, as [`Stopper::stop_now`].
     pub fn stop(&self, reason: impl Into<String>) {
-        let _ = self.0.unbounded_send(reason.into());
+        let _ = self.0.unbounded_send(StopRequest::Abort(reason.into()));
+    }
+
+    /// Stop at once: abort if not yet aborting, and cut the safe state short (the commands
+    /// are still sent).
+    pub fn stop_now(&self) {
+        let _ = self.0.unbounded_send(StopRequest::Now);
     }
 }
 
 /// The receiving end of a [`Stopper`].
 #[derive(Debug)]
-pub struct StopSignal(mpsc::UnboundedReceiver<String>);
+pub struct StopSignal(mpsc::UnboundedReceiver<StopRequest>);
+
+/// After a second stop request, how long each safe-state command is still waited for, bench
+/// time.
+pub const HURRIED_SAFE_STATE_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// Options of [`execute`].
 #[derive(Default)]
@@ -237,6 +269,11 @@ pub(crate) struct Ctx {
     pub fault: Mutex<Option<Fault>>,
     pub fault_notify: mpsc::UnboundedSender<()>,
     pub policy: FaultPolicy,
+    /// A second stop request came: the safe state is cut short.
+    pub hurry: AtomicBool,
+    /// Interlock thresholds and the monitor's state.
+    pub interlocks: crate::plan::Interlocks,
+    pub monitor: Mutex<interlocks::Monitor>,
 }
 
 impl Ctx {
@@ -252,6 +289,24 @@ impl Ctx {
             *f = Some(fault);
             let _ = self.fault_notify.unbounded_send(());
         }
+    }
+
+    /// Check a reading against the interlocks; a violation raises its fault.
+    fn check(
+        &self,
+        f: impl FnOnce(&mut interlocks::Monitor, &crate::plan::Interlocks) -> Option<Fault>,
+    ) {
+        let fault = {
+            let mut m = self.monitor.lock().unwrap_or_else(|p| p.into_inner());
+            f(&mut m, &self.interlocks)
+        };
+        if let Some(fault) = fault {
+            self.raise_fault(fault);
+        }
+    }
+
+    pub fn hurried(&self) -> bool {
+        self.hurry.load(Ordering::SeqCst)
     }
 
     pub fn fault(&self) -> Option<Fault> {
@@ -297,6 +352,7 @@ async fn gyro_task(ctx: Arc<Ctx>, mut gyro: Box<dyn Gyro>) {
                 let t = ctx.clock.now();
                 ctx.live.set_gyro(s.rate_rad_s, s.temperature_c);
                 ctx.live.set_fresh(Stream::Gyro, t);
+                ctx.check(|m, lim| m.gyro(lim, t, &s));
                 ctx.send(Event::Gyro(t, s));
             }
             Err(e) => {
@@ -322,6 +378,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
             let r = table.read().await?;
             let t = ctx.clock.now();
             ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
+            ctx.check(|m, lim| m.table(lim, t, &r));
             Ok((t, Event::Table(t, r)))
         }
         Stream::Chamber => {
@@ -330,6 +387,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
             let r = chamber.read().await?;
             let t = ctx.clock.now();
             ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
+            ctx.check(|m, lim| m.chamber(lim, t, &r));
             Ok((t, Event::Chamber(t, r)))
         }
         // The gyro streams by itself (`gyro_task`).
@@ -377,7 +435,8 @@ async fn watchdog_task(ctx: Arc<Ctx>) {
                 ctx.raise_fault(Fault::new(
                     FaultCause::Stale { device: s.device() },
                     format!(
-                        "{} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                        "{}: {} data stale: no good reading for {:.1} s (limit {:.1} s)",
+                        interlocks::STREAM_STALE,
                         s.device(),
                         (now - last).as_secs_f64(),
                         limit.as_secs_f64()
@@ -439,6 +498,9 @@ pub async fn execute<S: EventSink>(
         fault: Mutex::new(None),
         fault_notify: fault_tx,
         policy,
+        hurry: AtomicBool::new(false),
+        interlocks: plan.interlocks.clone(),
+        monitor: Mutex::new(interlocks::Monitor::default()),
     });
 
     let recording = recorder_task(rx, sink, ctx.clone());
@@ -455,7 +517,20 @@ pub async fn execute<S: EventSink>(
     if let Some(StopSignal(mut rx)) = stop {
         let c = ctx.clone();
         device_tasks.push(Box::pin(async move {
-            if let Some(reason) = rx.next().await {
+            let mut requests = 0;
+            while let Some(request) = rx.next().await {
+                requests += 1;
+                let now = requests > 1 || request == StopRequest::Now;
+                let reason = match request {
+                    StopRequest::Abort(reason) if requests == 1 => reason,
+                    _ => "stopped at once by the operator".to_string(),
+                };
+                if now {
+                    tracing::warn!(
+                        "second interrupt: stopping now; the safe-state commands are still sent"
+                    );
+                    c.hurry.store(true, Ordering::SeqCst);
+                }
                 c.raise_fault(Fault::new(FaultCause::Operator, reason));
             }
         }));
@@ -489,8 +564,9 @@ pub async fn execute<S: EventSink>(
             None => tracing::info!("run completed"),
         }
         sequencer::safe_state(plan, &ctx).await;
-        // Keep recording briefly so the safe-state commands show in the streams.
-        ctx.clock.sleep(SAFE_STATE_TAIL).await;
+        // Keep recording briefly so the safe-state commands show in the streams (not after a
+        // second stop request).
+        sequencer::sleep_unless_hurried(&ctx, SAFE_STATE_TAIL).await;
         let duration = ctx.clock.now();
         aborts.iter().for_each(AbortHandle::abort);
         ctx.tx.close_channel();

@@ -202,10 +202,11 @@ async fn wait_table_rate(
             return Ok(());
         }
         if ctx.clock.now() - start >= timeout {
+            let name = super::interlocks::TABLE_STALL;
             return Err(Fault::new(
-                FaultCause::StepTimeout,
+                FaultCause::Interlock { name },
                 format!(
-                    "table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
+                    "{name}: table rate {:.6e} rad/s did not settle on {rate_rad_s:.6e} rad/s within {:.1} s",
                     s.table_rate_rad_s,
                     timeout.as_secs_f64()
                 ),
@@ -215,27 +216,90 @@ async fn wait_table_rate(
     }
 }
 
-/// Table to rest, chamber to the safe set point; each bounded by the policy's timeout. Errors
-/// are logged: the run is ending either way.
+/// How often a pending safe-state command (or the tail) looks for a second stop request, bench
+/// time.
+const HURRY_POLL: Duration = Duration::from_millis(50);
+
+/// Sleep `d` of bench time, or less if a second stop request comes.
+pub(super) async fn sleep_unless_hurried(ctx: &Ctx, d: Duration) {
+    let end = ctx.clock.now() + d;
+    while !ctx.hurried() {
+        let now = ctx.clock.now();
+        if now >= end {
+            return;
+        }
+        ctx.clock.sleep(HURRY_POLL.min(end - now)).await;
+    }
+}
+
+/// Wait for a safe-state command at most the policy's timeout, or
+/// [`super::HURRIED_SAFE_STATE_TIMEOUT`] once a second stop request has come. `None`: timed
+/// out.
+async fn bounded<T>(ctx: &Ctx, fut: impl std::future::Future<Output = T>) -> Option<T> {
+    let clock = ctx.clock.as_ref();
+    let deadline = clock.now() + ctx.policy.safe_state_timeout;
+    let mut hurried_deadline = None;
+    futures::pin_mut!(fut);
+    loop {
+        let tick = clock.sleep(HURRY_POLL);
+        futures::pin_mut!(tick);
+        match futures::future::select(fut.as_mut(), tick).await {
+            futures::future::Either::Left((r, _)) => return Some(r),
+            futures::future::Either::Right(_) => {
+                let now = clock.now();
+                if ctx.hurried() {
+                    let d =
+                        *hurried_deadline.get_or_insert(now + super::HURRIED_SAFE_STATE_TIMEOUT);
+                    if now >= d {
+                        return None;
+                    }
+                }
+                if now >= deadline {
+                    return None;
+                }
+            }
+        }
+    }
+}
+
+/// Table to rest and chamber to the safe set point, both at once, each bounded by the policy's
+/// timeout (cut short by a second stop request). Errors are logged: the run is ending either
+/// way. A device that never answers cannot hang the teardown.
 pub(super) async fn safe_state(plan: &RunPlan, ctx: &Ctx) {
     let limit = ctx.policy.safe_state_timeout;
-    let clock = ctx.clock.as_ref();
-    let table = async {
+    let table = bounded(ctx, async {
         let mut t = ctx.table.lock().await;
         t.stop(plan.safe_decel_rad_s2).await
-    };
-    match bench_drivers::clock::timeout(clock, limit, table).await {
-        Some(Ok(())) => tracing::info!("safe state: table decelerating to rest"),
-        Some(Err(e)) => tracing::error!("safe state: table stop failed: {e}"),
-        None => tracing::error!("safe state: table stop timed out after {limit:?}"),
-    }
-    let chamber = async {
+    });
+    let chamber = bounded(ctx, async {
+        if plan.safe_chamber_hold {
+            return Ok(());
+        }
         let mut c = ctx.chamber.lock().await;
         c.set_target(plan.safe_temp_c, None).await
-    };
-    match bench_drivers::clock::timeout(clock, limit, chamber).await {
+    });
+    let (table, chamber) = futures::join!(table, chamber);
+    match table {
+        Some(Ok(())) => tracing::info!("safe state: table decelerating to rest"),
+        Some(Err(e)) => tracing::error!("safe state: table stop failed: {e}"),
+        None => tracing::error!("safe state: table stop not answered {}", late(ctx, limit)),
+    }
+    match chamber {
+        Some(Ok(())) if plan.safe_chamber_hold => {
+            tracing::info!("safe state: chamber holds its set point ([safe] chamber_hold)")
+        }
         Some(Ok(())) => tracing::info!("safe state: chamber set point {} °C", plan.safe_temp_c),
         Some(Err(e)) => tracing::error!("safe state: chamber set point failed: {e}"),
-        None => tracing::error!("safe state: chamber set point timed out after {limit:?}"),
+        None => {
+            tracing::error!("safe state: chamber set point not answered {}", late(ctx, limit))
+        }
+    }
+}
+
+fn late(ctx: &Ctx, limit: Duration) -> String {
+    if ctx.hurried() {
+        "before the second interrupt's deadline; given up".to_string()
+    } else {
+        format!("within {} s; given up", limit.as_secs_f64())
     }
 }

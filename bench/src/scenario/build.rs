@@ -70,6 +70,8 @@ struct Builder<'a> {
     steps: Vec<PlannedStep>,
     /// Defaults from the settings sections.
     table_accel: f64,
+    /// `[interlocks]`, as far as parsed (commands are checked against them).
+    interlocks: crate::plan::Interlocks,
 }
 
 /// Build the plan, or return every issue as (span, message).
@@ -88,6 +90,7 @@ pub(crate) fn build(
         vars: Vec::new(),
         steps: Vec::new(),
         table_accel: 10.0 * bench_physics::units::DEG,
+        interlocks: crate::plan::Interlocks::defaults(caps),
     };
     let plan = b.root(root);
     if b.issues.is_empty() {
@@ -338,8 +341,126 @@ impl<'a> Builder<'a> {
                 ),
             );
             false
+        } else if !(self.interlocks.chamber_min_temp_c..=self.interlocks.chamber_max_temp_c)
+            .contains(&q.si)
+        {
+            self.err(
+                span,
+                format!(
+                    "{what} {} is outside [interlocks] chamber_min_temp..chamber_max_temp {}..{} \
+                     °C",
+                    q.show_self(),
+                    fmt_num(self.interlocks.chamber_min_temp_c),
+                    fmt_num(self.interlocks.chamber_max_temp_c)
+                ),
+            );
+            false
         } else {
             true
+        }
+    }
+
+    /// `[interlocks]`: thresholds of the run-time interlocks, each a quantity (or its SI
+    /// plain-number key).
+    fn interlocks_section(&mut self, t: Tbl<'_>) {
+        const KEYS: &[&str] = &[
+            "table_max_rate",
+            "table_max_rate_rad_s",
+            "rate_tolerance",
+            "rate_tolerance_rad_s",
+            "rate_disagreement_for",
+            "rate_disagreement_for_s",
+            "chamber_max_temp",
+            "chamber_max_temp_c",
+            "chamber_min_temp",
+            "chamber_min_temp_c",
+            "setpoint_tolerance",
+            "setpoint_tolerance_c",
+            "setpoint_not_tracked_for",
+            "setpoint_not_tracked_for_s",
+            "gyro_status_for",
+            "gyro_status_for_s",
+        ];
+        self.check_keys(t, KEYS, "[interlocks]");
+        let positive = |b: &mut Self, q: &Quantity, span: &Range<usize>, key: &str| -> bool {
+            if q.si > 0.0 && q.si.is_finite() {
+                true
+            } else {
+                b.err(span, format!("{key} must be greater than zero, got {}", q.show_self()));
+                false
+            }
+        };
+        let tcap = self.caps.table.capabilities.max_rate_rad_s;
+        if let Ok(Some((q, span))) = self.quantity(t, "table_max_rate", Dim::AngularRate) {
+            if positive(self, &q, &span, "table_max_rate") {
+                if q.si > tcap {
+                    self.err(
+                        &span,
+                        format!(
+                            "table_max_rate {} exceeds the table's maximum {}",
+                            q.show_self(),
+                            q.show(tcap)
+                        ),
+                    );
+                } else {
+                    self.interlocks.table_max_rate_rad_s = q.si;
+                }
+            }
+        }
+        if let Ok(Some((q, span))) = self.quantity(t, "rate_tolerance", Dim::AngularRate) {
+            if positive(self, &q, &span, "rate_tolerance") {
+                self.interlocks.rate_tolerance_rad_s = q.si;
+            }
+        }
+        for (key, slot) in
+            [("rate_disagreement_for", 0), ("setpoint_not_tracked_for", 1), ("gyro_status_for", 2)]
+        {
+            if let Ok(Some((q, span))) = self.quantity(t, key, Dim::Time) {
+                if positive(self, &q, &span, key) {
+                    let d = Duration::from_secs_f64(q.si.min(1e9));
+                    match slot {
+                        0 => self.interlocks.rate_disagreement_for = d,
+                        1 => self.interlocks.setpoint_not_tracked_for = d,
+                        _ => self.interlocks.gyro_status_for = d,
+                    }
+                }
+            }
+        }
+        let c = &self.caps.chamber.capabilities;
+        let (clo, chi) = (c.min_temp_c, c.max_temp_c);
+        for (key, max) in [("chamber_max_temp", true), ("chamber_min_temp", false)] {
+            if let Ok(Some((q, span))) = self.quantity(t, key, Dim::Temperature) {
+                if !(clo..=chi).contains(&q.si) {
+                    self.err(
+                        &span,
+                        format!(
+                            "{key} {} is outside the chamber's range {}..{} °C",
+                            q.show_self(),
+                            fmt_num(clo),
+                            fmt_num(chi)
+                        ),
+                    );
+                } else if max {
+                    self.interlocks.chamber_max_temp_c = q.si;
+                } else {
+                    self.interlocks.chamber_min_temp_c = q.si;
+                }
+            }
+        }
+        if self.interlocks.chamber_min_temp_c >= self.interlocks.chamber_max_temp_c {
+            self.err(
+                t.span,
+                format!(
+                    "[interlocks] chamber_min_temp {} °C must be below chamber_max_temp {} °C",
+                    fmt_num(self.interlocks.chamber_min_temp_c),
+                    fmt_num(self.interlocks.chamber_max_temp_c)
+                ),
+            );
+        }
+        if let Ok(Some((q, span))) = self.quantity(t, "setpoint_tolerance", Dim::TempDifference) {
+            if positive(self, &q, &span, "setpoint_tolerance") {
+                self.interlocks.setpoint_tolerance_c = q.si;
+            }
         }
     }
 
@@ -382,6 +503,7 @@ impl<'a> Builder<'a> {
                 "table",
                 "chamber",
                 "safe",
+                "interlocks",
                 "simulation",
                 "station",
                 "acceptance",
@@ -491,15 +613,24 @@ impl<'a> Builder<'a> {
             }
         }
 
+        // [interlocks]
+        if let Ok(Some(t)) = self.table(top, "interlocks") {
+            self.interlocks_section(t);
+        }
+
         // [safe]
         let mut safe_decel = 10.0 * bench_physics::units::DEG;
         let mut safe_temp = 20.0;
+        let mut safe_hold = false;
         if let Ok(Some(t)) = self.table(top, "safe") {
             self.check_keys(
                 t,
-                &["decel", "decel_rad_s2", "temperature", "temperature_c"],
+                &["decel", "decel_rad_s2", "temperature", "temperature_c", "chamber_hold"],
                 "[safe]",
             );
+            if let Ok(Some(hold)) = self.boolean(t, "chamber_hold") {
+                safe_hold = hold;
+            }
             if let Ok(Some((q, span))) = self.quantity(t, "decel", Dim::AngularAccel) {
                 self.check_accel(&q, &span, "safe-state deceleration");
                 safe_decel = q.si;
@@ -576,6 +707,8 @@ impl<'a> Builder<'a> {
             sim,
             safe_decel_rad_s2: safe_decel,
             safe_temp_c: safe_temp,
+            safe_chamber_hold: safe_hold,
+            interlocks: self.interlocks.clone(),
             station,
             steps: std::mem::take(&mut self.steps),
         })
@@ -962,6 +1095,16 @@ impl<'a> Builder<'a> {
                     "table rate {} exceeds the gyro's input range {}",
                     rate.show_self(),
                     rate.show(gmax)
+                ),
+            );
+            bad = true;
+        } else if rate.si.abs() > self.interlocks.table_max_rate_rad_s {
+            self.err(
+                &rspan,
+                format!(
+                    "table rate {} exceeds [interlocks] table_max_rate {}",
+                    rate.show_self(),
+                    rate.show(self.interlocks.table_max_rate_rad_s)
                 ),
             );
             bad = true;

@@ -942,3 +942,51 @@ fn effect_errors_are_located() {
         "t.toml:6:11: `effects` must be a table, got a number"
     );
 }
+
+#[test]
+fn interlocks_are_parsed_with_defaults_from_the_devices() {
+    let p = ok("[[step]]\nwait = \"1 s\"\n");
+    let caps = crate::simulate::capabilities();
+    assert_eq!(p.interlocks, crate::plan::Interlocks::defaults(&caps));
+    // The simulated gyro is rated -40..60 °C: the air may go 5 °C beyond.
+    assert_eq!((p.interlocks.chamber_min_temp_c, p.interlocks.chamber_max_temp_c), (-45.0, 65.0));
+    let p = ok("[interlocks]\ntable_max_rate = \"20 °/min\"\nrate_tolerance = \"0.5 °/min\"\n\
+                rate_disagreement_for = \"3 s\"\nchamber_max_temp = \"45 °C\"\n\
+                chamber_min_temp_c = -10\nsetpoint_tolerance = \"2 K\"\n\
+                setpoint_not_tracked_for = \"1 min\"\ngyro_status_for_s = 2\n\
+                [[step]]\nwait = \"1 s\"\n");
+    let l = &p.interlocks;
+    assert!((l.table_max_rate_rad_s - 20.0 * DEG / 60.0).abs() < 1e-15);
+    assert!((l.rate_tolerance_rad_s - 0.5 * DEG / 60.0).abs() < 1e-15);
+    assert_eq!(l.rate_disagreement_for, std::time::Duration::from_secs(3));
+    assert_eq!((l.chamber_min_temp_c, l.chamber_max_temp_c), (-10.0, 45.0));
+    assert_eq!(l.setpoint_tolerance_c, 2.0);
+    assert_eq!(l.setpoint_not_tracked_for, std::time::Duration::from_secs(60));
+    assert_eq!(l.gyro_status_for, std::time::Duration::from_secs(2));
+}
+
+#[test]
+fn commands_beyond_the_interlocks_are_refused_where_they_are_written() {
+    assert_eq!(
+        err1(
+            "[interlocks]\ntable_max_rate = \"20 °/min\"\n[[step]]\nspin = \"30 °/min\"\n\
+              direction = \"cw\"\n"
+        ),
+        "t.toml:8:8: table rate 30 °/min exceeds [interlocks] table_max_rate 20 °/min"
+    );
+    assert_eq!(
+        err1("[interlocks]\nchamber_max_temp = \"45 °C\"\n[[step]]\nchamber = \"50 °C\"\n"),
+        "t.toml:8:11: chamber target 50 °C is outside [interlocks] \
+         chamber_min_temp..chamber_max_temp -45..45 °C"
+    );
+    assert_eq!(
+        err1("[interlocks]\ntable_max_rate = \"2000 °/s\"\n[[step]]\nwait = \"1 s\"\n"),
+        "t.toml:6:18: table_max_rate 2000 °/s exceeds the table's maximum 1000 °/s"
+    );
+    assert_eq!(
+        err1("[interlocks]\ngyro_status_for = \"0 s\"\n[[step]]\nwait = \"1 s\"\n"),
+        "t.toml:6:19: gyro_status_for must be greater than zero, got 0 s"
+    );
+    assert!(err1("[interlocks]\nmax_speed = 3\n[[step]]\nwait = \"1 s\"\n")
+        .contains("unknown key `max_speed` in [interlocks]"));
+}

@@ -174,7 +174,7 @@ fn one_seed(
     settings: &CalibrateSettings,
     lab: Option<&LabTraits>,
 ) -> anyhow::Result<SeedResult> {
-    let opts = SimOptions { seed, ..SimOptions::default() };
+    let opts = SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
     let (report, cursor) = run_plan(plan, Cursor::new(Vec::new()), &opts, None)?;
     anyhow::ensure!(report.completed(), "run {}", report.outcome);
     let mut rec = Recording::from_bytes(cursor.get_ref())?;

@@ -161,7 +161,8 @@ pub fn run(
         count,
         jobs,
         |seed| {
-            let sim = SimOptions { seed, ..SimOptions::default() };
+            let sim =
+                SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
             let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
             anyhow::ensure!(report.completed(), "run {}", report.outcome);
             let mut rec = Recording::from_bytes(cursor.get_ref())?;

@@ -409,3 +409,40 @@ fn flushed_chunks_survive_a_crash() {
     assert!(failed, "a crashed file ends in an error");
     assert!(got >= 100, "only {got} messages survived");
 }
+
+#[test]
+fn the_flush_interval_is_bench_time_and_bounds_what_a_crash_loses() {
+    let sink = SharedBuf::default();
+    let o = RecorderOptions { flush_interval: Some(Duration::from_secs(1)), ..opts() };
+    let mut r = Recorder::with_options(sink.clone(), info(), o).expect("start");
+    // 20 Hz for 10.3 s of bench time, written as fast as the CPU goes (as in virtual time).
+    let n = 207u64;
+    for i in 0..n {
+        r.gyro(Duration::from_millis(50 * i), None, &gyro(i, Some(20.0))).expect("gyro");
+    }
+    let crashed = sink.0.borrow().get_ref().clone();
+    drop(r);
+    let mut survived = 0u64;
+    for m in mcap::MessageStream::new(&crashed).expect("stream") {
+        match m {
+            Ok(_) => survived += 1,
+            Err(_) => break,
+        }
+    }
+    // The last flush came with the sample at 10.0 s: samples 0..=200 are in the file.
+    assert_eq!(survived, 201, "{survived} of {n} samples survived");
+    let lost_s = (n - survived) as f64 * 0.05;
+    assert!(lost_s <= 1.0, "{lost_s} s of bench time lost");
+
+    // Without an interval nothing is flushed before the chunk fills.
+    let sink = SharedBuf::default();
+    let mut r = Recorder::with_options(sink.clone(), info(), opts()).expect("start");
+    for i in 0..n {
+        r.gyro(Duration::from_millis(50 * i), None, &gyro(i, Some(20.0))).expect("gyro");
+    }
+    let crashed = sink.0.borrow().get_ref().clone();
+    drop(r);
+    let kept =
+        mcap::MessageStream::new(&crashed).expect("stream").take_while(Result::is_ok).count();
+    assert_eq!(kept, 0);
+}
