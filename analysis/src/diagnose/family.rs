@@ -83,8 +83,11 @@ impl FamilyCheck {
     pub fn reason(&self) -> String {
         match &self.strongest {
             Some(m) if m.wald > m.threshold => format!(
-                "its residual still holds {} ({:.2e} rad/s, Wald {:.1} > {:.1})",
-                m.name, m.size_rad_s, m.wald, m.threshold
+                "its residual still holds {} ({}, Wald {:.1} > {:.1})",
+                m.name,
+                deg_h(m.size_rad_s),
+                m.wald,
+                m.threshold
             ),
             Some(m) => {
                 format!("its size moves by {:.1}σ when {} is freed", self.size_change_z, m.name)
@@ -92,6 +95,11 @@ impl FamilyCheck {
             None => "its family could not be tested".into(),
         }
     }
+}
+
+/// A rate for people in sentences: °/h to three significant digits.
+pub(super) fn deg_h(rate_rad_s: f64) -> String {
+    format!("{:.3} °/h", rate_rad_s / bench_physics::units::DEG_PER_H)
 }
 
 /// How a per-revolution term depends on the table's rate: the gyro's (independent of rate) or

@@ -272,32 +272,6 @@ pub struct Diagnosis {
     pub identifiability: Vec<Collinearity>,
 }
 
-impl Diagnosis {
-    /// The caveats the verdict carries: every effect not in the model that is nearly collinear
-    /// with a term that is, with the largest size the data cannot rule out (empty when nothing
-    /// is collinear). They matter most for `consistent` and `parameters_only`: a term in the
-    /// model may hold an effect that this recording cannot show.
-    pub fn verdict_caveats(&self) -> Vec<String> {
-        self.identifiability
-            .iter()
-            .filter(|c| !c.effect_accepted)
-            .map(|c| {
-                format!(
-                    "{} cannot be told apart from {} on this recording (ρ = {:.3}): a {} up to \
-                     {:.2e} {} ({}) is not ruled out",
-                    c.effect.key(),
-                    c.with,
-                    c.rho,
-                    c.effect.key(),
-                    c.bound,
-                    c.unit,
-                    c.parameter
-                )
-            })
-            .collect()
-    }
-}
-
 /// Hysteresis threshold used for the candidate (the library's default).
 const HYST_C_S: f64 = HYSTERESIS_THRESHOLD_C_S;
 /// Thermal-lag grid, s.
@@ -1412,12 +1386,12 @@ fn check_families(
             .parameters
             .iter()
             .find(|q| q.unit == "rad/s")
-            .map_or(String::new(), |q| format!(" of {:.2e} rad/s", q.value));
+            .map_or(String::new(), |q| format!(" of {}", family::deg_h(q.value)));
         let correlates_with = match &g.check.strongest {
             Some(m) if m.wald > m.threshold => format!(
-                "{}, {:.2e} rad/s (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
+                "{}, {} (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
                 m.name,
-                m.size_rad_s,
+                family::deg_h(m.size_rad_s),
                 m.wald,
                 m.threshold,
                 id.key()

@@ -86,7 +86,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
             c.sigma_inflation
         );
     }
-    for c in d.verdict_caveats() {
+    for c in bench_report::diagnose::verdict_caveats(d) {
         println!("caveat: {c}");
     }
 }
