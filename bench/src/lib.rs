@@ -26,3 +26,4 @@ pub mod runner;
 pub mod scenario;
 pub mod simulate;
 pub mod study;
+pub mod suggest;

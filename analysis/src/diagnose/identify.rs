@@ -27,12 +27,17 @@ pub struct Collinearity {
     pub effect: EffectId,
     /// Whether the effect is in the updated model.
     pub effect_accepted: bool,
+    /// The effect's grid value (time constant, period, cycles per revolution…; NaN for none).
+    pub grid_value: f64,
     /// The other term: a nominal parameter's key or an accepted effect's key.
     pub with: String,
     /// ρ, 0..1 (module docs).
     pub rho: f64,
     /// The effect's σ with the other term in the model over its σ without (√VIF).
     pub sigma_inflation: f64,
+    /// The effect's σ with the other term in the model (its coefficients' summed variances,
+    /// square-rooted), in `unit`.
+    pub sigma: f64,
     /// The largest size of the effect the data cannot rule out with the other term in, 95 %.
     pub bound: f64,
     /// Which parameter `bound` is of (`half_width_rad_s`, `amplitude_rad_s`, …) and its unit.
@@ -86,19 +91,19 @@ fn trace(t: &TermTest) -> f64 {
     (0..t.theta.len()).map(|a| t.cov[(a, a)]).sum()
 }
 
-/// The pairs of `effects` (id, accepted, columns; an accepted effect's columns are in `design`
-/// too, at the indices of its [`Term`]) with the `terms` of the final `design` that reach
-/// [`COLLINEAR_RHO`].
+/// Every pair of `effects` (id, accepted, grid value, columns; an accepted effect's columns are in
+/// `design` too, at the indices of its [`Term`]) with the `terms` of the final `design`: the
+/// pairs that reach [`COLLINEAR_RHO`] are the ones reported.
 pub(super) fn collinear_pairs(
     design: &[Vec<f64>],
     terms: &[Term],
-    effects: &[(EffectId, bool, Vec<Vec<f64>>)],
+    effects: &[(EffectId, bool, f64, Vec<Vec<f64>>)],
     y: &[f64],
     noise: &BinNoise,
 ) -> Vec<Collinearity> {
     let all: Vec<usize> = (0..noise.len()).collect();
     let mut out = Vec::new();
-    for (id, accepted, cols) in effects {
+    for (id, accepted, p, cols) in effects {
         let own = terms.iter().find(|t| t.name == id.key()).map(|t| t.cols.clone());
         let without_own: Vec<usize> =
             (0..design.len()).filter(|j| own.as_ref().is_none_or(|o| !o.contains(j))).collect();
@@ -119,19 +124,19 @@ pub(super) fn collinear_pairs(
             }
             let vif = (vf / vm).max(1.0);
             let rho = (1.0 - 1.0 / vif).sqrt();
-            if rho >= COLLINEAR_RHO {
-                let (parameter, unit) = bounded_parameter(*id);
-                out.push(Collinearity {
-                    effect: *id,
-                    effect_accepted: *accepted,
-                    with: term.name.clone(),
-                    rho,
-                    sigma_inflation: vif.sqrt(),
-                    bound: bound(&t_full),
-                    parameter,
-                    unit,
-                });
-            }
+            let (parameter, unit) = bounded_parameter(*id);
+            out.push(Collinearity {
+                effect: *id,
+                effect_accepted: *accepted,
+                grid_value: *p,
+                with: term.name.clone(),
+                rho,
+                sigma_inflation: vif.sqrt(),
+                sigma: vf.sqrt(),
+                bound: bound(&t_full),
+                parameter,
+                unit,
+            });
         }
     }
     out.sort_by(|a, b| b.rho.total_cmp(&a.rho));

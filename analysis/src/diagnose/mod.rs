@@ -67,11 +67,20 @@ pub struct DiagnoseOptions {
     pub holdout_block_s: f64,
     /// Most effects to add (default 4).
     pub max_effects: usize,
+    /// Grid values at which the identifiability of these effects is judged, instead of their
+    /// best fit (e.g. a recording's, to predict a new run's separation of the same term).
+    pub identify_at: Vec<(EffectId, f64)>,
 }
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
-        Self { bin_s: 10.0, alpha: 0.01, holdout_block_s: 600.0, max_effects: 4 }
+        Self {
+            bin_s: 10.0,
+            alpha: 0.01,
+            holdout_block_s: 600.0,
+            max_effects: 4,
+            identify_at: Vec::new(),
+        }
     }
 }
 
@@ -268,8 +277,17 @@ pub struct Diagnosis {
     pub effects: Effects,
     /// Figures' data.
     pub series: Series,
-    /// Pairs of terms this recording cannot tell apart well ([`identify`]).
-    pub identifiability: Vec<Collinearity>,
+    /// Every effect against every term of the final model ([`identify`]); the pairs this
+    /// recording cannot tell apart are [`Diagnosis::identifiability`].
+    pub collinearity: Vec<Collinearity>,
+}
+
+impl Diagnosis {
+    /// The pairs of terms this recording cannot tell apart: collinearity at or above
+    /// [`identify::COLLINEAR_RHO`], most collinear first.
+    pub fn identifiability(&self) -> Vec<Collinearity> {
+        self.collinearity.iter().filter(|c| c.rho >= identify::COLLINEAR_RHO).cloned().collect()
+    }
 }
 
 /// Hysteresis threshold used for the candidate (the library's default).
@@ -1225,22 +1243,27 @@ pub fn diagnose(
         });
         at += cols.len();
     }
-    let effect_cols: Vec<(EffectId, bool, Vec<Vec<f64>>)> = tested_ids
+    let effect_cols: Vec<(EffectId, bool, f64, Vec<Vec<f64>>)> = tested_ids
         .iter()
         .filter(|&&id| id != EffectId::EarthRate)
         .filter_map(|&id| {
             if let Some(a) = accepted_cols.iter().find(|a| a.0 == id) {
-                return Some((id, true, a.2.clone()));
+                return Some((id, true, a.1, a.2.clone()));
             }
-            let cols = match refit_grid(&prep, id, &proj, &y, &noise, model, &column_cache) {
-                Some(f) => f.cols,
-                None if grid(&prep, id).len() == 1 => candidate_columns(&prep, id, f64::NAN, model),
+            if let Some(&(_, p)) = opts.identify_at.iter().find(|x| x.0 == id) {
+                return Some((id, false, p, candidate_columns(&prep, id, p, model)));
+            }
+            let (p, cols) = match refit_grid(&prep, id, &proj, &y, &noise, model, &column_cache) {
+                Some(f) => (f.p, f.cols),
+                None if grid(&prep, id).len() == 1 => {
+                    (f64::NAN, candidate_columns(&prep, id, f64::NAN, model))
+                }
                 None => return None,
             };
-            Some((id, false, cols))
+            Some((id, false, p, cols))
         })
         .collect();
-    let identifiability = identify::collinear_pairs(&design, &terms, &effect_cols, &y, &noise);
+    let collinearity = identify::collinear_pairs(&design, &terms, &effect_cols, &y, &noise);
     let mut unexplained = unexplained(&prep, &r, &noise, opts);
     unexplained.splice(0..0, downgraded);
     let verdict = if !findings.is_empty() || !unexplained.is_empty() {
@@ -1284,7 +1307,7 @@ pub fn diagnose(
         model: updated,
         effects: new_effects,
         series,
-        identifiability,
+        collinearity,
     })
 }
 

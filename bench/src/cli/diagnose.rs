@@ -38,6 +38,11 @@ pub struct DiagnoseArgs {
     /// Skip the HTML/PNG report.
     #[arg(long)]
     pub no_report: bool,
+    /// Write a scenario that would separate the terms this recording cannot tell apart
+    /// (validated against the simulated bench), with the predicted separation: the run is
+    /// simulated under the diagnosed model and diagnosed (docs/diagnose.md).
+    #[arg(long, value_name = "FILE")]
+    pub suggest_scenario: Option<PathBuf>,
     /// No progress bar and no timing line.
     #[arg(long, short)]
     pub quiet: bool,
@@ -77,7 +82,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
             );
         }
     }
-    for c in d.identifiability.iter().filter(|c| c.effect_accepted) {
+    for c in d.identifiability().iter().filter(|c| c.effect_accepted) {
         println!(
             "  {} and {} are nearly collinear on this recording (ρ = {:.3}, σ ×{:.1})",
             c.effect.key(),
@@ -89,6 +94,54 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
     for c in bench_report::diagnose::verdict_caveats(d) {
         println!("caveat: {c}");
     }
+}
+
+/// `--suggest-scenario`: write the separating scenario and print the predicted separation.
+fn suggest_scenario(
+    d: &bench_analysis::diagnose::Diagnosis,
+    rec: &bench_recording::Recording,
+    name: &str,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let temps = &d.series.temp_c;
+    let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let latitude_deg = match rec.site().ok().flatten() {
+        Some(site) => site.latitude_deg,
+        None => {
+            println!("the recording has no site: the suggestion assumes latitude 45°");
+            45.0
+        }
+    };
+    let facts = bench::suggest::RecordingFacts {
+        name: name.to_string(),
+        latitude_deg,
+        temp_range_c: (lo, hi),
+    };
+    let Some(mut s) = bench::suggest::suggest(d, &facts)? else {
+        println!("no terms are confounded on this recording: no scenario suggested");
+        return Ok(());
+    };
+    bench::suggest::predict(&mut s, 1)?;
+    std::fs::write(path, &s.text).with_context(|| format!("cannot write {}", path.display()))?;
+    for w in &s.why {
+        println!("suggested: {w}");
+    }
+    for t in &s.targets {
+        let unit = display::for_si(t.before.unit);
+        let sigma = |c: &bench_analysis::diagnose::Collinearity| {
+            format!("σ {} (ρ = {:.3})", display::si_value(unit, c.sigma, 2), c.rho)
+        };
+        println!(
+            "  {} vs {}: {} on this recording → {} on the suggested run",
+            t.before.effect.key(),
+            t.before.with,
+            sigma(&t.before),
+            t.after.as_ref().map_or("not testable".into(), sigma)
+        );
+    }
+    println!("wrote {} (bench validate passes; run it with `bench run`)", path.display());
+    Ok(())
 }
 
 /// Diagnose and write the outputs. Exit code 0 for `consistent`, 6 for `parameters_only`,
@@ -199,6 +252,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.suggest_scenario {
+        suggest_scenario(d, &rec, &name, path)?;
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;

@@ -99,7 +99,7 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
         "nominal_model": o.nominal.2,
         "verdict": d.verdict.key(),
         "verdict_caveats": super::verdict_caveats(d),
-        "identifiability": d.identifiability.iter().map(|c| json!({
+        "identifiability": d.identifiability().iter().map(|c| json!({
             "effect": c.effect.key(),
             "effect_in_model": c.effect_accepted,
             "with": c.with,

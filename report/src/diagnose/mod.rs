@@ -96,7 +96,7 @@ pub fn diagnose_file(
 /// display units). They matter most for `consistent` and `parameters_only`: a term in the model
 /// may hold an effect that this recording cannot show.
 pub fn verdict_caveats(d: &bench_analysis::diagnose::Diagnosis) -> Vec<String> {
-    d.identifiability
+    d.identifiability()
         .iter()
         .filter(|c| !c.effect_accepted)
         .map(|c| {

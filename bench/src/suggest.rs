@@ -1,0 +1,209 @@
+//! The experiment that separates what a recording could not: `bench diagnose …
+//! --suggest-scenario FILE`.
+//!
+//! A diagnosis lists the pairs of terms its recording cannot tell apart
+//! ([`bench_analysis::diagnose::identify`]). Each kind of confusion has a procedure that breaks
+//! it, built from the recording's own temperature range, site and diagnosed gyro model:
+//!
+//! - **thermal** (a hysteresis, coil lag, quadratic or scale-factor-vs-temperature term against
+//!   the temperature coefficients): ramps at two rates (0.5 and 2 °C/min) across the range, each
+//!   followed by a 40 min hold at constant temperature, in both directions of rotation. A hold
+//!   keeps the hysteresis state and the lagged temperature apart from dT/dt = 0; two rates make
+//!   the lag's `τ·dT/dt` differ from a fixed `k_dt`;
+//! - **per revolution** (angle harmonics, the table's rate ripple, against each other or the
+//!   parameters): two full revolutions per direction at 10 °/min and at 30 °/min, at constant
+//!   temperature: full turns make the harmonics orthogonal, and two rates tell a term of the
+//!   gyro (independent of rate) from the table's ripple (∝ rate).
+//!
+//! The scenario is validated against the simulated bench (and so stays within its
+//! capabilities) before it is written. [`predict`] simulates it under the diagnosed model and
+//! diagnoses the result: the σ and collinearity of each confounded effect there, against the
+//! recording's.
+
+use std::fmt::Write as _;
+use std::io::Cursor;
+
+use anyhow::Context as _;
+use bench_analysis::diagnose::{Collinearity, DiagnoseOptions, Diagnosis};
+use bench_physics::effects::EffectId;
+use bench_physics::GyroModel;
+
+use crate::simulate::{capabilities, run_plan, SimOptions};
+
+/// What the suggestion is for: a confounded pair and how it separates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    /// The pair on the recording.
+    pub before: Collinearity,
+    /// The same pair on the simulated suggestion (`None` when that run no longer has the term).
+    pub after: Option<Collinearity>,
+}
+
+/// A suggested scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Suggestion {
+    /// Scenario TOML, validated against the simulated bench.
+    pub text: String,
+    /// Why, one line each.
+    pub why: Vec<String>,
+    /// The pairs it separates, with the predicted separation once [`predict`] ran.
+    pub targets: Vec<Target>,
+}
+
+/// What the suggestion needs of the recording beyond its diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingFacts {
+    /// Recording's name (for the description).
+    pub name: String,
+    /// Site latitude, degrees.
+    pub latitude_deg: f64,
+    /// Lowest and highest model temperature of the run, °C.
+    pub temp_range_c: (f64, f64),
+}
+
+fn is_angle(id: EffectId) -> bool {
+    matches!(id, EffectId::OncePerRevolution | EffectId::AngleHarmonic | EffectId::RateRipple)
+}
+
+/// A scenario that separates the diagnosis's confounded pairs (module docs), or `None` when
+/// the diagnosis found none.
+pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<Suggestion>> {
+    let pairs = d.identifiability();
+    if pairs.is_empty() {
+        return Ok(None);
+    }
+    let angle = pairs.iter().any(|c| is_angle(c.effect));
+    let thermal = pairs.iter().any(|c| !is_angle(c.effect));
+    let (lo, hi) = facts.temp_range_c;
+    // At least 20 °C of range, within the gyro's −40..60 °C.
+    let lo = lo.floor().clamp(-40.0, 40.0);
+    let hi = hi.ceil().clamp(lo + 20.0, 60.0);
+    let t0 = d.model.reference_temperature;
+    let mut why = Vec::new();
+    let mut steps = String::new();
+    let mut step = |label: &str, body: &str| {
+        let _ = writeln!(steps, "[[step]]\nlabel = \"{label}\"\n{body}\n");
+    };
+    if thermal {
+        why.push(format!(
+            "thermal: ramps at 0.5 and 2 °C/min between {lo} and {hi} °C, each followed by a \
+             40 min hold, in both directions: holds keep a hysteresis or a lagged temperature \
+             apart from dT/dt = 0, and two rates make a lag's τ·dT/dt differ from k_dt"
+        ));
+        step(&format!("to {lo}C"), &format!("chamber = \"{lo} °C\""));
+        step(
+            &format!("soak {lo}C"),
+            &format!(
+                "wait_temperature = \"{lo} °C\"\nsource = \"gyro\"\nband = \"0.3 °C\"\n\
+                 hold = \"10 min\"\ntimeout = \"4 h\""
+            ),
+        );
+        for (dir, up, down) in [("cw", 0.5, 2.0), ("ccw", 2.0, 0.5)] {
+            step(
+                &format!("spin {dir}"),
+                &format!("spin = \"10 °/min\"\ndirection = \"{dir}\"\naccel = \"1 °/s²\""),
+            );
+            step(&format!("settle {dir}"), "wait = \"2 min\"");
+            for (from, to, rate) in [(lo, hi, up), (hi, lo, down)] {
+                step(
+                    &format!("ramp {from}C to {to}C at {rate} C/min"),
+                    &format!("chamber = \"{to} °C\"\nramp = \"{rate} °C/min\""),
+                );
+                step(
+                    &format!("record {dir} ramp {from}C to {to}C"),
+                    "record = \"ramp end\"\ntimeout = \"4 h\"",
+                );
+                step(&format!("record {dir} hold {to}C"), "record = \"40 min\"");
+            }
+            step(&format!("stop {dir}"), "stop = \"table\"");
+        }
+    }
+    if angle {
+        why.push(format!(
+            "per revolution: two full revolutions per direction at 10 °/min and at 30 °/min at \
+             {t0} °C: full turns make the angle harmonics orthogonal, and two rates tell a term \
+             of the gyro (independent of rate) from the table's rate ripple (∝ rate)"
+        ));
+        step(&format!("to {t0}C"), &format!("chamber = \"{t0} °C\""));
+        step(
+            &format!("soak {t0}C"),
+            &format!(
+                "wait_temperature = \"{t0} °C\"\nsource = \"gyro\"\nband = \"0.3 °C\"\n\
+                 hold = \"10 min\"\ntimeout = \"4 h\""
+            ),
+        );
+        for (rate, minutes) in [(10.0, 72), (30.0, 24)] {
+            for dir in ["cw", "ccw"] {
+                step(
+                    &format!("spin {dir} {rate} deg/min"),
+                    &format!("spin = \"{rate} °/min\"\ndirection = \"{dir}\"\naccel = \"1 °/s²\""),
+                );
+                step(&format!("settle {dir} {rate}"), "wait = \"1 min\"");
+                step(
+                    &format!("record {dir} {rate} deg/min, 2 revolutions"),
+                    &format!("record = \"{minutes} min\""),
+                );
+            }
+        }
+        step("stop", "stop = \"table\"");
+    }
+    let pairs_text: Vec<String> = pairs
+        .iter()
+        .map(|c| format!("{} vs {} (ρ = {:.3})", c.effect.key(), c.with, c.rho))
+        .collect();
+    let mut model = String::new();
+    for (k, v) in d.model.to_metadata() {
+        let value = if k == "earth_rate" { (v == "1" || v == "true").to_string() } else { v };
+        let _ = writeln!(model, "{k} = {value}");
+    }
+    let text = format!(
+        "# Suggested by `bench diagnose {name} --suggest-scenario`: a run that separates what \
+         that recording\n# could not ({pairs}).\n{why}\n\n[scenario]\nname = \"separate-{slug}\"\n\
+         description = \"Separates {pairs} (bench diagnose of {name}).\"\n\n[site]\n\
+         latitude_deg = {lat}\naxis = \"up\"\n\n[gyro]\nsample_rate = \"20 Hz\"\n\n\
+         # The diagnosed model of {name}.\n[gyro.model]\n{model}\n[simulation]\n\
+         initial_temp = \"{t0} °C\"\n\n[safe]\ndecel = \"10 °/s²\"\ntemperature = \"{t0} °C\"\n\n\
+         {steps}",
+        name = facts.name,
+        pairs = pairs_text.join(", "),
+        why = why.iter().map(|w| format!("# {w}")).collect::<Vec<_>>().join("\n"),
+        slug = pairs.first().map_or("terms", |c| c.effect.key()),
+        lat = facts.latitude_deg,
+    );
+    crate::scenario::parse(&text, "suggested scenario", &capabilities())
+        .map_err(|e| anyhow::anyhow!("the suggested scenario does not validate: {e}"))?;
+    let targets = pairs.into_iter().map(|before| Target { before, after: None }).collect();
+    Ok(Some(Suggestion { text, why, targets }))
+}
+
+/// Simulate `s` under its scenario's model (the diagnosed one, `seed`) and diagnose the run
+/// against that model: each target's σ and ρ there.
+pub fn predict(s: &mut Suggestion, seed: u64) -> anyhow::Result<()> {
+    let plan = crate::scenario::parse(&s.text, "suggested scenario", &capabilities())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let sim = SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
+    let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
+    anyhow::ensure!(report.completed(), "the suggested run did not complete: {}", report.outcome);
+    let rec = bench_recording::Recording::from_bytes(cursor.get_ref())?;
+    let model: GyroModel = plan.gyro.model.clone();
+    // Each target judged at the recording's grid value (a lag's τ, a harmonic's k).
+    let opts = DiagnoseOptions {
+        identify_at: s.targets.iter().map(|t| (t.before.effect, t.before.grid_value)).collect(),
+        ..Default::default()
+    };
+    let out = bench_report::diagnose::diagnose_recording(
+        &rec,
+        Some((model, plan.gyro.effects, "the suggested scenario's model".into())),
+        &opts,
+    )
+    .context("cannot diagnose the simulated suggestion")?;
+    for t in &mut s.targets {
+        t.after = out
+            .diagnosis
+            .collinearity
+            .iter()
+            .find(|c| c.effect == t.before.effect && c.with == t.before.with)
+            .cloned();
+    }
+    Ok(())
+}
