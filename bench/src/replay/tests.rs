@@ -80,7 +80,7 @@ fn a_recording_that_cannot_be_read_is_named_with_where_it_broke() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("bad.mcap");
     std::fs::write(&path, b"\x89MCAP0\r\n").expect("write");
-    let e = ReplayData::load(&path).err().expect("unreadable").to_string();
+    let e = ReplayData::load(&path).expect_err("unreadable").to_string();
     assert!(e.starts_with(&format!("cannot read {}: ", path.display())), "{e}");
     assert!(e.contains("byte 8"), "{e}");
 }
