@@ -300,6 +300,15 @@ impl<W: Write + Seek> Rebuild<W> {
     fn take(&mut self, record: Record<'_>, report: &mut RecoverReport) -> Result<(), String> {
         match record {
             Record::Chunk { header, data } => {
+                // mcap's chunk reader sizes its buffer from the header's uncompressed size: a
+                // corrupt one (8e18) aborts the process on allocation (found by fuzzing).
+                if header.uncompressed_size > MAX_CHUNK {
+                    return Err(format!(
+                        "chunk unreadable: its header claims {} uncompressed bytes (at most {} \
+                         read)",
+                        header.uncompressed_size, MAX_CHUNK
+                    ));
+                }
                 // Decode the whole chunk first (its CRC is checked at its end): a damaged chunk
                 // contributes nothing.
                 let records = mcap::read::ChunkReader::new(header, &data)
@@ -371,6 +380,9 @@ impl<W: Write + Seek> Rebuild<W> {
     }
 }
 
+/// The largest chunk (uncompressed) `recover` decodes, as the reader's largest record.
+const MAX_CHUNK: u64 = 1 << 30;
+
 #[cfg(test)]
 mod tests {
     use std::collections::BTreeMap;
@@ -414,6 +426,24 @@ mod tests {
     fn recover_bytes(bytes: &[u8]) -> (RecoverReport, Vec<u8>) {
         let (report, out) = recover(bytes, Cursor::new(Vec::new())).expect("recovers");
         (report, out.into_inner())
+    }
+
+    #[test]
+    fn a_chunk_claiming_an_impossible_size_is_a_break_not_an_abort() {
+        // Found by the `recover` fuzz target: the chunk reader allocated the claimed
+        // 8243118308127416885 bytes and the process aborted.
+        let mut bytes = original(Some(mcap::Compression::Zstd));
+        let mut pos = 8;
+        while bytes[pos] != 0x06 {
+            let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().expect("8 bytes"));
+            pos += 9 + usize::try_from(len).expect("small");
+        }
+        // Chunk body: message start and end time, then the uncompressed size.
+        bytes[pos + 25..pos + 33].copy_from_slice(&8_243_118_308_127_416_885u64.to_le_bytes());
+        let (report, _) = recover_bytes(&bytes);
+        let b = report.break_at.expect("breaks at the chunk");
+        assert!(b.at_byte <= pos as u64, "{b:?}");
+        assert!(b.reason.contains("8243118308127416885 uncompressed bytes"), "{b:?}");
     }
 
     #[test]
