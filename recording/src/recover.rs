@@ -183,7 +183,11 @@ pub fn recover<R: Read, W: Write + Seek>(
 ) -> Result<(RecoverReport, W), RecoverError> {
     // Emit chunks whole, so that each event is one top-level record and its end is a byte
     // position of the file; their messages are read with a second reader.
-    let options = LinearReaderOptions::default().with_emit_chunks(true);
+    // A record's length is trusted to size the read buffer: without a limit a corrupt one
+    // (7e18) aborts the process on allocation (found by fuzzing). The reader's limit.
+    let options = LinearReaderOptions::default()
+        .with_emit_chunks(true)
+        .with_record_length_limit(MAX_CHUNK as usize);
     let mut reader = LinearReader::new_with_options(options);
     let mut at_byte: u64 = 0;
     let mut end_of_last: u64 = 0;
@@ -444,6 +448,18 @@ mod tests {
         let b = report.break_at.expect("breaks at the chunk");
         assert!(b.at_byte <= pos as u64, "{b:?}");
         assert!(b.reason.contains("8243118308127416885 uncompressed bytes"), "{b:?}");
+    }
+
+    #[test]
+    fn a_record_claiming_an_impossible_length_is_a_break_not_an_abort() {
+        // Found by the `recover` fuzz target: the reader allocated the claimed length.
+        let mut bytes = original(Some(mcap::Compression::Zstd));
+        let len = u64::from_le_bytes(bytes[9..17].try_into().expect("8 bytes"));
+        let second = 17 + usize::try_from(len).expect("small");
+        bytes[second + 1..second + 9].copy_from_slice(&7_308_324_466_015_219_617u64.to_le_bytes());
+        let (report, _) = recover_bytes(&bytes);
+        let b = report.break_at.expect("breaks at the record");
+        assert!(b.at_byte <= second as u64, "{b:?}");
     }
 
     #[test]
