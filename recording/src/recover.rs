@@ -222,7 +222,7 @@ pub fn recover<R: Read, W: Write + Seek>(
                 // bytes) precedes the first record.
                 let start = if end_of_last == 0 { 8 } else { end_of_last };
                 let end = start + 9 + data.len() as u64;
-                let parsed = mcap::parse_record(opcode, data);
+                let parsed = crate::reader::parse_record(opcode, data);
                 let record = match parsed {
                     Ok(r) => r,
                     Err(e) => {

@@ -465,3 +465,16 @@ fn an_uncompressed_chunk_whose_record_overruns_it_is_an_error() {
     let read = Recording::from_bytes(bytes);
     assert!(read.map_or(true, |r| r.cut.is_some()));
 }
+
+/// Found by the `run_data` fuzz target: mcap 0.26 panics (release builds too) parsing an
+/// Attachment record too short for its own fields; the reader checks it first.
+#[test]
+fn an_attachment_shorter_than_its_fields_is_a_cut_not_a_panic() {
+    let bytes = include_bytes!("../../../fuzz/regressions/mcap-attachment-shorter-than-its-fields");
+    if let Ok(rec) = Recording::from_bytes(bytes) {
+        let (at, reason) = rec.cut.expect("cut at the attachment");
+        assert!(at <= bytes.len() as u64 && reason.contains("Attachment"), "{at} {reason}");
+    }
+    assert!(parse_record(mcap::records::op::ATTACHMENT, &[0u8; 20]).is_err());
+    assert!(parse_record(mcap::records::op::ATTACHMENT, &[0xFF; 40]).is_err());
+}
