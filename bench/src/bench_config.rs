@@ -295,9 +295,7 @@ pub enum ConfigError {
 impl BenchConfig {
     /// Read and parse a bench config file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigError::Io { path: path.to_path_buf(), source })?;
-        Self::parse(&text, &path.display().to_string())
+        Self::parse(&read_text(path)?, &path.display().to_string())
     }
 
     /// Parse bench config `text`; errors name `file:line:column`. A file that is not valid
@@ -354,6 +352,25 @@ impl BenchConfig {
                     missing.join(", ")
                 ),
             );
+        }
+        // The drivers' own checks of their settings, which `connect` makes: a config that
+        // would not connect for its values is refused here, at its section.
+        if let Some(t) = &cfg.table {
+            if let Err(e) = t.validate() {
+                bad(&["table"], format!("[table] {}", e.message()));
+            }
+        }
+        if let Some(c) = &cfg.chamber {
+            if let Err(e) = c.validate() {
+                bad(&["chamber"], format!("[chamber] {}", e.message()));
+            } else if let Err(e) = c.map.map().validate() {
+                bad(&["chamber", "map"], format!("[chamber] map: {e}"));
+            }
+        }
+        if let Some(GyroConfig::Can(g)) = &cfg.gyro {
+            if let Err(e) = g.validate() {
+                bad(&["gyro"], format!("[gyro] {}", e.message()));
+            }
         }
         if let Some(sim) = &cfg.simulation {
             if let Err((line, column, message)) = bench_recording::effects_toml::check_located(
@@ -571,14 +588,26 @@ impl BenchSource {
                 bench: BenchSettings::default(),
             }));
         }
-        let text = std::fs::read_to_string(spec)
-            .map_err(|source| ConfigError::Io { path: spec.to_path_buf(), source })?;
-        let mut source = Self::parse(&text, &spec.display().to_string())?;
+        let text = read_text(spec)?;
+        let file = spec.display().to_string();
+        let mut source = Self::parse(&text, &file)?;
         if let Self::Replay(r) = &mut source {
             if r.replay.recording.is_relative() {
                 if let Some(dir) = spec.parent() {
                     r.replay.recording = dir.join(&r.replay.recording);
                 }
+            }
+            // A recording that cannot be opened is the config's error, at its key.
+            if let Err(e) = std::fs::File::open(&r.replay.recording) {
+                let at = bench_recording::toml_doc::value_span(&text, &["replay", "recording"])
+                    .map_or(0, |s| s.start);
+                let (line, column) = bench_recording::toml_doc::line_col(&text, at);
+                return Err(ConfigError::Invalid {
+                    file,
+                    line,
+                    column,
+                    message: format!("[replay] recording {}: {e}", r.replay.recording.display()),
+                });
             }
         }
         Ok(source)
@@ -673,6 +702,16 @@ impl BenchConfig {
     pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
         toml::to_string(self)
     }
+}
+
+/// The text of the config file at `path`; bytes that are not UTF-8 are an error at their line
+/// and column.
+fn read_text(path: &Path) -> Result<String, ConfigError> {
+    let bytes = std::fs::read(path)
+        .map_err(|source| ConfigError::Io { path: path.to_path_buf(), source })?;
+    bench_recording::toml_doc::utf8_text(bytes).map_err(|(_, line, column, message)| {
+        ConfigError::Invalid { file: path.display().to_string(), line, column, message }
+    })
 }
 
 /// A TOML parse or shape error of `file`, at its line and column.
@@ -845,6 +884,32 @@ time_constant_s = 900
         let text = text.replace("[nothing]\ntransport = { kind = \"slcan\", serial = { path = \"/dev/ttyACM0\", baud = 115200 } }\n", "");
         let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
         assert!(e.ends_with("missing: [gyro]"), "{e}");
+    }
+
+    #[test]
+    fn the_drivers_own_checks_are_made_when_the_config_is_read() {
+        // Found by scripts/bad_inputs.py: `bench validate --bench` accepted a gyro sample rate
+        // of -20 Hz that `bench run` refused only when it connected.
+        let text = GOOD.replace("baud = 115200 } }", "baud = 115200 } }\nsample_rate_hz = -20.0");
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("negative rate").to_string();
+        assert!(e.contains(": [gyro] sample_rate_hz = -20"), "{e}");
+        // At the [gyro] section.
+        let line: usize = e.split(':').nth(1).and_then(|l| l.parse().ok()).unwrap_or(0);
+        assert!((14..=17).contains(&line), "{e}");
+    }
+
+    #[test]
+    fn unreadable_text_and_a_missing_replay_recording_are_located() {
+        // Found by scripts/bad_inputs.py: both named the file but no place in the config.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("lab.toml");
+        std::fs::write(&path, b"[site]\nlatitude_deg = 45.0\naxis = \"\xFFup\"\n").expect("write");
+        let e = BenchSource::load(&path).expect_err("not UTF-8").to_string();
+        assert!(e.starts_with(&format!("{}:3:9: not UTF-8", path.display())), "{e}");
+        std::fs::write(&path, "[replay]\nrecording = \"gone.mcap\"\n").expect("write");
+        let e = BenchSource::load(&path).expect_err("no recording");
+        assert!(matches!(e, ConfigError::Invalid { line: 2, column: 13, .. }), "{e}");
+        assert!(e.to_string().contains("[replay] recording"), "{e}");
     }
 
     #[tokio::test]

@@ -145,11 +145,12 @@ fn a_pure_simulation_has_no_missing_physics_and_its_model_is_a_nominal_for_anoth
     );
     assert!(matches!(r.status.code(), Some(0 | 6)), "{}", text(&r.stderr));
 
-    // A file that is neither: a clear error, not "stream did not contain valid UTF-8".
+    // A file that is neither: a clear error, not "stream did not contain valid UTF-8": an
+    // invalid model file (exit 3) at its first bad byte.
     std::fs::write(d.join("junk.bin"), [0xffu8, 0xfe, 0, 1]).expect("junk");
     let r = bench(&["diagnose", "real.mcap", "--model", "junk.bin", "-q", "--no-report"], d);
-    assert_eq!(r.status.code(), Some(1));
-    assert!(text(&r.stderr).contains("junk.bin"), "{}", text(&r.stderr));
+    assert_eq!(r.status.code(), Some(3), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("junk.bin:1:1: not UTF-8"), "{}", text(&r.stderr));
 }
 
 #[test]

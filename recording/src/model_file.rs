@@ -182,11 +182,16 @@ pub enum ModelFileError {
         /// Which parameter and what is wrong.
         message: String,
     },
-    /// A value out of range.
-    #[error("{path}: [gyro_model] {key} = {value}: {why}")]
+    /// A value out of range, located at the value (at `[gyro_model]`, or 1:1, when the key is
+    /// absent and its default is out of range).
+    #[error("{path}:{line}:{column}: [gyro_model] {key} = {value}: {why}")]
     Invalid {
         /// File.
         path: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
         /// Key.
         key: &'static str,
         /// Value.
@@ -282,7 +287,17 @@ impl CalibrationFile {
         ];
         for (key, value, ok, why) in checks {
             if !ok {
-                return Err(ModelFileError::Invalid { path: path.to_owned(), key, value, why });
+                let span = crate::toml_doc::value_span(text, &["gyro_model", key])
+                    .or_else(|| crate::toml_doc::value_span(text, &["gyro_model"]));
+                let (line, column) = span.map_or((1, 1), |s| line_col(text, s.start));
+                return Err(ModelFileError::Invalid {
+                    path: path.to_owned(),
+                    line,
+                    column,
+                    key,
+                    value,
+                    why,
+                });
             }
         }
         crate::effects_toml::check_located(&file.effects, text, &["effects"]).map_err(
@@ -298,9 +313,13 @@ impl CalibrationFile {
 
     /// Read a calibration file.
     pub fn load(path: &Path) -> Result<Self, ModelFileError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ModelFileError::Io { path: path.display().to_string(), source })?;
-        Self::parse(&text, &path.display().to_string())
+        let name = path.display().to_string();
+        let bytes = std::fs::read(path)
+            .map_err(|source| ModelFileError::Io { path: name.clone(), source })?;
+        let text = crate::toml_doc::utf8_text(bytes).map_err(|(_, line, column, message)| {
+            ModelFileError::Parse { path: name.clone(), line, column, message }
+        })?;
+        Self::parse(&text, &name)
     }
 
     /// Write the file. Effects that [`CalibrationFile::parse`] would reject (not finite, a
@@ -385,11 +404,30 @@ mod tests {
             uncertainty: Uncertainty::default(),
             effects: Effects::default(),
         };
-        let e = CalibrationFile::parse(&f.to_toml(), "c.toml").expect_err("negative");
+        let text = f.to_toml();
+        let e = CalibrationFile::parse(&text, "c.toml").expect_err("negative");
+        // Located at the value, like every other error of the file.
+        let at = text.find("arw_rad_per_sqrt_s = -1").map(|i| i + "arw_rad_per_sqrt_s = ".len());
+        let (line, column) = line_col(&text, at.unwrap_or(0));
         assert_eq!(
             e.to_string(),
-            "c.toml: [gyro_model] arw_rad_per_sqrt_s = -1: must be finite and not negative"
+            format!(
+                "c.toml:{line}:{column}: [gyro_model] arw_rad_per_sqrt_s = -1: must be finite \
+                 and not negative"
+            )
         );
+    }
+
+    #[test]
+    fn an_out_of_range_value_is_located() {
+        // Found by scripts/bad_inputs.py: the range errors named the file only.
+        let text = "[gyro_model]\nbias_rad_s = 0.0\nscale_factor_error = -2.0\n\
+                    reference_temperature_c = 20.0\ntemp_coeff_rad_s_per_c = 0.0\n\
+                    temp_rate_coeff_rad_s_per_c_s = 0.0\narw_rad_per_sqrt_s = 0.0\n\
+                    bias_instability_rad_s = 0.0\nearth_rate = true\n\
+                    thermal_time_constant_s = 0.0\n";
+        let e = CalibrationFile::parse(text, "m.toml").expect_err("scale factor below -1");
+        assert!(e.to_string().starts_with("m.toml:3:22: [gyro_model] scale_factor_error"), "{e}");
     }
 }
 

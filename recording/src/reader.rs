@@ -406,7 +406,7 @@ impl<R: Read> Framer<R> {
                     }
                     continue;
                 }
-                Ok(LinearReadEvent::Record { opcode, data }) => mcap::parse_record(opcode, data),
+                Ok(LinearReadEvent::Record { opcode, data }) => parse_record(opcode, data),
             };
             match parsed {
                 Err(e) => state.stop(format!("bad record: {e}"), &mut batch),
@@ -415,6 +415,37 @@ impl<R: Read> Framer<R> {
         }
         batch
     }
+}
+
+/// `mcap::parse_record`, without its panic on an Attachment record too short for its own
+/// fields (mcap 0.26 slices `body[header_len..len - 4]` unchecked; found by fuzzing).
+pub(crate) fn parse_record(opcode: u8, body: &[u8]) -> mcap::McapResult<Record<'_>> {
+    if opcode == mcap::records::op::ATTACHMENT && !attachment_fits(body) {
+        return Err(mcap::McapError::BadAttachmentLength {
+            header: 0,
+            available: body.len() as u64,
+        });
+    }
+    mcap::parse_record(opcode, body)
+}
+
+/// Whether an Attachment record's body holds its times, name, media type, data length and
+/// CRC (the data itself is checked by mcap).
+fn attachment_fits(body: &[u8]) -> bool {
+    let u32_at = |at: usize| {
+        body.get(at..at.checked_add(4)?)
+            .and_then(|b| <[u8; 4]>::try_from(b).ok())
+            .map(|b| u32::from_le_bytes(b) as usize)
+    };
+    let mut at = 16usize; // log_time, create_time
+    for _ in 0..2 {
+        // name, media_type: u32 length and the bytes
+        let Some(next) = u32_at(at).and_then(|n| at.checked_add(4)?.checked_add(n)) else {
+            return false;
+        };
+        at = next;
+    }
+    at.checked_add(12).is_some_and(|end| end <= body.len()) // data length, CRC
 }
 
 impl FrameState {

@@ -183,8 +183,9 @@ pub fn recover<R: Read, W: Write + Seek>(
 ) -> Result<(RecoverReport, W), RecoverError> {
     // Emit chunks whole, so that each event is one top-level record and its end is a byte
     // position of the file; their messages are read with a second reader.
-    // A record longer than the reader's limit is damage: a killed writer leaves its last chunk
-    // with the length still a placeholder (u64::MAX), which must end the input, not overflow.
+    // A record longer than the reader's limit is damage, not a size to allocate: a killed
+    // writer leaves its last chunk's length a placeholder (u64::MAX), and a corrupt one (7e18,
+    // found by fuzzing) would abort the process on allocation. Both end the input.
     let options = LinearReaderOptions::default()
         .with_emit_chunks(true)
         .with_record_length_limit(crate::reader::MAX_RECORD);
@@ -222,7 +223,7 @@ pub fn recover<R: Read, W: Write + Seek>(
                 // bytes) precedes the first record.
                 let start = if end_of_last == 0 { 8 } else { end_of_last };
                 let end = start + 9 + data.len() as u64;
-                let parsed = mcap::parse_record(opcode, data);
+                let parsed = crate::reader::parse_record(opcode, data);
                 let record = match parsed {
                     Ok(r) => r,
                     Err(e) => {
@@ -304,11 +305,19 @@ impl<W: Write + Seek> Rebuild<W> {
     fn take(&mut self, record: Record<'_>, report: &mut RecoverReport) -> Result<(), String> {
         match record {
             Record::Chunk { header, data } => {
+                // mcap's chunk reader sizes its buffer from the header's uncompressed size: a
+                // corrupt one (8e18) aborts the process on allocation (found by fuzzing).
+                if header.uncompressed_size > MAX_CHUNK {
+                    return Err(format!(
+                        "chunk unreadable: its header claims {} uncompressed bytes (at most {} \
+                         read)",
+                        header.uncompressed_size, MAX_CHUNK
+                    ));
+                }
                 // Decode the whole chunk first (its CRC is checked at its end): a damaged chunk
                 // contributes nothing.
-                let records = mcap::read::ChunkReader::new(header, &data)
-                    .and_then(|r| r.collect::<Result<Vec<_>, _>>())
-                    .map_err(|e| format!("chunk unreadable: {e}"))?;
+                let records =
+                    chunk_records(&header, &data).map_err(|e| format!("chunk unreadable: {e}"))?;
                 for inner in records {
                     self.take(inner, report)?;
                 }
@@ -375,6 +384,59 @@ impl<W: Write + Seek> Rebuild<W> {
     }
 }
 
+/// The records of a chunk, read with the reader's record length limit: `mcap::read::
+/// ChunkReader` has none, and reserved a corrupt inner record's length (8e18) and aborted
+/// (found by fuzzing). The chunk is read as a one-record file by the sans-IO reader.
+fn chunk_records(
+    header: &mcap::records::ChunkHeader,
+    data: &[u8],
+) -> Result<Vec<Record<'static>>, String> {
+    let mut body = Vec::with_capacity(data.len() + 64);
+    body.extend_from_slice(&header.message_start_time.to_le_bytes());
+    body.extend_from_slice(&header.message_end_time.to_le_bytes());
+    body.extend_from_slice(&header.uncompressed_size.to_le_bytes());
+    body.extend_from_slice(&header.uncompressed_crc.to_le_bytes());
+    let name = header.compression.as_bytes();
+    body.extend_from_slice(&u32::try_from(name.len()).map_err(|e| e.to_string())?.to_le_bytes());
+    body.extend_from_slice(name);
+    body.extend_from_slice(&(data.len() as u64).to_le_bytes());
+    body.extend_from_slice(data);
+    let mut file = Vec::with_capacity(body.len() + 17);
+    file.extend_from_slice(mcap::MAGIC);
+    file.push(mcap::records::op::CHUNK);
+    file.extend_from_slice(&(body.len() as u64).to_le_bytes());
+    file.extend_from_slice(&body);
+    let options = LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_validate_chunk_crcs(true)
+        .with_record_length_limit(MAX_CHUNK as usize);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut at: usize = 0;
+    let mut out = Vec::new();
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| e.to_string())? {
+            LinearReadEvent::ReadRequest(n) => {
+                let src = file.get(at..at.saturating_add(n).min(file.len())).unwrap_or(&[]);
+                let buf = reader.insert(n);
+                buf[..src.len()].copy_from_slice(src);
+                reader.notify_read(src.len());
+                at += src.len();
+            }
+            LinearReadEvent::Record { opcode, data } => {
+                out.push(
+                    crate::reader::parse_record(opcode, data)
+                        .map_err(|e| e.to_string())?
+                        .into_owned(),
+                );
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The largest chunk (uncompressed) `recover` decodes, as the reader's largest record.
+const MAX_CHUNK: u64 = crate::reader::MAX_RECORD as u64;
+
 #[cfg(test)]
 mod tests {
     use std::collections::BTreeMap;
@@ -418,6 +480,46 @@ mod tests {
     fn recover_bytes(bytes: &[u8]) -> (RecoverReport, Vec<u8>) {
         let (report, out) = recover(bytes, Cursor::new(Vec::new())).expect("recovers");
         (report, out.into_inner())
+    }
+
+    #[test]
+    fn a_chunk_claiming_an_impossible_size_is_a_break_not_an_abort() {
+        // Found by the `recover` fuzz target: the chunk reader allocated the claimed
+        // 8243118308127416885 bytes and the process aborted.
+        let mut bytes = original(Some(mcap::Compression::Zstd));
+        let mut pos = 8;
+        while bytes[pos] != 0x06 {
+            let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().expect("8 bytes"));
+            pos += 9 + usize::try_from(len).expect("small");
+        }
+        // Chunk body: message start and end time, then the uncompressed size.
+        bytes[pos + 25..pos + 33].copy_from_slice(&8_243_118_308_127_416_885u64.to_le_bytes());
+        let (report, _) = recover_bytes(&bytes);
+        let b = report.break_at.expect("breaks at the chunk");
+        assert!(b.at_byte <= pos as u64, "{b:?}");
+        assert!(b.reason.contains("8243118308127416885 uncompressed bytes"), "{b:?}");
+    }
+
+    #[test]
+    fn a_record_claiming_an_impossible_length_is_a_break_not_an_abort() {
+        // Found by the `recover` fuzz target: the reader allocated the claimed length.
+        let mut bytes = original(Some(mcap::Compression::Zstd));
+        let len = u64::from_le_bytes(bytes[9..17].try_into().expect("8 bytes"));
+        let second = 17 + usize::try_from(len).expect("small");
+        bytes[second + 1..second + 9].copy_from_slice(&7_308_324_466_015_219_617u64.to_le_bytes());
+        let (report, _) = recover_bytes(&bytes);
+        let b = report.break_at.expect("breaks at the record");
+        assert!(b.at_byte <= second as u64, "{b:?}");
+    }
+
+    #[test]
+    fn a_chunk_whose_record_claims_an_impossible_length_is_a_break_not_an_abort() {
+        // Found by the `recover` fuzz target: mcap's chunk reader reserved the length.
+        let bytes =
+            include_bytes!("../../fuzz/regressions/recover-chunk-inner-record-length-abort");
+        let (report, _) = recover_bytes(bytes);
+        let b = report.break_at.expect("breaks at the chunk");
+        assert!(b.reason.contains("chunk unreadable"), "{b:?}");
     }
 
     #[test]

@@ -132,6 +132,24 @@ pub fn value_span(text: &str, path: &[&str]) -> Option<Range<usize>> {
     Some(node.span)
 }
 
+/// A TOML file's text from its `bytes`. TOML files are UTF-8: for bytes that are not, the
+/// offset of the first bad byte, its 1-based line and column, and a message.
+pub fn utf8_text(bytes: Vec<u8>) -> Result<String, (usize, usize, usize, String)> {
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let bytes = e.into_bytes();
+        let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok()).unwrap_or("");
+        let (line, column) = line_col(valid, at);
+        let byte = bytes.get(at).copied().unwrap_or(0);
+        (
+            at,
+            line,
+            column,
+            format!("not UTF-8 text (byte {at} is 0x{byte:02X}): TOML files are UTF-8"),
+        )
+    })
+}
+
 /// 1-based line and column (in characters) of byte offset `pos` in `text`.
 pub fn line_col(text: &str, pos: usize) -> (usize, usize) {
     let mut pos = pos.min(text.len());
@@ -148,6 +166,17 @@ pub fn line_col(text: &str, pos: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bytes_that_are_not_utf8_are_located() {
+        // Found by scripts/bad_inputs.py: such a file gave "stream did not contain valid
+        // UTF-8" with no place in it.
+        let (at, line, column, message) =
+            utf8_text(b"a = 1\nb = \"\xC2\xB0\xFF\"\n".to_vec()).expect_err("not UTF-8");
+        assert_eq!((at, line, column), (13, 2, 7));
+        assert!(message.contains("0xFF"), "{message}");
+        assert_eq!(utf8_text(b"x = \"\xC2\xB0\"".to_vec()).ok().as_deref(), Some("x = \"°\""));
+    }
 
     #[test]
     fn line_col_counts_characters_not_bytes() {

@@ -160,11 +160,23 @@ pub struct ReplayData {
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The file could not be read.
-    #[error(transparent)]
-    Read(#[from] RecordingError),
+    #[error("cannot read {recording}: {source}")]
+    Read {
+        /// The recording.
+        recording: String,
+        /// Where and why reading failed.
+        #[source]
+        source: RecordingError,
+    },
     /// `bench.site` is not as the contract says.
-    #[error("{0}")]
-    Site(#[from] bench_recording::MetadataError),
+    #[error("{recording}: {source}")]
+    Site {
+        /// The recording.
+        recording: String,
+        /// The metadata record and key.
+        #[source]
+        source: bench_recording::MetadataError,
+    },
     /// A required device stream has no message.
     #[error("{recording}: channel {topic} has no message: nothing to replay for the {device}")]
     Empty {
@@ -180,7 +192,10 @@ pub enum ReplayError {
 impl ReplayData {
     /// Read a recording file (any conforming MCAP: with or without summary, any compression).
     pub fn load(path: &Path) -> Result<Self, ReplayError> {
-        let rec = Recording::load(path)?;
+        let rec = Recording::load(path).map_err(|source| ReplayError::Read {
+            recording: path.display().to_string(),
+            source,
+        })?;
         Self::from_recording(&rec, &path.display().to_string())
     }
 
@@ -204,7 +219,9 @@ impl ReplayData {
             gyro: Track::new(&rec.gyro, epoch_ns),
             table: Track::new(&rec.table, epoch_ns),
             chamber: Track::new(&rec.chamber, epoch_ns),
-            site: rec.site()?,
+            site: rec
+                .site()
+                .map_err(|e| ReplayError::Site { recording: source.to_string(), source: e })?,
             gyro_model: rec.metadata(META_GYRO_MODEL).cloned(),
             gyro_model_role: rec.gyro_model_role(),
             complete: rec.complete,

@@ -74,6 +74,18 @@ fn without_bench_run_the_epoch_is_the_first_message() {
 }
 
 #[test]
+fn a_recording_that_cannot_be_read_is_named_with_where_it_broke() {
+    // Found by scripts/bad_inputs.py: `bench validate --bench replay:X` said
+    // "/gyro/rate: message encoding `cbor` is not `json`" without naming X.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("bad.mcap");
+    std::fs::write(&path, b"\x89MCAP0\r\n").expect("write");
+    let e = ReplayData::load(&path).expect_err("unreadable").to_string();
+    assert!(e.starts_with(&format!("cannot read {}: ", path.display())), "{e}");
+    assert!(e.contains("byte 8"), "{e}");
+}
+
+#[test]
 fn a_recording_without_gyro_data_is_refused_by_name() {
     let mut rec = recording();
     rec.gyro.clear();

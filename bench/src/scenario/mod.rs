@@ -128,9 +128,20 @@ pub enum LoadError {
 
 /// Read, parse and validate the scenario at `path` against `caps`.
 pub fn load(path: &Path, caps: &Capabilities) -> Result<RunPlan, LoadError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| LoadError::Io { path: path.to_path_buf(), source })?;
-    Ok(parse(&text, &path.display().to_string(), caps)?)
+    let bytes =
+        std::fs::read(path).map_err(|source| LoadError::Io { path: path.to_path_buf(), source })?;
+    let file = path.display().to_string();
+    let text =
+        bench_recording::toml_doc::utf8_text(bytes).map_err(|(at, line, column, message)| {
+            ScenarioErrors(vec![ScenarioError {
+                file: file.clone(),
+                line,
+                column,
+                span: at..at + 1,
+                message,
+            }])
+        })?;
+    Ok(parse(&text, &file, caps)?)
 }
 
 /// Parse and validate scenario `text` against `caps`; `source_name` (usually the path) prefixes

@@ -733,6 +733,18 @@ fn load_reads_files_and_reports_io_errors() {
 }
 
 #[test]
+fn a_file_that_is_not_utf8_is_located() {
+    // Found by scripts/bad_inputs.py: "cannot read scenario …: stream did not contain valid
+    // UTF-8", without a place.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, b"[scenario]\nname = \"b\xFF\"\n").expect("write");
+    let e = load(&path, &caps()).expect_err("not UTF-8");
+    assert!(matches!(e, LoadError::Invalid(_)), "{e}");
+    assert!(e.to_string().starts_with(&format!("{}:2:10: not UTF-8", path.display())), "{e}");
+}
+
+#[test]
 fn substitute_handles_braces() {
     let vars = vec![("a".to_string(), "1".to_string()), ("bc".to_string(), "x y".to_string())];
     assert_eq!(build::substitute("{a}-{bc}", &vars), Ok("1-x y".to_string()));

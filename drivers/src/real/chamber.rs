@@ -214,7 +214,8 @@ impl ModbusChamberConfig {
         }
     }
 
-    fn validate(&self) -> DeviceResult<()> {
+    /// Check values that serde cannot (`connect` does; so does `bench validate --bench`).
+    pub fn validate(&self) -> DeviceResult<()> {
         let bad = |m: String| Err(DeviceError::new(ErrorKind::OutOfRange, m));
         let c = &self.capabilities;
         if !(self.step_period_s.is_finite() && self.step_period_s > 0.0) {
