@@ -189,6 +189,35 @@ impl<R: Read> Read for ReadProgress<R> {
     }
 }
 
+/// A spinner with the elapsed time for a computation of unknown length (a calibration or a
+/// diagnosis after its file is read), on a terminal only; it ticks on its own and clears when
+/// dropped.
+pub struct Working {
+    bar: ProgressBar,
+}
+
+impl Working {
+    /// Show `what` (e.g. `diagnosing run.mcap`) when `show`.
+    pub fn new(what: &str, show: bool) -> Self {
+        let target = if show { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() };
+        let bar = ProgressBar::with_draw_target(None, target);
+        let style = ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner());
+        bar.set_style(style);
+        bar.set_message(what.to_string());
+        if show {
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
+        Self { bar }
+    }
+}
+
+impl Drop for Working {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
 /// Seconds as `h:mm:ss`.
 pub fn hms(s: f64) -> String {
     let s = if s.is_finite() && s > 0.0 { s as u64 } else { 0 };

@@ -53,8 +53,13 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     };
     let started = std::time::Instant::now();
     let rec = super::load_recording(&args.recording, args.quiet)?;
+    let working = bench::progress::Working::new(
+        &format!("calibrating {}", args.recording.display()),
+        !args.quiet && bench::progress::stderr_is_styled(),
+    );
     let out = calibrate_recording(&rec, &settings)
         .with_context(|| format!("cannot calibrate {}", args.recording.display()))?;
+    drop(working);
     let name = args
         .recording
         .file_name()

@@ -151,8 +151,13 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let opts = DiagnoseOptions { bin_s: args.bin_s, alpha: args.alpha, ..Default::default() };
     let rec = super::load_recording(&args.recording, args.quiet)?;
+    let working = bench::progress::Working::new(
+        &format!("diagnosing {}", args.recording.display()),
+        !args.quiet && bench::progress::stderr_is_styled(),
+    );
     let out = diagnose_recording(&rec, nominal, &opts)
         .with_context(|| format!("cannot diagnose {}", args.recording.display()))?;
+    drop(working);
     let name = args
         .recording
         .file_name()
