@@ -61,6 +61,21 @@ async fn take(g: &mut impl Gyro, n: usize) -> Vec<GyroSample> {
     v
 }
 
+/// Samples until `done` holds (at least `n`, at most `max`): on a loaded machine frames sent
+/// before a fault was injected may still be queued, so a fixed count can miss the fault.
+async fn take_until<G: Gyro>(
+    g: &mut G,
+    n: usize,
+    max: usize,
+    done: impl Fn(&G) -> bool,
+) -> Vec<GyroSample> {
+    let mut v = take(g, n).await;
+    while !done(g) && v.len() < max {
+        v.extend(take(g, 1).await);
+    }
+    v
+}
+
 /// Index in `reference` where `got` starts, matching every rate within `tol(ref)`.
 fn align(reference: &[GyroSample], got: &[GyroSample], tol: impl Fn(f64) -> f64) -> usize {
     (0..reference.len().saturating_sub(got.len()))
@@ -139,7 +154,7 @@ async fn can_gyro_over_slcan_matches_the_simulated_gyro_and_handles_every_fault(
     // Corrupt: the garbled line is counted and skipped; its sample is lost (SEQ_GAP) and the
     // next sample says it came after corrupt data.
     faults.inject(Fault::Corrupt { every: 4 });
-    let got = take(&mut g, 12).await;
+    let got = take_until(&mut g, 12, 400, |g| g.stats().corrupt >= 2).await;
     faults.clear();
     assert!(g.stats().corrupt >= 2, "{:?}", g.stats());
     let flagged: Vec<_> = got.iter().filter(|s| s.status & AFTER_CORRUPT != 0).collect();
@@ -204,7 +219,7 @@ async fn kvh1750_driver_matches_the_simulated_gyro_and_handles_faults() {
     assert_eq!(g.stats().corrupt + g.stats().seq_gaps, 0);
 
     faults.inject(Fault::Corrupt { every: 10 });
-    let got = take(&mut g, 40).await;
+    let got = take_until(&mut g, 40, 400, |g| g.stats().corrupt >= 3).await;
     faults.clear();
     assert!(g.stats().corrupt >= 3, "{:?}", g.stats());
     let flagged: Vec<_> = got.iter().filter(|s| s.status & AFTER_CORRUPT != 0).collect();
@@ -254,7 +269,7 @@ async fn dsp3000_case(format: Dsp3000Format, rate_hz: f64, scale: f64) {
     }
 
     faults.inject(Fault::Corrupt { every: 10 });
-    let got = take(&mut g, 40).await;
+    let got = take_until(&mut g, 40, 400, |g| g.stats().corrupt >= 3).await;
     faults.clear();
     assert!(g.stats().corrupt >= 3, "{:?}", g.stats());
     assert!(got.iter().any(|s| s.status & AFTER_CORRUPT != 0));
