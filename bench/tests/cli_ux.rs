@@ -310,3 +310,27 @@ fn recover_refuses_an_existing_output_and_reports_as_json() {
     assert!(j["total_messages"].as_u64() > Some(0));
     assert!(d.join("new.mcap").exists());
 }
+
+#[test]
+fn export_is_quiet_on_request_and_reports_as_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../recordings/demo-null.mcap");
+    let demo = demo.display().to_string();
+    let r = bench(&["export", &demo, "-o", "csv", "-q"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(r.stdout.is_empty(), "-q: {}", text(&r.stdout));
+    let r = bench(&["export", &demo, "-o", "csv", "--json", "-"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&r.stdout).expect("only JSON on stdout");
+    assert_eq!(j["format"], "csv");
+    let tables = j["tables"].as_array().expect("tables");
+    assert!(tables.iter().any(|t| t["topic"] == "/gyro/rate"), "{j}");
+    for t in tables {
+        let path = Path::new(t["path"].as_str().expect("path"));
+        let lines = std::fs::read_to_string(d.join(path).canonicalize().unwrap_or(path.into()))
+            .map_or(0, |s| s.lines().count());
+        assert_eq!(lines as u64, t["rows"].as_u64().expect("rows") + 1, "{t}");
+    }
+    assert!(j["cut"].is_null());
+}

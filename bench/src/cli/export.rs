@@ -31,6 +31,13 @@ pub struct ExportArgs {
     /// chamber readings at or before it (as-of join) and its record window's label.
     #[arg(long)]
     pub merged: bool,
+    /// Also write what was exported as JSON here (`-` for stdout): each table's topic, rows
+    /// and path, the topics skipped, and where the recording is cut.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Print nothing (errors aside).
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Export and list the tables written.
@@ -43,14 +50,35 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let report =
         bench_recording::export::export_file_with(&args.recording, &out, format, args.merged)
             .with_context(|| format!("cannot export {}", args.recording.display()))?;
-    for t in &report.tables {
-        println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
+    if !args.quiet && args.json.as_deref() != Some(std::path::Path::new("-")) {
+        for t in &report.tables {
+            println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
+        }
+        for (topic, enc) in &report.skipped {
+            println!("{topic:<16} skipped: message encoding `{enc}` is not json");
+        }
+        if let Some((at, reason)) = &report.cut {
+            println!("the recording is cut at byte {at} ({reason}): exported up to there");
+        }
     }
-    for (topic, enc) in &report.skipped {
-        println!("{topic:<16} skipped: message encoding `{enc}` is not json");
-    }
-    if let Some((at, reason)) = &report.cut {
-        println!("the recording is cut at byte {at} ({reason}): exported up to there");
+    if let Some(path) = &args.json {
+        let v = serde_json::json!({
+            "recording": args.recording.display().to_string(),
+            "format": match format { Format::Csv => "csv", Format::Parquet => "parquet" },
+            "tables": report.tables.iter().map(|t| serde_json::json!({
+                "topic": t.topic, "rows": t.rows, "path": t.path.display().to_string()})).collect::<Vec<_>>(),
+            "skipped": report.skipped.iter().map(|(topic, enc)| serde_json::json!({
+                "topic": topic, "message_encoding": enc})).collect::<Vec<_>>(),
+            "cut": report.cut.as_ref().map(|(at, reason)| serde_json::json!({
+                "at_byte": at, "reason": reason.to_string()})),
+        });
+        let text = serde_json::to_string_pretty(&v)?;
+        if path.as_os_str() == "-" {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
