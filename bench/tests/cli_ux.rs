@@ -334,3 +334,21 @@ fn export_is_quiet_on_request_and_reports_as_json() {
     }
     assert!(j["cut"].is_null());
 }
+
+#[test]
+fn run_reports_as_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["run", "short.toml", "-q", "--json", "-"], d);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&r.stdout).expect("only JSON on stdout");
+    assert_eq!(j["completed"], true, "{j}");
+    assert_eq!(j["recording"], "short.mcap");
+    assert!(j["fault"].is_null());
+    // Two minutes recorded at 20 Hz, plus the spin-up and the stop.
+    let samples = j["gyro_samples"].as_u64().expect("samples");
+    let bench_s = j["bench_time_s"].as_f64().expect("bench time");
+    assert!(bench_s >= 120.0 && (samples as f64 - 20.0 * bench_s).abs() <= 2.0, "{j}");
+    assert!(d.join("short.mcap").exists());
+}

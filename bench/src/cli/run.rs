@@ -58,6 +58,11 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Also write the run's report as JSON here (`-` for stdout, then alone on it): the
+    /// recording, its outcome (and the fault's name when it aborted), bench and wall time,
+    /// gyro samples.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
     /// Gyro model from a calibration file (`bench calibrate`'s `calibration.toml`): the
     /// nominal model recorded in `bench.gyro_model` and, on the simulated bench, the model
     /// the simulated gyro follows (replacing `[gyro.model]` and `[simulation.truth]`).
@@ -197,16 +202,39 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     let Some(report) = report else {
         return Ok(Exit::Invalid.into());
     };
-    println!(
-        "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, peak RSS {}",
-        out.display(),
-        report.outcome,
-        bench::progress::hms(report.bench_time.as_secs_f64()),
-        report.wall_time.as_secs_f64(),
-        report.speed(),
-        report.gyro_samples,
-        peak_rss_mb().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
-    );
+    let to_stdout = args.json.as_deref() == Some(Path::new("-"));
+    if !to_stdout {
+        println!(
+            "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, \
+             peak RSS {}",
+            out.display(),
+            report.outcome,
+            bench::progress::hms(report.bench_time.as_secs_f64()),
+            report.wall_time.as_secs_f64(),
+            report.speed(),
+            report.gyro_samples,
+            peak_rss_mb().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
+        );
+    }
+    if let Some(path) = &args.json {
+        let v = serde_json::json!({
+            "recording": out.display().to_string(),
+            "completed": report.completed(),
+            "outcome": report.outcome.to_string(),
+            "fault": report.fault.as_ref().map(|f| f.message.clone()),
+            "bench_time_s": report.bench_time.as_secs_f64(),
+            "wall_time_s": report.wall_time.as_secs_f64(),
+            "gyro_samples": report.gyro_samples,
+            "peak_rss_mb": peak_rss_mb(),
+        });
+        let text = serde_json::to_string_pretty(&v)?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
+    }
     Ok(if report.completed() { Exit::Success } else { Exit::Aborted }.into())
 }
 
