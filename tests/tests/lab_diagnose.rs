@@ -249,3 +249,19 @@ fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
     assert!((tau - 400.0).abs() <= 3.0 * s_tau, "τ {tau} ± {s_tau}");
     assert!((gain - 1.0).abs() <= 3.0 * s_gain, "gain {gain} ± {s_gain}");
 }
+
+/// Issue 14, "never a wrong name": on 120° arcs a 5e-8 rad/s once-per-revolution bias and a
+/// twice-per-revolution one explain each other (seed 8 fitted `angle_harmonic` k = 2 at
+/// 2.0e-8 ± 0.24e-8 rad/s before the rival check). The diagnosis now names neither: the
+/// per-revolution structure is unexplained, with the harmonic it cannot be told apart from.
+#[test]
+fn per_revolution_harmonics_that_cannot_be_told_apart_are_not_named() {
+    let path = lab_fixture("effect-1rev", 8, &[]);
+    let rec = Recording::load(&path).expect("reads");
+    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let found = accepted(&d);
+    assert!(!found.contains(&EffectId::AngleHarmonic), "{:?}", d.findings);
+    let named_1rev = found.contains(&EffectId::OncePerRevolution);
+    let told = d.unexplained.iter().any(|u| u.correlates_with.contains("not told apart"));
+    assert!(named_1rev || told, "{:?} / {:?}", d.findings, d.unexplained);
+}

@@ -48,6 +48,8 @@ pub(super) struct Member {
     pub name: String,
     /// Its columns (bin means); two for a sinusoid (sin, cos).
     pub cols: Vec<Vec<f64>>,
+    /// Whether it is a rate-independent harmonic of the table angle.
+    pub angle_harmonic: bool,
 }
 
 /// A member of the family found in the residual.
@@ -179,7 +181,7 @@ pub(super) fn members(
     p: f64,
     model: &GyroModel,
 ) -> (String, Vec<Member>) {
-    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols };
+    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols, angle_harmonic: false };
     let nat = &prep.native;
     let t0 = prep.t0;
     let dtemp = |i: usize| prep.temp[i] - t0;
@@ -191,7 +193,11 @@ pub(super) fn members(
             let mut v: Vec<Member> = (1..=kmax)
                 .map(f64::from)
                 .filter(|&j| j != k)
-                .map(|j| m(format!("table angle, {j} cycles/rev"), sin_cos(prep, j)))
+                .map(|j| Member {
+                    name: format!("table angle, {j} cycles/rev"),
+                    cols: sin_cos(prep, j),
+                    angle_harmonic: true,
+                })
                 .collect();
             v.push(m(format!("table rate ripple, {k} cycles/rev (∝ rate)"), ripple(prep, k)));
             (format!("angle harmonics 1..{kmax} and the table's rate ripple at {k}"), v)
@@ -413,7 +419,7 @@ pub(super) fn gate(
         ));
     }
     tested.sort_by(|a, b| (b.1.wald / b.1.threshold).total_cmp(&(a.1.wald / a.1.threshold)));
-    let strongest = tested.first().cloned();
+    let mut strongest = tested.first().cloned();
     // Stability: the effect refitted with the strongest member freed.
     let mut size_change_z = 0.0;
     if let Some((j, _)) = &strongest {
@@ -430,7 +436,48 @@ pub(super) fn gate(
         }
     }
     let significant = strongest.as_ref().is_some_and(|(_, s)| s.wald > s.threshold);
-    let passed = !significant && size_change_z <= SIZE_CHANGE_Z;
+    // Told apart from each relative: with member j in the model the effect must stay
+    // significant (one test at `level`) whenever j alone explains the data too (its own
+    // threshold); else the data cannot say which of the two it is.
+    let mut rival: Option<(usize, f64)> = None;
+    let p_o = Projector::new(others, &all).ok()?;
+    let thr_effect = chi2_quantile(1.0 - level, cols.len() as f64);
+    // Only between the gyro's angle harmonics: other families' members are the same term at
+    // another grid value (a lag's τ/2) or shapes one run may not separate by design (rate² and
+    // |rate| at one speed), which identifiability states instead.
+    let harmonic = matches!(id, EffectId::OncePerRevolution | EffectId::AngleHarmonic);
+    for (j, mem) in members.iter().enumerate().filter(|(_, m)| harmonic && m.angle_harmonic) {
+        let thr_j = chi2_quantile(1.0 - level / m, mem.cols.len() as f64);
+        let Some(alone) = p_o.test(&mem.cols, y, noise) else { continue };
+        if alone.wald <= thr_j {
+            continue;
+        }
+        let mut with_j = others.to_vec();
+        with_j.extend(mem.cols.iter().cloned());
+        let Ok(p_j) = Projector::new(&with_j, &all) else { continue };
+        let w = p_j.test(cols, y, noise).map_or(0.0, |t| t.wald);
+        if w <= thr_effect && rival.is_none_or(|(_, best)| w < best) {
+            rival = Some((j, w));
+        }
+    }
+    if let Some((j, w)) = rival {
+        // The rival is the member to report.
+        let thr = chi2_quantile(1.0 - level / m, members[j].cols.len() as f64);
+        let alone = p_o.test(&members[j].cols, y, noise);
+        strongest = Some((
+            j,
+            FamilyMember {
+                name: format!(
+                    "{} (not told apart: the effect's Wald with it in is {w:.1})",
+                    members[j].name
+                ),
+                wald: alone.as_ref().map_or(0.0, |t| t.wald),
+                threshold: thr,
+                size_rad_s: alone.as_ref().map_or(0.0, |t| member_size(&members[j].cols, t)),
+            },
+        ));
+    }
+    let passed = !significant && rival.is_none() && size_change_z <= SIZE_CHANGE_Z;
     // Nuisance when it fails: the significant members, added greedily (each tested with the
     // effect, the earlier ones and `base` in: not the other effects, which may hold part of
     // this structure only because it was left out).
