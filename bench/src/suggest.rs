@@ -84,20 +84,24 @@ pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<S
     let mut step = |label: &str, body: &str| {
         let _ = writeln!(steps, "[[step]]\nlabel = \"{label}\"\n{body}\n");
     };
+    // To `t` °C, then the gyro itself soaked there.
+    let soak = |step: &mut dyn FnMut(&str, &str), t: f64| {
+        step(&format!("to {t}C"), &format!("chamber = \"{t} °C\""));
+        step(
+            &format!("soak {t}C"),
+            &format!(
+                "wait_temperature = \"{t} °C\"\nsource = \"gyro\"\nband = \"0.3 °C\"\n\
+                 hold = \"10 min\"\ntimeout = \"4 h\""
+            ),
+        );
+    };
     if thermal {
         why.push(format!(
             "thermal: ramps at 0.5 and 2 °C/min between {lo} and {hi} °C, each followed by a \
              40 min hold, in both directions: holds keep a hysteresis or a lagged temperature \
              apart from dT/dt = 0, and two rates make a lag's τ·dT/dt differ from k_dt"
         ));
-        step(&format!("to {lo}C"), &format!("chamber = \"{lo} °C\""));
-        step(
-            &format!("soak {lo}C"),
-            &format!(
-                "wait_temperature = \"{lo} °C\"\nsource = \"gyro\"\nband = \"0.3 °C\"\n\
-                 hold = \"10 min\"\ntimeout = \"4 h\""
-            ),
-        );
+        soak(&mut step, lo);
         for (dir, up, down) in [("cw", 0.5, 2.0), ("ccw", 2.0, 0.5)] {
             step(
                 &format!("spin {dir}"),
@@ -124,14 +128,7 @@ pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<S
              {t0} °C: full turns make the angle harmonics orthogonal, and two rates tell a term \
              of the gyro (independent of rate) from the table's rate ripple (∝ rate)"
         ));
-        step(&format!("to {t0}C"), &format!("chamber = \"{t0} °C\""));
-        step(
-            &format!("soak {t0}C"),
-            &format!(
-                "wait_temperature = \"{t0} °C\"\nsource = \"gyro\"\nband = \"0.3 °C\"\n\
-                 hold = \"10 min\"\ntimeout = \"4 h\""
-            ),
-        );
+        soak(&mut step, t0);
         for (rate, minutes) in [(10.0, 72), (30.0, 24)] {
             for dir in ["cw", "ccw"] {
                 step(

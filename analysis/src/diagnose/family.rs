@@ -338,24 +338,6 @@ pub(super) fn members(
     }
 }
 
-/// Amplitude (two columns: hypot) or |θ| of a fitted term, and its σ (delta method).
-fn size(t: &TermTest) -> (f64, f64) {
-    if t.theta.len() == 2 {
-        let (a, b) = (t.theta[0], t.theta[1]);
-        let amp = a.hypot(b);
-        let var = if amp > 0.0 {
-            (a * a * t.cov[(0, 0)] + b * b * t.cov[(1, 1)] + 2.0 * a * b * t.cov[(0, 1)])
-                / (amp * amp)
-        } else {
-            t.cov[(0, 0)].max(t.cov[(1, 1)])
-        };
-        (amp, var.max(0.0).sqrt())
-    } else {
-        let a = t.theta.first().copied().unwrap_or(0.0);
-        (a.abs(), t.sigma(0))
-    }
-}
-
 /// Fitted size of a member in rad/s: a sinusoid's amplitude, else its contribution's RMS.
 fn member_size(cols: &[Vec<f64>], t: &TermTest) -> f64 {
     let n = cols.first().map_or(0, Vec::len);
@@ -428,8 +410,8 @@ pub(super) fn gate(
         freed.extend(members[*j].cols.iter().cloned());
         let p_f = Projector::new(&freed, &all).ok()?;
         if let (Some(t0), Some(tf)) = (p_o.test(cols, y, noise), p_f.test(cols, y, noise)) {
-            let (s0, _) = size(&t0);
-            let (sf, sigf) = size(&tf);
+            let (s0, _) = t0.size();
+            let (sf, sigf) = tf.size();
             if sigf > 0.0 {
                 size_change_z = (sf - s0).abs() / sigf;
             }

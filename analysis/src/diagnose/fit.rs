@@ -203,4 +203,21 @@ impl TermTest {
     pub fn sigma(&self, a: usize) -> f64 {
         self.cov[(a, a)].max(0.0).sqrt()
     }
+
+    /// The term's size and its 1σ: for a sinusoid's two coefficients (`a·sin x + b·cos x`) the
+    /// amplitude `hypot(a, b)` with σ by the delta method, else `|θ₀|`.
+    pub fn size(&self) -> (f64, f64) {
+        if self.theta.len() != 2 {
+            return (self.theta.first().map_or(0.0, |v| v.abs()), self.sigma(0));
+        }
+        let (a, b) = (self.theta[0], self.theta[1]);
+        let amp = a.hypot(b);
+        let c = &self.cov;
+        let var = if amp > 0.0 {
+            (a * a * c[(0, 0)] + b * b * c[(1, 1)] + 2.0 * a * b * c[(0, 1)]) / (amp * amp)
+        } else {
+            c[(0, 0)].max(c[(1, 1)])
+        };
+        (amp, var.max(0.0).sqrt())
+    }
 }

@@ -71,20 +71,12 @@ fn bounded_parameter(id: EffectId) -> (&'static str, &'static str) {
     }
 }
 
+/// 95 % upper bound of a term's size: `|θ| + 1.96σ`, or a sinusoid's amplitude `+ 2.45σ`
+/// (√χ²₂(0.95)).
 fn bound(t: &TermTest) -> f64 {
-    if t.theta.len() == 2 {
-        let (a, b) = (t.theta[0], t.theta[1]);
-        let amp = a.hypot(b);
-        let var = if amp > 0.0 {
-            (a * a * t.cov[(0, 0)] + b * b * t.cov[(1, 1)] + 2.0 * a * b * t.cov[(0, 1)])
-                / (amp * amp)
-        } else {
-            t.cov[(0, 0)].max(t.cov[(1, 1)])
-        };
-        amp + 2.45 * var.max(0.0).sqrt()
-    } else {
-        t.theta.first().map_or(0.0, |v| v.abs()) + 1.96 * t.sigma(0)
-    }
+    let (size, sigma) = t.size();
+    let z = if t.theta.len() == 2 { 2.45 } else { 1.96 };
+    size + z * sigma
 }
 
 fn trace(t: &TermTest) -> f64 {

@@ -1728,27 +1728,17 @@ fn is_grid_parameter(name: &str) -> bool {
 /// their σ by the delta method.
 fn amplitude_phase(t: &fit::TermTest) -> Vec<EffectParameter> {
     let (a, b) = (t.theta[0], t.theta[1]);
-    let amp = a.hypot(b);
+    let (amp, amp_sigma) = t.size();
     let phase = b.atan2(a);
     // Delta method.
     let (va, vb, cab) = (t.cov[(0, 0)], t.cov[(1, 1)], t.cov[(0, 1)]);
-    let amp_var = if amp > 0.0 {
-        (a * a * va + b * b * vb + 2.0 * a * b * cab) / (amp * amp)
-    } else {
-        va.max(vb)
-    };
     let ph_var = if amp > 0.0 {
         (b * b * va + a * a * vb - 2.0 * a * b * cab) / amp.powi(4)
     } else {
         f64::INFINITY
     };
     vec![
-        EffectParameter {
-            name: "amplitude_rad_s",
-            value: amp,
-            sigma: amp_var.max(0.0).sqrt(),
-            unit: "rad/s",
-        },
+        EffectParameter { name: "amplitude_rad_s", value: amp, sigma: amp_sigma, unit: "rad/s" },
         EffectParameter {
             name: "phase_rad",
             value: phase,
