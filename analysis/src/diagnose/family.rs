@@ -403,9 +403,9 @@ pub(super) fn gate(
     tested.sort_by(|a, b| (b.1.wald / b.1.threshold).total_cmp(&(a.1.wald / a.1.threshold)));
     let mut strongest = tested.first().cloned();
     // Stability: the effect refitted with the strongest member freed.
+    let p_o = Projector::new(others, &all).ok()?;
     let mut size_change_z = 0.0;
     if let Some((j, _)) = &strongest {
-        let p_o = Projector::new(others, &all).ok()?;
         let mut freed = others.to_vec();
         freed.extend(members[*j].cols.iter().cloned());
         let p_f = Projector::new(&freed, &all).ok()?;
@@ -422,7 +422,6 @@ pub(super) fn gate(
     // significant (one test at `level`) whenever j alone explains the data too (its own
     // threshold); else the data cannot say which of the two it is.
     let mut rival: Option<(usize, f64)> = None;
-    let p_o = Projector::new(others, &all).ok()?;
     let thr_effect = chi2_quantile(1.0 - level, cols.len() as f64);
     // Only between the gyro's angle harmonics: other families' members are the same term at
     // another grid value (a lag's τ/2) or shapes one run may not separate by design (rate² and
