@@ -19,7 +19,12 @@
 //!    the last departure before the second half to the last reading within tolerance; the line
 //!    is then refitted over it. A departure below the readout's resolution can outlast the
 //!    first reading back on the line, so [`SteadyOptions::guard_s`] more is dropped after the
-//!    start (and two readings before the end).
+//!    start (and two readings before the end). Readings off the line for at most
+//!    [`SteadyOptions::glitch_s`] whose successor is back on it are a **glitch** (a host that
+//!    held readings and stamped them late at once, or a readout error), not the end of the
+//!    steady motion: they leave the line fit, the part carries on, and the span is listed in
+//!    [`TableMotion::glitches`] for the caller to drop the gyro samples it covers — unless
+//!    glitches would take more than a fifth of the part (then they are motion).
 //! 3. **Leftovers.** What a stretch holds outside its steady part (a disturbance, or a stretch
 //!    whose command never changed while the table did) is searched again, as a stretch of its
 //!    own, when it is at least [`SteadyOptions::min_segment_s`] long.
@@ -46,11 +51,22 @@ pub struct SteadyOptions {
     /// Largest gap between table readings inside a steady part, s (default 5): a longer gap
     /// ends the part (the table may have done anything meanwhile).
     pub max_gap_s: f64,
+    /// Longest departure from the line, s (default 1), that the readings return from onto the
+    /// same line and is taken as a glitch (a late host stamp, a readout error) rather than the
+    /// end of the steady motion: its readings leave the line fit and its span is excluded,
+    /// the line carries on across it.
+    pub glitch_s: f64,
 }
 
 impl Default for SteadyOptions {
     fn default() -> Self {
-        Self { tolerance_sigma: 6.0, guard_s: 1.0, min_segment_s: 20.0, max_gap_s: 5.0 }
+        Self {
+            tolerance_sigma: 6.0,
+            guard_s: 1.0,
+            min_segment_s: 20.0,
+            max_gap_s: 5.0,
+            glitch_s: 1.0,
+        }
     }
 }
 
@@ -101,6 +117,9 @@ pub enum Unsteady {
     /// The table held its command but its angle departed from a straight line (a disturbance,
     /// or a steady stretch too short to use).
     NotSteady,
+    /// Readings off the line for less than [`SteadyOptions::glitch_s`], the next ones back on
+    /// it: a late stamp or a readout error; the line carries on across the span.
+    Glitch,
 }
 
 impl Unsteady {
@@ -113,6 +132,7 @@ impl Unsteady {
             Unsteady::RateChange => "rate_change",
             Unsteady::NoTableData => "no_table_data",
             Unsteady::NotSteady => "not_steady",
+            Unsteady::Glitch => "glitch",
         }
     }
 }
@@ -143,6 +163,10 @@ pub struct TableMotion {
     pub command_changes: Vec<(f64, f64, f64)>,
     /// Spans without table readings longer than [`SteadyOptions::max_gap_s`]: (from, to), s.
     pub gaps: Vec<(f64, f64)>,
+    /// Glitches stepped over inside the segments ([`SteadyOptions::glitch_s`]): (from, to),
+    /// s, in time order. The segments' lines carry on across them; the samples they cover are
+    /// the caller's to drop ([`Self::glitches_within`]).
+    pub glitches: Vec<(f64, f64)>,
 }
 
 /// Highest ripple harmonic searched, cycles per revolution.
@@ -168,6 +192,7 @@ impl TableMotion {
         let mut segments = Vec::new();
         let mut command_changes = Vec::new();
         let mut gaps = Vec::new();
+        let mut glitches = Vec::new();
         for k in 1..n {
             if c[k] != c[k - 1] {
                 command_changes.push((t[k], c[k - 1], c[k]));
@@ -183,12 +208,13 @@ impl TableMotion {
             while i1 < n && c[i1] == c[i0] && t[i1] - t[i1 - 1] <= opts.max_gap_s {
                 i1 += 1;
             }
-            steady_parts(t, y, i0, i1, c[i0], quantum_rad, opts, &mut segments);
+            steady_parts(t, y, i0, i1, c[i0], quantum_rad, opts, &mut segments, &mut glitches);
             i0 = i1;
         }
         segments.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
+        glitches.sort_by(|a, b| a.0.total_cmp(&b.0));
         let ripple = fit_ripple(&segments, t, y);
-        TableMotion { segments, ripple, quantum_rad, command_changes, gaps }
+        TableMotion { segments, ripple, quantum_rad, command_changes, gaps, glitches }
     }
 
     fn ripple_angle(&self, theta: f64) -> f64 {
@@ -248,7 +274,19 @@ impl TableMotion {
             .collect()
     }
 
-    /// What is not steady within `[start_s, end_s]`, each span with its cause (module docs).
+    /// The glitches overlapping `[start_s, end_s]`, clipped to it.
+    pub fn glitches_within(&self, start_s: f64, end_s: f64) -> Vec<(f64, f64)> {
+        self.glitches
+            .iter()
+            .filter_map(|&(a, b)| {
+                let (a, b) = (a.max(start_s), b.min(end_s));
+                (b > a).then_some((a, b))
+            })
+            .collect()
+    }
+
+    /// What is not steady within `[start_s, end_s]`, each span with its cause (module docs);
+    /// glitches inside steady parts are not listed ([`Self::glitches_within`]).
     pub fn exclusions(&self, start_s: f64, end_s: f64) -> Vec<Exclusion> {
         let mut out = Vec::new();
         let mut cursor = start_s;
@@ -291,6 +329,7 @@ impl TableMotion {
         if self.gaps.iter().any(|&(g0, g1)| g0 < b && g1 > a) {
             return Unsteady::NoTableData;
         }
+
         Unsteady::NotSteady
     }
 }
@@ -390,8 +429,68 @@ fn core(ts: &[f64], ys: &[f64], quantum: f64) -> (usize, usize) {
     (edges[best.0], edges[best.1])
 }
 
+/// Largest share of a steady part's time that glitches may take ([`SteadyOptions::glitch_s`]);
+/// beyond it the departures are motion (an oscillation returns to its line too) and end the
+/// part as before.
+const GLITCH_MAX_SHARE: f64 = 0.2;
+
+/// Least-squares line over the readings `lo..=hi` not flagged in `off`: (a at `ts[lo]`, b).
+fn line_except(ts: &[f64], ys: &[f64], lo: usize, hi: usize, off: &[bool]) -> (f64, f64) {
+    let keep: Vec<usize> = (lo..=hi).filter(|&k| !off[k]).collect();
+    let t: Vec<f64> = keep.iter().map(|&k| ts[k]).collect();
+    let y: Vec<f64> = keep.iter().map(|&k| ys[k]).collect();
+    let (a, b) = line(&t, &y);
+    (a - b * (ts[lo] - t[0]), b)
+}
+
+/// From `mid`, the contiguous run of readings within `tol` of the line (`ok`), stepping over
+/// glitches (runs off the line that come back within `glitch_s`) when `glitch_s > 0`: the
+/// run's ends and its readings flagged in `off`.
+fn steady_run(
+    ts: &[f64],
+    mid: usize,
+    ok: impl Fn(usize) -> bool,
+    glitch_s: f64,
+    off: &mut [bool],
+) -> (usize, usize) {
+    let n = ts.len();
+    let mut first = mid;
+    while first > 0 {
+        if ok(first - 1) {
+            first -= 1;
+            continue;
+        }
+        let mut k = first - 1;
+        while k > 0 && !ok(k) {
+            k -= 1;
+        }
+        if !ok(k) || ts[first] - ts[k] > glitch_s {
+            break;
+        }
+        off[k + 1..first].iter_mut().for_each(|f| *f = true);
+        first = k;
+    }
+    let mut last = mid;
+    while last + 1 < n {
+        if ok(last + 1) {
+            last += 1;
+            continue;
+        }
+        let mut k = last + 1;
+        while k + 1 < n && !ok(k) {
+            k += 1;
+        }
+        if !ok(k) || ts[k] - ts[last] > glitch_s {
+            break;
+        }
+        off[last + 1..k].iter_mut().for_each(|f| *f = true);
+        last = k;
+    }
+    (first, last)
+}
+
 /// The steady parts of readings `i0..i1` (one command, `command`), searched again in what is
-/// left over (module docs), pushed to `out`.
+/// left over (module docs), pushed to `out`; the glitches stepped over, to `glitches`.
 #[allow(clippy::too_many_arguments)]
 fn steady_parts(
     t: &[f64],
@@ -402,6 +501,7 @@ fn steady_parts(
     quantum: f64,
     opts: &SteadyOptions,
     out: &mut Vec<TableSegment>,
+    glitches: &mut Vec<(f64, f64)>,
 ) {
     if i1 < i0 + 8 || t[i1 - 1] - t[i0] < opts.min_segment_s {
         return;
@@ -410,24 +510,33 @@ fn steady_parts(
     let n = ts.len();
     let (core0, core1) = core(ts, ys, quantum);
     let mid = (core0 + core1) / 2;
-    // Line over the core, then the contiguous run around its middle within tolerance; once
-    // more with the line refitted over that run.
+    // Line over the core, then the contiguous run around its middle within tolerance
+    // (glitches stepped over); once more with the line refitted over that run. Glitches
+    // taking more than their share of the run are motion: the run then ends at them.
     let (mut first, mut last) = (core0, core1 - 1);
+    let mut off = vec![false; n];
     for _ in 0..2 {
-        let (a, b) = line(&ts[first..=last], &ys[first..=last]);
+        let (a, b) = line_except(ts, ys, first, last, &off);
         let t0 = ts[first];
         let resid = |k: usize| ys[k] - a - b * (ts[k] - t0);
-        let mut r: Vec<f64> = (first..=last).map(resid).collect();
+        let mut r: Vec<f64> = (first..=last).filter(|&k| !off[k]).map(resid).collect();
         let scatter = robust_scatter(&mut r);
         let tol = (opts.tolerance_sigma * scatter).max(1.5 * quantum).max(1e-12);
-        first = mid;
-        while first > 0 && resid(first - 1).abs() <= tol {
-            first -= 1;
+        let ok = |k: usize| resid(k).abs() <= tol;
+        let mut flagged = vec![false; n];
+        (first, last) = steady_run(ts, mid, ok, opts.glitch_s, &mut flagged);
+        let glitched: f64 = (first..=last)
+            .filter(|&k| flagged[k] && (k == first || !flagged[k - 1]))
+            .map(|k| {
+                let end = (k..=last).find(|&j| !flagged[j]).unwrap_or(last);
+                ts[end] - ts[k - 1]
+            })
+            .sum();
+        if glitched > GLITCH_MAX_SHARE * (ts[last] - ts[first]) {
+            flagged.iter_mut().for_each(|f| *f = false);
+            (first, last) = steady_run(ts, mid, ok, 0.0, &mut flagged);
         }
-        last = mid;
-        while last + 1 < n && resid(last + 1).abs() <= tol {
-            last += 1;
-        }
+        off = flagged;
         if last < first + 8 {
             return;
         }
@@ -439,10 +548,20 @@ fn steady_parts(
     while s < n && ts[s] < start_t {
         s += 1;
     }
-    let e = last.saturating_sub(2);
-    if e > s + 8 && ts[e] - ts[s] >= opts.min_segment_s {
-        let (a, b) = line(&ts[s..=e], &ys[s..=e]);
-        let mut r: Vec<f64> = (s..=e).map(|k| ys[k] - a - b * (ts[k] - ts[s])).collect();
+    let mut e = last.saturating_sub(2);
+    while e > s && off[e] {
+        e -= 1;
+    }
+    while s < e && off[s] {
+        s += 1;
+    }
+    let good = (s..=e).filter(|&k| !off[k]).count();
+    if e > s + 8 && good > 8 && ts[e] - ts[s] >= opts.min_segment_s {
+        // One line over the part, fitted without the glitches' readings; each glitch spans
+        // from its last reading on the line to the next one.
+        let (a, b) = line_except(ts, ys, s, e, &off);
+        let mut r: Vec<f64> =
+            (s..=e).filter(|&k| !off[k]).map(|k| ys[k] - a - b * (ts[k] - ts[s])).collect();
         out.push(TableSegment {
             start_s: ts[s],
             end_s: ts[e],
@@ -450,15 +569,21 @@ fn steady_parts(
             rate_rad_s: b,
             command_rad_s: command,
             scatter_rad: robust_scatter(&mut r),
-            readings: e + 1 - s,
+            readings: good,
         });
+        for k in s + 1..e {
+            if off[k] && !off[k - 1] {
+                let g = (k..=e).find(|&j| !off[j]).unwrap_or(e);
+                glitches.push((ts[k - 1], ts[g]));
+            }
+        }
     }
     // What lies before the part's start and after its end, searched again.
     if first > 0 {
-        steady_parts(t, y, i0, i0 + first, command, quantum, opts, out);
+        steady_parts(t, y, i0, i0 + first, command, quantum, opts, out, glitches);
     }
     if last + 1 < n {
-        steady_parts(t, y, i0 + last + 1, i1, command, quantum, opts, out);
+        steady_parts(t, y, i0 + last + 1, i1, command, quantum, opts, out, glitches);
     }
 }
 
@@ -607,6 +732,71 @@ mod tests {
         let ex = m.exclusions(300.0, 660.0);
         assert!(
             ex.iter().any(|e| e.why == Unsteady::NotSteady && e.start_s < 361.0 && e.end_s > 360.5),
+            "{ex:?}"
+        );
+    }
+
+    /// A table at +10 °/min read at 20 Hz on the 1″ grid for 600 s; `late(k)` delays reading
+    /// `k`'s stamp by that many seconds (the angle is the table's at the true time).
+    fn late_stamps(late: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let w = 10f64.to_radians() / 60.0;
+        let n = 12_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.05 + late(k)).collect();
+        let a: Vec<f64> = (0..n).map(|k| (w * k as f64 * 0.05 / ARCSEC).round() * ARCSEC).collect();
+        (t, a, vec![w; n])
+    }
+
+    #[test]
+    fn late_stamps_are_glitches_the_line_carries_on_across() {
+        let w = 10f64.to_radians() / 60.0;
+        // Every 3.1 s the host stalls for 0.25 s, then stamps the five readings it held at
+        // once: 0.25 to 0.05 s late (150″ to 30″ at 10 °/min, as a loaded host at 60× real
+        // time stamps them).
+        let (t, a, c) = late_stamps(|k| match k % 62 {
+            j @ 30..=34 => (35 - j) as f64 * 0.05,
+            _ => 0.0,
+        });
+        let m = TableMotion::fit(&t, &a, &c);
+        assert_eq!(m.segments.len(), 1, "{:?}", m.segments);
+        let s = m.segments[0];
+        assert!(s.start_s < 2.0 && s.end_s > 598.0, "{s:?}");
+        // The line is fitted without the late readings: the rate to the quantisation's level.
+        assert!(((s.rate_rad_s - w) / w).abs() < 1e-6, "{}", s.rate_rad_s / w - 1.0);
+        // Each burst is one glitch, from the reading before it to the one after.
+        assert!((190..=194).contains(&m.glitches.len()), "{}", m.glitches.len());
+        for &(g0, g1) in &m.glitches {
+            assert!((g1 - g0 - 0.30).abs() < 1e-9, "{g0} {g1}");
+        }
+        assert!(m.exclusions(0.0, 600.0).iter().all(|x| x.why != Unsteady::Glitch));
+        // Without stepping over them, the same readings cut the motion into parts too short to
+        // keep.
+        let strict = TableMotion::fit_with(
+            &t,
+            &a,
+            &c,
+            &SteadyOptions { glitch_s: 0.0, ..Default::default() },
+        );
+        let kept: f64 = strict.segments.iter().map(TableSegment::duration_s).sum();
+        assert!(kept < 100.0 && strict.glitches.is_empty(), "{kept} s");
+    }
+
+    #[test]
+    fn a_departure_longer_than_a_glitch_still_ends_the_steady_motion() {
+        // The table is knocked 100″ off its line from 300 to 302 s (on the grid, stamps on
+        // time): longer than `glitch_s`, so it is motion and cuts the line.
+        let (t, mut a, c) = late_stamps(|_| 0.0);
+        for (x, y) in t.iter().zip(a.iter_mut()) {
+            if (300.0..302.0).contains(x) {
+                *y += 100.0 * ARCSEC;
+            }
+        }
+        let m = TableMotion::fit(&t, &a, &c);
+        assert!(m.glitches.is_empty(), "{:?}", m.glitches);
+        assert_eq!(m.segments.len(), 2, "{:?}", m.segments);
+        let ex = m.exclusions(0.0, 600.0);
+        assert!(
+            ex.iter()
+                .any(|x| x.why == Unsteady::NotSteady && x.start_s <= 300.0 && x.end_s >= 302.0),
             "{ex:?}"
         );
     }

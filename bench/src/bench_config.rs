@@ -663,9 +663,13 @@ impl BenchSource {
     }
 }
 
+/// Wall time a served simulator's stream may stay silent before it is stale, s.
+pub const SERVED_STALE_WALL_S: f64 = 5.0;
+
 /// The bench config that reaches a served simulated bench (`bench sim serve`): the table's
 /// Actidyn port, the chamber's Modbus RTU port and the gyro's SLCAN adapter, at the served
-/// time scale and the simulator's latitude.
+/// time scale and the simulator's latitude; streams go stale after 30 s of bench time or
+/// [`SERVED_STALE_WALL_S`] of wall time, whichever is longer.
 pub fn for_served_bench(
     endpoints: &bench_sim::serve::bench::ServedEndpoints,
     time_scale: f64,
@@ -683,7 +687,15 @@ pub fn for_served_bench(
             height_m: None,
             axis: if axis_up { "up" } else { "down" }.into(),
         }),
-        bench: BenchSettings { time_scale, ..BenchSettings::default() },
+        bench: BenchSettings {
+            time_scale,
+            // Staleness is a link's silence, which the host's scheduling sets in wall time: at
+            // 60× real time the default 30 s of bench time is half a second of a loaded host.
+            stale_after_s: BenchSettings::default()
+                .stale_after_s
+                .max(SERVED_STALE_WALL_S * time_scale),
+            ..BenchSettings::default()
+        },
         table: Some(TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn)),
         chamber: Some(ModbusChamberConfig::new(
             endpoints.chamber_rtu.clone(),

@@ -62,7 +62,10 @@ async fn run_text_with(
     let served = serve_bench(sim_config(&plan, 5), sim_clock.clone()).await.expect("served");
     let mut config =
         for_served_bench(&served.endpoints, SCALE, plan.site.latitude_deg, plan.site.axis_up());
-    // Short wall-clock reply timeouts keep the test quick; the policy is the same.
+    // Short wall-clock reply timeouts keep the test quick; the policy is the same, and the
+    // streams go stale after the default 30 s of bench time (the served config allows a
+    // loaded host's 5 s of wall time).
+    config.bench.stale_after_s = 30.0;
     if let Some(table) = config.table.as_mut() {
         table.reply_timeout_s = 0.05;
         table.retries = 1;

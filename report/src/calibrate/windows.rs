@@ -191,18 +191,35 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
                 bad_samples: run.bad_gyro_samples_in(a, b),
             };
             let (lo, hi) = samples_in(a, b);
-            if hi < lo + 2 {
-                empty_windows.push((label, hi - lo));
+            // The samples that overlap a glitch of the table's readings leave the window.
+            let glitches = motion.glitches_within(a, b);
+            for &(g0, g1) in &glitches {
+                let (glo, ghi) = samples_in(g0, g1);
+                exclusions.push(WindowExclusion {
+                    label: step.label.clone(),
+                    start_s: g0,
+                    end_s: g1,
+                    why: Unsteady::Glitch,
+                    samples: (ghi.min(hi)).saturating_sub(glo.max(lo)),
+                });
+            }
+            let keep: Vec<usize> = (lo..hi)
+                .filter(|&k| {
+                    let t = s.gyro_time_s[k];
+                    !glitches.iter().any(|&(g0, g1)| t > g0 && t - dt < g1)
+                })
+                .collect();
+            if keep.len() < 2 {
+                empty_windows.push((label, keep.len()));
                 continue;
             }
-            let time: Vec<f64> = s.gyro_time_s[lo..hi].to_vec();
-            let table: Vec<f64> = s.gyro_time_s[lo..hi]
-                .iter()
-                .map(|&t| motion.rate(t - 0.5 * dt).unwrap_or(0.0))
-                .collect();
+            let time: Vec<f64> = keep.iter().map(|&k| s.gyro_time_s[k]).collect();
+            let table: Vec<f64> =
+                time.iter().map(|&t| motion.rate(t - 0.5 * dt).unwrap_or(0.0)).collect();
             let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
-            let sensor = s.gyro_temp_c.as_ref().map(|g| g[lo..hi].to_vec());
-            let w = RecordWindow::new(label, time, gyro_rate[lo..hi].to_vec(), table, sensor, air)
+            let sensor = s.gyro_temp_c.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect());
+            let rate = keep.iter().map(|&k| gyro_rate[k]).collect();
+            let w = RecordWindow::new(label, time, rate, table, sensor, air)
                 .map_err(CalibrateError::Analysis)?;
             let (ta, tb) = (
                 s.table_time_s.partition_point(|&t| t < a),
