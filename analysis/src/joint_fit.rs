@@ -356,6 +356,10 @@ pub fn joint_fit(
     let whitened_rms = gls_fit.as_ref().map_or(f64::NAN, |g| {
         (g.whitened_residual.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt()
     });
+    // The table rate's own error, one constant per reference line: its variance through the
+    // estimator's linear map, added to the noise model's.
+    let reference =
+        reference_covariance(windows, &pinv, gls_fit.as_ref(), &times, &dts, noise.as_ref())?;
     let est = |j: usize| {
         let naive = (sigma2 * pinv.row(j).norm_squared()).sqrt() / scale[j];
         let boot = boot_var[j].max(0.0).sqrt() / scale[j];
@@ -372,6 +376,7 @@ pub fn joint_fit(
         } else {
             boot.max(model)
         };
+        let std_err = std_err.hypot(reference[(j, j)].max(0.0).sqrt() / scale[j]);
         Estimate {
             value,
             std_err,
@@ -401,7 +406,7 @@ pub fn joint_fit(
                 let k = whitened_rms.max(1.0).powi(2);
                 for (i, row) in c.iter_mut().enumerate() {
                     for (j, v) in row.iter_mut().enumerate() {
-                        *v = g.cov[(i, j)] / (scale[i] * scale[j]) * k;
+                        *v = (g.cov[(i, j)] * k + reference[(i, j)]) / (scale[i] * scale[j]);
                     }
                 }
             }
@@ -415,6 +420,65 @@ pub fn joint_fit(
             }
         },
     })
+}
+
+/// Covariance (in the scaled columns' units) that the table rate's errors add to the
+/// coefficients ([`RecordWindow::with_reference_error`]): each reference's error `δ_s` is one
+/// constant in `y` over its samples, so it moves `β` by `δ_s·P·1_s` for the estimator's linear
+/// map `P` (GLS: the whitened design's pseudo-inverse applied to the whitened indicator).
+fn reference_covariance(
+    windows: &[RecordWindow],
+    pinv: &DMatrix<f64>,
+    gls_fit: Option<&crate::gls::Gls>,
+    times: &[f64],
+    dts: &[f64],
+    noise: Option<&NoiseSpec>,
+) -> Result<DMatrix<f64>, AnalysisError> {
+    let p = pinv.nrows();
+    let mut keys: Vec<(usize, f64)> = windows
+        .iter()
+        .filter_map(RecordWindow::reference_error)
+        .filter(|(_, s)| s.is_finite() && *s > 0.0)
+        .collect();
+    keys.sort_by_key(|k| k.0);
+    keys.dedup_by_key(|k| k.0);
+    let mut out = DMatrix::<f64>::zeros(p, p);
+    if keys.is_empty() {
+        return Ok(out);
+    }
+    let n: usize = windows.iter().map(RecordWindow::len).sum();
+    let mut z = DMatrix::<f64>::zeros(n, keys.len());
+    let mut row = 0;
+    for w in windows {
+        let col = w.reference_error().and_then(|(r, _)| keys.iter().position(|k| k.0 == r));
+        for _ in 0..w.len() {
+            if let Some(c) = col {
+                z[(row, c)] = 1.0;
+            }
+            row += 1;
+        }
+    }
+    let v = match (gls_fit, noise) {
+        (Some(g), Some(spec)) => {
+            // In the time order the GLS whitened in.
+            let mut order: Vec<usize> = (0..n).collect();
+            order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+            let t: Vec<f64> = order.iter().map(|&i| times[i]).collect();
+            let r: Vec<f64> = order.iter().map(|&i| spec.arw * spec.arw / dts[i]).collect();
+            let mut zs = DMatrix::<f64>::zeros(n, keys.len());
+            for (k, &i) in order.iter().enumerate() {
+                zs.row_mut(k).copy_from(&z.row(i));
+            }
+            crate::gls::whiten(&t, &r, spec, &mut zs)?;
+            &g.pinv_whitened * zs
+        }
+        _ => pinv * z,
+    };
+    for (c, &(_, sigma)) in keys.iter().enumerate() {
+        let col = v.column(c);
+        out += col * col.transpose() * (sigma * sigma);
+    }
+    Ok(out)
 }
 
 /// Variances of `β* − β̂ = P·e*` over moving-block bootstrap replicates `e*` of `resid`

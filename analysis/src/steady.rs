@@ -51,10 +51,10 @@ pub struct SteadyOptions {
     /// Largest gap between table readings inside a steady part, s (default 5): a longer gap
     /// ends the part (the table may have done anything meanwhile).
     pub max_gap_s: f64,
-    /// Longest departure from the line, s (default 1), that the readings return from onto the
-    /// same line and is taken as a glitch (a late host stamp, a readout error) rather than the
-    /// end of the steady motion: its readings leave the line fit and its span is excluded,
-    /// the line carries on across it.
+    /// Longest departure from the line, s (default 5, the gap the line bridges anyway), that
+    /// the readings return from onto the same line and is taken as a glitch (late host
+    /// stamps, a readout error) rather than the end of the steady motion: its readings leave
+    /// the line fit and its span is excluded, the line carries on across it.
     pub glitch_s: f64,
 }
 
@@ -65,7 +65,7 @@ impl Default for SteadyOptions {
             guard_s: 1.0,
             min_segment_s: 20.0,
             max_gap_s: 5.0,
-            glitch_s: 1.0,
+            glitch_s: 5.0,
         }
     }
 }
@@ -87,6 +87,10 @@ pub struct TableSegment {
     pub scatter_rad: f64,
     /// Readings in it.
     pub readings: usize,
+    /// σ of `rate_rad_s` as the readings' scatter allows, rad/s: the larger of the white
+    /// estimate `scatter·√(12/n)/T` and the same from the scatter of 8 block means of the
+    /// residual (which sees correlated errors such as a host's drifting stamp latency).
+    pub rate_sigma_rad_s: f64,
 }
 
 impl TableSegment {
@@ -382,6 +386,28 @@ fn line(t: &[f64], y: &[f64]) -> (f64, f64) {
     (ym - slope * tm, slope)
 }
 
+/// σ of a line's slope over `span_s` from its residuals `r` (in time order): the white
+/// estimate `σ·√(12/n)/T`, or, when larger, the same with 8 block means of the residual as
+/// the points (their scatter carries the residual's correlation).
+fn slope_sigma(r: &[f64], span_s: f64) -> f64 {
+    const BLOCKS: usize = 8;
+    let n = r.len();
+    if n < 2 * BLOCKS || span_s <= 0.0 {
+        return 0.0;
+    }
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let white = rms(r) * (12.0 / n as f64).sqrt() / span_s;
+    let means: Vec<f64> = (0..BLOCKS)
+        .map(|k| {
+            let b = &r[k * n / BLOCKS..(k + 1) * n / BLOCKS];
+            b.iter().sum::<f64>() / b.len() as f64
+        })
+        .collect();
+    // Two of the blocks' degrees of freedom went into the line.
+    let spread = rms(&means) * (BLOCKS as f64 / (BLOCKS - 2) as f64).sqrt();
+    white.max(spread * (12.0 / BLOCKS as f64).sqrt() / span_s)
+}
+
 /// Robust scatter (1.4826 × median absolute deviation) of `r`.
 fn robust_scatter(r: &mut [f64]) -> f64 {
     if r.is_empty() {
@@ -560,16 +586,18 @@ fn steady_parts(
         // One line over the part, fitted without the glitches' readings; each glitch spans
         // from its last reading on the line to the next one.
         let (a, b) = line_except(ts, ys, s, e, &off);
-        let mut r: Vec<f64> =
+        let r: Vec<f64> =
             (s..=e).filter(|&k| !off[k]).map(|k| ys[k] - a - b * (ts[k] - ts[s])).collect();
+        let rate_sigma_rad_s = slope_sigma(&r, ts[e] - ts[s]);
         out.push(TableSegment {
             start_s: ts[s],
             end_s: ts[e],
             angle0_rad: a,
             rate_rad_s: b,
             command_rad_s: command,
-            scatter_rad: robust_scatter(&mut r),
+            scatter_rad: robust_scatter(&mut r.clone()),
             readings: good,
+            rate_sigma_rad_s,
         });
         for k in s + 1..e {
             if off[k] && !off[k - 1] {
@@ -782,11 +810,11 @@ mod tests {
 
     #[test]
     fn a_departure_longer_than_a_glitch_still_ends_the_steady_motion() {
-        // The table is knocked 100″ off its line from 300 to 302 s (on the grid, stamps on
+        // The table is knocked 100″ off its line from 300 to 308 s (on the grid, stamps on
         // time): longer than `glitch_s`, so it is motion and cuts the line.
         let (t, mut a, c) = late_stamps(|_| 0.0);
         for (x, y) in t.iter().zip(a.iter_mut()) {
-            if (300.0..302.0).contains(x) {
+            if (300.0..308.0).contains(x) {
                 *y += 100.0 * ARCSEC;
             }
         }
@@ -796,7 +824,7 @@ mod tests {
         let ex = m.exclusions(0.0, 600.0);
         assert!(
             ex.iter()
-                .any(|x| x.why == Unsteady::NotSteady && x.start_s <= 300.0 && x.end_s >= 302.0),
+                .any(|x| x.why == Unsteady::NotSteady && x.start_s <= 300.0 && x.end_s >= 308.0),
             "{ex:?}"
         );
     }

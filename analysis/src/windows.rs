@@ -29,6 +29,9 @@ pub struct RecordWindow {
     /// The model temperature smoothed and its rate, from the whole run's series (no filter
     /// truncated at the window's edges), when given.
     smoothed: Option<(Vec<f64>, Vec<f64>)>,
+    /// The table rate's error, when known: (the reference it comes from — windows with the
+    /// same key share one error —, its σ in rad/s).
+    reference_error: Option<(usize, f64)>,
 }
 
 fn check_finite(label: &str, array: &'static str, v: &[f64]) -> Result<(), AnalysisError> {
@@ -90,7 +93,20 @@ impl RecordWindow {
             gyro_temp_c,
             chamber_temp_c,
             smoothed: None,
+            reference_error: None,
         })
+    }
+
+    /// The same window with its table rate's error: one constant over the window, of σ
+    /// `sigma_rad_s`, shared with every window of the same `reference` (e.g. one steady line
+    /// of the table's angle). The joint fit adds it to its coefficients' covariance.
+    pub fn with_reference_error(self, reference: usize, sigma_rad_s: f64) -> Self {
+        Self { reference_error: Some((reference, sigma_rad_s)), ..self }
+    }
+
+    /// The table rate's error ([`Self::with_reference_error`]), if known.
+    pub fn reference_error(&self) -> Option<(usize, f64)> {
+        self.reference_error
     }
 
     /// The same window with `temp_c` as the model temperature (in place of the gyro sensor's

@@ -219,8 +219,11 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
             let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
             let sensor = s.gyro_temp_c.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect());
             let rate = keep.iter().map(|&k| gyro_rate[k]).collect();
+            // The window's input rate is its steady line's slope: that slope's error is one
+            // constant shared by every window on the line.
             let w = RecordWindow::new(label, time, rate, table, sensor, air)
-                .map_err(CalibrateError::Analysis)?;
+                .map_err(CalibrateError::Analysis)?
+                .with_reference_error(seg, motion.segments[seg].rate_sigma_rad_s);
             let (ta, tb) = (
                 s.table_time_s.partition_point(|&t| t < a),
                 s.table_time_s.partition_point(|&t| t <= b),
