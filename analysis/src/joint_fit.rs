@@ -761,6 +761,58 @@ mod tests {
     }
 
     #[test]
+    fn the_table_rates_error_is_in_the_standard_errors() {
+        // Each window's table rate is off by its own constant δ_s (σ = 2e-8 rad/s, 7 ppm of
+        // 10 °/min) that the fit cannot see: the coefficients scatter by what the windows'
+        // reference errors predict, through the estimator's map.
+        let sigma = 2e-8;
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let opts = JointFitOptions { replicates: 10, ..JointFitOptions::default() };
+        let runs = 100;
+        let mut sf = Vec::new();
+        for _ in 0..runs {
+            let mut noise = || 1e-10 * rng.sample::<f64, _>(StandardNormal);
+            let mut ws = windows(0.0, 0.0, &mut noise);
+            for w in &mut ws {
+                let d: f64 = sigma * rng.sample::<f64, _>(StandardNormal);
+                // The gyro saw the true rate; the reference says it was `d` more.
+                let t: Vec<f64> = w.table_rate_rad_s().iter().map(|o| o + d).collect();
+                *w = RecordWindow::new(
+                    w.label(),
+                    w.time_s().to_vec(),
+                    w.gyro_rate_rad_s().to_vec(),
+                    t,
+                    w.gyro_temp_c().map(<[f64]>::to_vec),
+                    w.chamber_temp_c().to_vec(),
+                )
+                .expect("valid");
+            }
+            sf.push(joint_fit(&ws, &opts).expect("fit").scale_factor_error.value);
+        }
+        let mean = sf.iter().sum::<f64>() / runs as f64;
+        let sd = (sf.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (runs - 1) as f64).sqrt();
+        let told: Vec<RecordWindow> = windows(0.0, 0.0, || 0.0)
+            .into_iter()
+            .enumerate()
+            .map(|(k, w)| w.with_reference_error(k, sigma))
+            .collect();
+        let blind = joint_fit(&windows(0.0, 0.0, || 0.0), &opts).expect("fit");
+        let fit = joint_fit(&told, &opts).expect("fit");
+        assert!(blind.scale_factor_error.std_err < 0.01 * sd);
+        // 100 runs: the sample σ is good to about 7 %.
+        let ratio = fit.scale_factor_error.std_err / sd;
+        assert!((0.8..1.25).contains(&ratio), "predicted σ over observed: {ratio}");
+        // Windows sharing one reference share its error: one δ in every window's signed rate
+        // is a constant in `y`, which the bias takes and the scale factor does not see.
+        let shared: Vec<RecordWindow> = windows(0.0, 0.0, || 0.0)
+            .into_iter()
+            .map(|w| w.with_reference_error(0, sigma))
+            .collect();
+        let one = joint_fit(&shared, &opts).expect("fit");
+        assert!(one.scale_factor_error.std_err < 0.5 * fit.scale_factor_error.std_err);
+    }
+
+    #[test]
     fn a_design_without_temperature_change_is_refused() {
         let ws: Vec<RecordWindow> = windows(0.0, 0.0, || 0.0)
             .into_iter()
