@@ -29,6 +29,20 @@ HARMONIC = {"effect-1rev": ("once_per_rev", "once_per_revolution", 1),
             "effect-3rev": ("three_per_rev", "angle_harmonic", 3)}
 
 
+# preset -> (the library effect that should be named, [(the writer's parameter, bench's)]);
+# a bias step's time is the writer's fraction of the run.
+LIBRARY = {"effect-step": ("bias_step", [("step", "step_rad_s"), ("time_s", "time_s")]),
+           "effect-warmup": ("warm_up", [("amplitude", "amplitude_rad_s"),
+                                         ("time_constant_s", "time_constant_s")]),
+           "effect-periodic": ("periodic_bias", [("amplitude", "amplitude_rad_s"),
+                                                 ("period_s", "period_s")]),
+           "effect-quadratic": ("temperature_quadratic", [("coeff", "coeff_rad_s_per_c2")]),
+           "effect-sf-temperature": ("scale_factor_temperature",
+                                     [("coeff_per_c", "coeff_per_c")]),
+           "effect-hysteresis": ("thermal_hysteresis", [("half_width", "half_width_rad_s")]),
+           "effect-rate-squared": ("rate_squared", [("coeff", "coeff_s_per_rad")])}
+
+
 def within(p, value):
     return abs(p["value"] - value) <= 3.0 * p["sigma"]
 
@@ -53,6 +67,16 @@ def judge(preset, d, truth):
             dphi = math.remainder(ph["value"] - t["phase"], 2 * math.pi)
             ok = ok and abs(dphi) <= 3 * ph["sigma"]
         return (found, named, ok, any(e != effect for e in others), bool(unexpl))
+    if preset in LIBRARY:
+        effect, params = LIBRARY[preset]
+        (t,) = [v["parameters"] for v in truth["effects"].values() if v.get("enabled")]
+        if t.get("time_s", 0) is None:
+            t["time_s"] = t["time_fraction"] * truth["duration_s"]
+        f = next((f for f in d["findings"] if f["effect"] == effect), None)
+        found = f is not None
+        ok = found and all(within(f["parameters"][b], t[a]) for a, b in params)
+        return (found, found and others == [effect] and not unexpl, ok if found else None,
+                any(e != effect for e in others), bool(unexpl))
     if preset == "effect-sawtooth":
         found = any("P/2" in u["correlates_with"] or "periodic_bias-like" in u["correlates_with"]
                     for u in unexpl)
