@@ -367,10 +367,26 @@ impl BenchConfig {
                 bad(&["chamber", "map"], format!("[chamber] map: {e}"));
             }
         }
-        if let Some(GyroConfig::Can(g)) = &cfg.gyro {
-            if let Err(e) = g.validate() {
-                bad(&["gyro"], format!("[gyro] {}", e.message()));
+        let kvh = match &cfg.gyro {
+            Some(GyroConfig::Can(g)) => {
+                if let Err(e) = g.validate() {
+                    bad(&["gyro"], format!("[gyro] {}", e.message()));
+                }
+                Vec::new()
             }
+            Some(GyroConfig::Kvh1750(g)) => g.problems(),
+            Some(GyroConfig::Dsp3000(g)) => g.problems(),
+            None => Vec::new(),
+        };
+        // KVH gyros: every problem at its key (the section when the key is a default).
+        for (key, message) in kvh {
+            let path: &[&str] =
+                if bench_recording::toml_doc::value_span(text, &["gyro", key]).is_some() {
+                    &["gyro", key]
+                } else {
+                    &["gyro"]
+                };
+            bad(path, format!("[gyro] {message}"));
         }
         if let Some(sim) = &cfg.simulation {
             if let Err((line, column, message)) = bench_recording::effects_toml::check_located(
@@ -785,6 +801,50 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
         assert!(e.starts_with("lab.toml:15:10: unknown variant `imu`"), "{e}");
         assert!(e.contains("`can`") && e.contains("`kvh1750`") && e.contains("`dsp3000`"), "{e}");
+    }
+
+    #[test]
+    fn kvh_gyro_settings_are_checked_at_their_keys() {
+        let head = GOOD.split("[gyro]").next().unwrap_or_default();
+        // Lines of `head`: the gyro section starts after them.
+        let at = head.lines().count() + 1;
+        let text = format!(
+            "{head}[gyro]\ndriver = \"kvh1750\"\nserial = {{ path = \"\", baud = 0 }}\n\
+             sample_rate_hz = -5\nwatchdog_periods = 0.5\nmax_rate_deg_s = 0\n\
+             operating_temp_c = [60.0, -40.0]\n"
+        );
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("rejected").to_string();
+        for (line, col, what) in [
+            (at + 2, 10, "[gyro] serial.path is empty"),
+            (at + 2, 10, "[gyro] serial.baud must be > 0"),
+            (at + 3, 18, "[gyro] sample_rate_hz = -5 must be > 0"),
+            (at + 4, 20, "[gyro] watchdog_periods = 0.5 must be ≥ 1"),
+            (at + 5, 18, "[gyro] max_rate_deg_s = 0 must be > 0"),
+            (at + 6, 20, "[gyro] operating_temp_c = [60, -40] must be [min, max] °C"),
+        ] {
+            assert!(
+                e.contains(&format!("lab.toml:{line}:{col}: {what}")),
+                "{what} at {line}:{col} in\n{e}"
+            );
+        }
+        // DSP-3000: a given output rate is checked; the defaults are valid.
+        let dsp = |extra: &str| {
+            format!(
+                "{head}[gyro]\ndriver = \"dsp3000\"\nserial = {{ path = \"/dev/ttyUSB1\", \
+                 baud = 38400 }}\n{extra}"
+            )
+        };
+        assert!(BenchConfig::parse(&dsp(""), "lab.toml").is_ok());
+        let e = BenchConfig::parse(&dsp("sample_rate_hz = 0\n"), "lab.toml")
+            .expect_err("rejected")
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "lab.toml:{}:18: [gyro] sample_rate_hz = 0 must be > 0",
+                at + 3
+            )),
+            "{e}"
+        );
     }
 
     #[test]

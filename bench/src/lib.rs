@@ -25,5 +25,6 @@ pub mod run;
 pub mod runner;
 pub mod scenario;
 pub mod simulate;
+pub mod soak;
 pub mod study;
 pub mod suggest;

@@ -53,6 +53,9 @@ enum Command {
     /// The simulated bench behind virtual ports.
     #[command(subcommand)]
     Sim(cli::sim::SimCommand),
+    /// Hours of bench time through the virtual ports with faults injected at random: samples
+    /// sent vs recorded per channel, memory over time, every fault's outcome.
+    Soak(cli::soak::SoakArgs),
 }
 
 /// Let a closed pipe end a printing command quietly, as it ends `ls` or `grep`: Rust ignores SIGPIPE, so a
@@ -100,6 +103,7 @@ fn main() -> ExitCode {
         Command::Model(a) => cli::model::run(a),
         Command::Ports(a) => cli::ports::run(a),
         Command::Sim(c) => cli::sim::run(c),
+        Command::Soak(a) => cli::soak::run(a),
         Command::Allan(a) => cli::allan::run(a),
         Command::Completions { shell } => {
             use clap::CommandFactory as _;

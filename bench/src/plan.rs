@@ -95,6 +95,9 @@ pub struct RunPlan {
     /// The unit under test, operator, station and acceptance limits (`bench.station`,
     /// `bench.acceptance`).
     pub station: Station,
+    /// `[recording] flush_interval`: kill-safety, the most bench time of data a SIGKILL or
+    /// crash may lose (`bench run --flush-interval-s` overrides it); `None`: the default, 1 s.
+    pub flush_interval: Option<std::time::Duration>,
     /// The steps, loops expanded, in execution order.
     pub steps: Vec<PlannedStep>,
 }

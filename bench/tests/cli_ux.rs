@@ -86,6 +86,16 @@ fn validate_against_the_labs_limits_without_connecting() {
     let err = text(&r.stderr);
     assert!(err.contains("seed.toml:") && err.contains("lab.toml's [limits]"), "{err}");
 
+    // A KVH gyro's settings are checked where they are written.
+    let kvh =
+        lab.replace("baud = 921600 }", "baud = 921600 }\nsample_rate_hz = 0\nwatchdog_periods = 0");
+    std::fs::write(d.join("kvh.toml"), kvh).expect("config");
+    let r = bench(&["validate", &scenario("seed.toml"), "--bench", "kvh.toml"], d);
+    assert_eq!(r.status.code(), Some(3), "{}", text(&r.stderr));
+    let err = text(&r.stderr);
+    assert!(err.contains("kvh.toml:11:18: [gyro] sample_rate_hz = 0 must be > 0"), "{err}");
+    assert!(err.contains("kvh.toml:12:20: [gyro] watchdog_periods = 0 must be ≥ 1"), "{err}");
+
     // Every problem of a config is listed, each located.
     let bad = "[bench]\ntime_scale = -1\nstale_after_s = 0\n[site]\nlatitude_deg = 100\n\
                [acceptance]\nbias_rad_s = -1\n";

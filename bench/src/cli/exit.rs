@@ -32,6 +32,9 @@ pub enum Exit {
     /// A sound calibration judged the unit beyond an acceptance limit (`bench.acceptance`):
     /// the unit fails its test.
     AcceptanceFailed = 9,
+    /// A soak found a sample that arrived intact and was not recorded, memory growing, or a
+    /// fault without its expected outcome.
+    SoakFailed = 10,
 }
 
 /// An error and its causes as one line, each piece of context once: a cause whose text the

@@ -13,6 +13,7 @@ pub mod recover;
 pub mod replay;
 pub mod run;
 pub mod sim;
+pub mod soak;
 pub mod validate;
 
 use tracing_subscriber::EnvFilter;

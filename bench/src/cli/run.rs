@@ -69,9 +69,10 @@ pub struct RunArgs {
     #[arg(long)]
     pub gyro_model: Option<PathBuf>,
     /// Kill-safety: the recording is flushed so that a SIGKILL or crash loses at most this
-    /// many seconds of bench time of data (`bench recover` restores the rest).
-    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
-    pub flush_interval_s: f64,
+    /// many seconds of bench time of data (`bench recover` restores the rest). Overrides the
+    /// scenario's `[recording] flush_interval`; default 1 s.
+    #[arg(long, value_name = "SECONDS")]
+    pub flush_interval_s: Option<f64>,
     /// Run the embedded simulated bench in real time × this factor on tokio, as a real bench
     /// runs (signals abort to the safe state), instead of in virtual time.
     #[arg(long, value_name = "FACTOR")]
@@ -84,7 +85,7 @@ pub struct RunArgs {
 
 impl RunArgs {
     /// `--flush-interval-s` and `--time-marks-s` as durations, checked.
-    fn recording_options(&self) -> anyhow::Result<(Duration, Option<Duration>)> {
+    fn recording_options(&self) -> anyhow::Result<(Option<Duration>, Option<Duration>)> {
         let seconds = |name: &str, v: f64| -> anyhow::Result<Duration> {
             anyhow::ensure!(
                 v.is_finite() && v > 0.0 && v <= 3600.0,
@@ -92,10 +93,16 @@ impl RunArgs {
             );
             Ok(Duration::from_secs_f64(v))
         };
-        let flush = seconds("--flush-interval-s", self.flush_interval_s)?;
+        let flush = self.flush_interval_s.map(|v| seconds("--flush-interval-s", v)).transpose()?;
         let marks = self.time_marks_s.map(|v| seconds("--time-marks-s", v)).transpose()?;
         Ok((flush, marks))
     }
+}
+
+/// The kill-safety bound of a run: `--flush-interval-s` over the scenario's `[recording]
+/// flush_interval`; `None`: the default ([`bench::runner::DEFAULT_FLUSH_INTERVAL`]).
+fn flush_interval_of(cli: Option<Duration>, plan: &RunPlan) -> Option<Duration> {
+    cli.or(plan.flush_interval)
 }
 
 /// Apply `--unit-serial`, `--operator`, `--station` over the scenario's `[station]`.
@@ -292,7 +299,7 @@ fn run_simulated(
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let writer = std::io::BufWriter::new(file);
     let mut run_opts = opts.run_options(Some(super::console_layer(verbose)));
-    run_opts.flush_interval = Some(flush_interval);
+    run_opts.flush_interval = flush_interval_of(flush_interval, &plan);
     run_opts.time_marks = time_marks;
     if let Some(config) = config {
         run_opts.policy = config.bench.policy();
@@ -396,7 +403,7 @@ fn run_on_bench(
                 console: Some(super::console_layer(verbose)),
                 policy: config.bench.policy(),
                 live,
-                flush_interval: Some(flush_interval),
+                flush_interval: flush_interval_of(flush_interval, &plan),
                 time_marks,
             },
         )
@@ -433,7 +440,7 @@ fn run_on_replay(
         console: Some(super::console_layer(verbose)),
         stop: None,
         policy: config.bench.policy(),
-        flush_interval: Some(args.recording_options()?.0),
+        flush_interval: flush_interval_of(args.recording_options()?.0, &plan),
         time_marks: args.recording_options()?.1,
     };
     let (report, writer) = match config.replay.speed {
@@ -491,6 +498,25 @@ mod tests {
                     [simulation.truth.effects]\nrate_squared = { coeff_s_per_rad = 1e-3 }\n\
                     [[step]]\nwait = \"1 s\"\n";
         bench::scenario::parse(text, "t.toml", &bench::simulate::capabilities()).expect("valid")
+    }
+
+    #[test]
+    fn the_command_line_flush_interval_overrides_the_scenarios() {
+        let text = "[scenario]\nname = \"t\"\n[site]\nlatitude_deg = 10\n\
+                    [recording]\nflush_interval = \"5 s\"\n[[step]]\nwait = \"1 s\"\n";
+        let p = bench::scenario::parse(text, "t.toml", &bench::simulate::capabilities())
+            .expect("valid");
+        assert_eq!(flush_interval_of(None, &p), Some(Duration::from_secs(5)));
+        let cli = Some(Duration::from_millis(500));
+        assert_eq!(flush_interval_of(cli, &p), cli);
+        assert_eq!(flush_interval_of(None, &plan()), None, "neither: the runner's default");
+        let args =
+            <RunArgs as clap::FromArgMatches>::from_arg_matches(
+                &<RunArgs as clap::Args>::augment_args(clap::Command::new("run"))
+                    .get_matches_from(["run", "s.toml", "--flush-interval-s", "0.5"]),
+            )
+            .expect("args");
+        assert_eq!(args.recording_options().expect("valid").0, cli);
     }
 
     #[test]

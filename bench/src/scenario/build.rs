@@ -507,6 +507,7 @@ impl<'a> Builder<'a> {
                 "simulation",
                 "station",
                 "acceptance",
+                "recording",
                 "step",
             ],
             "the scenario file",
@@ -676,6 +677,28 @@ impl<'a> Builder<'a> {
             }
         }
 
+        // [recording]
+        let mut flush_interval = None;
+        if let Ok(Some(t)) = self.table(top, "recording") {
+            self.check_keys(t, &["flush_interval", "flush_interval_s"], "[recording]");
+            if let Ok(Some((d, span, q))) =
+                self.duration(t, "flush_interval", "[recording] flush_interval")
+            {
+                if d > Duration::from_secs(3600) {
+                    self.err(
+                        &span,
+                        format!(
+                            "[recording] flush_interval {} is longer than 1 h: a kill could lose that \
+                             much of the run",
+                            q.show_self()
+                        ),
+                    );
+                } else {
+                    flush_interval = Some(d);
+                }
+            }
+        }
+
         // [[step]]
         let mut st = State {
             setpoint_c: sim.initial_temp_c,
@@ -710,6 +733,7 @@ impl<'a> Builder<'a> {
             safe_chamber_hold: safe_hold,
             interlocks: self.interlocks.clone(),
             station,
+            flush_interval,
             steps: std::mem::take(&mut self.steps),
         })
     }

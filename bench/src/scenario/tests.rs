@@ -1002,3 +1002,25 @@ fn commands_beyond_the_interlocks_are_refused_where_they_are_written() {
     assert!(err1("[interlocks]\nmax_speed = 3\n[[step]]\nwait = \"1 s\"\n")
         .contains("unknown key `max_speed` in [interlocks]"));
 }
+
+#[test]
+fn recording_flush_interval_is_read_with_units_and_checked_where_written() {
+    assert_eq!(ok("[[step]]\nwait = \"1 s\"\n").flush_interval, None, "default: the CLI's 1 s");
+    let p = ok("[recording]\nflush_interval = \"250 ms\"\n[[step]]\nwait = \"1 s\"\n");
+    assert_eq!(p.flush_interval, Some(Duration::from_millis(250)));
+    let p = ok("[recording]\nflush_interval_s = 5\n[[step]]\nwait = \"1 s\"\n");
+    assert_eq!(p.flush_interval, Some(Duration::from_secs(5)));
+    assert_eq!(
+        err1("[recording]\nflush_interval = \"0 s\"\n[[step]]\nwait = \"1 s\"\n"),
+        "t.toml:6:18: [recording] flush_interval must be greater than zero, got 0 s"
+    );
+    assert_eq!(
+        err1("[recording]\nflush_interval = \"2 h\"\n[[step]]\nwait = \"1 s\"\n"),
+        "t.toml:6:18: [recording] flush_interval 2 h is longer than 1 h: a kill could lose that \
+         much of the run"
+    );
+    let e = err1("[recording]\nflush = \"1 s\"\n[[step]]\nwait = \"1 s\"\n");
+    assert!(e.starts_with("t.toml:6:1: unknown key `flush` in [recording]"), "{e}");
+    let e = err1("[recording]\nflush_interval = \"1 °C\"\n[[step]]\nwait = \"1 s\"\n");
+    assert!(e.starts_with("t.toml:6:18: "), "{e}");
+}

@@ -136,6 +136,61 @@ fn serial(path: impl Into<String>, baud: u32) -> SerialSettings {
     }
 }
 
+/// Problems of the settings both KVH drivers share, each with the config key it is about:
+/// what `bench validate --bench` and the bench config loader report at that key.
+#[allow(clippy::too_many_arguments)]
+fn common_problems(
+    serial: &SerialSettings,
+    rate_hz: f64,
+    watchdog: f64,
+    max_rate_deg_s: f64,
+    operating_temp_c: (f64, f64),
+    model: &str,
+) -> Vec<(&'static str, String)> {
+    let mut v = Vec::new();
+    if serial.path.trim().is_empty() {
+        v.push(("serial", "serial.path is empty: name the port (e.g. /dev/ttyUSB0)".to_string()));
+    }
+    if serial.baud == 0 {
+        v.push(("serial", "serial.baud must be > 0".to_string()));
+    }
+    if !(5..=8).contains(&serial.data_bits) {
+        v.push(("serial", format!("serial.data_bits = {} must be 5..8", serial.data_bits)));
+    }
+    if !(1..=2).contains(&serial.stop_bits) {
+        v.push(("serial", format!("serial.stop_bits = {} must be 1 or 2", serial.stop_bits)));
+    }
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        v.push(("sample_rate_hz", format!("sample_rate_hz = {rate_hz} must be > 0")));
+    }
+    if !(watchdog.is_finite() && watchdog >= 1.0) {
+        v.push(("watchdog_periods", format!("watchdog_periods = {watchdog} must be ≥ 1")));
+    }
+    if !(max_rate_deg_s.is_finite() && max_rate_deg_s > 0.0) {
+        v.push(("max_rate_deg_s", format!("max_rate_deg_s = {max_rate_deg_s} must be > 0")));
+    }
+    let (lo, hi) = operating_temp_c;
+    if !(lo.is_finite() && hi.is_finite() && lo > -273.15 && lo < hi) {
+        v.push((
+            "operating_temp_c",
+            format!(
+                "operating_temp_c = [{lo}, {hi}] must be [min, max] °C with -273.15 < min < max"
+            ),
+        ));
+    }
+    if model.trim().is_empty() {
+        v.push(("model", "model is empty".to_string()));
+    }
+    v
+}
+
+fn first_problem(problems: Vec<(&'static str, String)>) -> DeviceResult<()> {
+    match problems.into_iter().next() {
+        Some((_, m)) => Err(DeviceError::new(ErrorKind::OutOfRange, m)),
+        None => Ok(()),
+    }
+}
+
 fn check_common(rate_hz: f64, watchdog: f64) -> DeviceResult<()> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
         return Err(DeviceError::new(
@@ -253,6 +308,7 @@ impl Kvh1750Gyro {
         clock: Arc<dyn Clock>,
     ) -> DeviceResult<Self> {
         check_common(config.sample_rate_hz, config.watchdog_periods)?;
+        config.validate()?;
         let name = format!("kvh1750 {}", config.serial.path);
         Ok(Self {
             info: DeviceInfo {
@@ -400,7 +456,45 @@ pub struct Dsp3000Config {
     pub operating_temp_c: (f64, f64),
 }
 
+impl Kvh1750Config {
+    /// Every problem of the settings, with the key it is about (`serial`, `sample_rate_hz`,
+    /// `watchdog_periods`, `max_rate_deg_s`, `operating_temp_c`, `model`).
+    pub fn problems(&self) -> Vec<(&'static str, String)> {
+        common_problems(
+            &self.serial,
+            self.sample_rate_hz,
+            self.watchdog_periods,
+            self.max_rate_deg_s,
+            self.operating_temp_c,
+            &self.model,
+        )
+    }
+
+    /// The first of [`Kvh1750Config::problems`], as the driver refuses it.
+    pub fn validate(&self) -> DeviceResult<()> {
+        first_problem(self.problems())
+    }
+}
+
 impl Dsp3000Config {
+    /// Every problem of the settings, with the key it is about (as
+    /// [`Kvh1750Config::problems`]; `sample_rate_hz` when given).
+    pub fn problems(&self) -> Vec<(&'static str, String)> {
+        common_problems(
+            &self.serial,
+            self.rate_hz(),
+            self.watchdog_periods,
+            self.max_rate_deg_s,
+            self.operating_temp_c,
+            &self.model,
+        )
+    }
+
+    /// The first of [`Dsp3000Config::problems`], as the driver refuses it.
+    pub fn validate(&self) -> DeviceResult<()> {
+        first_problem(self.problems())
+    }
+
     /// Defaults for a unit on `path`: 38400 baud for ASCII, 115200 for binary.
     pub fn new(path: impl Into<String>, format: Dsp3000Format) -> Self {
         let baud = match format {
@@ -457,6 +551,7 @@ impl Dsp3000Gyro {
     ) -> DeviceResult<Self> {
         let rate_hz = config.rate_hz();
         check_common(rate_hz, config.watchdog_periods)?;
+        config.validate()?;
         let name = format!("dsp3000 {}", config.serial.path);
         let dec = match config.format {
             Dsp3000Format::Ascii if config.mid_stream => {

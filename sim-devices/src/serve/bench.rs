@@ -10,9 +10,16 @@ use bench_drivers::transport::{Endpoint, SerialSettings};
 use bench_drivers::{Chamber, Clock, Gyro, RateTable};
 use tokio::task::JoinHandle;
 
-use super::chamber::{serve_chamber_rtu, serve_chamber_tcp, ChamberServeOptions, ServedChamber};
-use super::gyro::{serve_dsp3000, serve_kvh1750, serve_slcan, Dsp3000Output, SlcanAdapterOptions};
-use super::table::{serve_table_pty, serve_table_tcp, TableController, TableServeOptions};
+use super::chamber::{
+    serve_chamber_rtu, serve_chamber_tcp, ChamberServeOptions, ChamberWireStats, ServedChamber,
+};
+use super::gyro::{
+    serve_dsp3000, serve_kvh1750, serve_slcan_tallied, Dsp3000Output, GyroTally,
+    SlcanAdapterOptions,
+};
+use super::table::{
+    serve_table_pty, serve_table_tcp, TableController, TableServeOptions, TableServerStats,
+};
 use crate::faults::FaultSwitch;
 use crate::ports::Pty;
 use crate::{SimBench, SimConfig, SimConfigError};
@@ -65,12 +72,27 @@ pub struct ServedEndpoints {
     pub gyro_rate_hz: f64,
 }
 
+/// What the served ports the default bench config uses ([`ServedEndpoints::table_actidyn_pty`],
+/// [`ServedEndpoints::chamber_rtu`], [`ServedEndpoints::gyro_slcan`]) carried: the samples the
+/// simulators sent and those the fault injector withheld or damaged (`bench soak`).
+#[derive(Debug, Clone)]
+pub struct WireStats {
+    /// The table's Actidyn pty.
+    pub table: Arc<TableServerStats>,
+    /// The chamber's Modbus RTU pty.
+    pub chamber: Arc<ChamberWireStats>,
+    /// The gyro's SLCAN pty, sample by sample.
+    pub gyro: Arc<GyroTally>,
+}
+
 /// A running served bench; the servers stop when it is dropped.
 pub struct ServedBench {
     /// Where each device listens.
     pub endpoints: ServedEndpoints,
     /// Fault switches.
     pub faults: BenchFaults,
+    /// What the default ports carried.
+    pub wire: WireStats,
     _chambers: Vec<ServedChamber>,
     tasks: Vec<JoinHandle<()>>,
 }
@@ -139,6 +161,7 @@ where
     let pty = Pty::new()?;
     let table_actidyn_pty = Endpoint::Serial(serial(&pty.path, 115_200));
     let ctl = TableController::new(sim.table.clone(), clock.clone(), table_opts(Dialect::Actidyn));
+    let table_stats = ctl.stats();
     let done = log_end("table (pty)");
     tasks.push(tokio::spawn(async move { done(serve_table_pty(pty, ctl).await) }));
     let tcp_table = |dialect| -> io::Result<(Endpoint, JoinHandle<()>)> {
@@ -168,16 +191,20 @@ where
     let tcp =
         serve_chamber_tcp(Box::new(sim.chamber.clone()), clock.clone(), chamber_opts()).await?;
     let (chamber_rtu, chamber_tcp) = (rtu.endpoint.clone(), tcp.endpoint.clone());
+    let chamber_stats = rtu.wire_stats();
 
     // Gyro: SLCAN, KVH 1750 and DSP-3000 outputs of the same simulated coil.
     let slcan = Pty::new()?;
     let gyro_slcan = serial(&slcan.path, 115_200);
     let (g, f, c) = (sim.gyro.clone(), faults.gyro.clone(), clock.clone());
     let done = log_end("gyro (SLCAN)");
+    let gyro_tally = Arc::new(GyroTally::default());
+    let tally = gyro_tally.clone();
     tasks.push(tokio::spawn(async move {
         // The whole pty moves in: its held slave end keeps the device node alive.
         let mut slcan = slcan;
-        done(serve_slcan(g, &mut slcan.server, SlcanAdapterOptions::default(), f, c).await)
+        let opts = SlcanAdapterOptions::default();
+        done(serve_slcan_tallied(g, &mut slcan.server, opts, f, c, tally).await)
     }));
     let kvh = Pty::new()?;
     let gyro_kvh1750 = serial(&kvh.path, 921_600);
@@ -210,6 +237,7 @@ where
             gyro_rate_hz,
         },
         faults,
+        wire: WireStats { table: table_stats, chamber: chamber_stats, gyro: gyro_tally },
         _chambers: vec![rtu, tcp],
         tasks,
     })

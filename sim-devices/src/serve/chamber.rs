@@ -43,6 +43,7 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::io;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -133,7 +134,47 @@ struct State {
     overshoot: Option<Overshoot>,
 }
 
+/// What the RTU server's line carried, seen by its proxy (one request at a time on the bus,
+/// so each reply is paired with the request before it). Counters only grow.
+#[derive(Debug, Default)]
+pub struct ChamberWireStats {
+    /// Complete state reads answered intact: the process value and then (if the map has one)
+    /// the working set point, both replies undamaged — one driver poll, the samples this
+    /// controller sent.
+    pub state_replies: AtomicU64,
+    /// Replies to a state read damaged by [`Fault::Corrupt`].
+    pub state_corrupted: AtomicU64,
+    /// State read requests swallowed by a [`Fault::Disconnect`].
+    pub state_dropped: AtomicU64,
+    /// Replies to a state read that were Modbus exceptions.
+    pub state_exceptions: AtomicU64,
+    /// Replies of any kind damaged by [`Fault::Corrupt`].
+    pub corrupted: AtomicU64,
+    /// Bench time of the last complete state read answered intact, ns (0: none yet).
+    pub last_state_reply_ns: AtomicU64,
+}
+
+impl ChamberWireStats {
+    /// Read one counter.
+    pub fn get(counter: &AtomicU64) -> u64 {
+        counter.load(Ordering::Relaxed)
+    }
+}
+
+fn bump(c: &AtomicU64) {
+    c.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Which state register a request reads, for [`ChamberWireStats`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum StateRead {
+    ProcessValue,
+    WorkingSetPoint,
+    Other,
+}
+
 struct Shared {
+    wire: Arc<ChamberWireStats>,
     opts: ChamberServeOptions,
     clock: Arc<dyn Clock>,
     state: tokio::sync::Mutex<State>,
@@ -316,6 +357,11 @@ impl ServedChamber {
     pub fn faults(&self) -> &FaultSwitch {
         &self.shared.opts.faults
     }
+
+    /// What the line carried (RTU only: counted by the proxy; zero on TCP).
+    pub fn wire_stats(&self) -> Arc<ChamberWireStats> {
+        self.shared.wire.clone()
+    }
 }
 
 impl Drop for ServedChamber {
@@ -344,6 +390,7 @@ fn shared(
         }
     }
     Arc::new(Shared {
+        wire: Arc::default(),
         clock,
         state: tokio::sync::Mutex::new(State { chamber, bank, overshoot: None }),
         writes: Mutex::new(Vec::new()),
@@ -411,22 +458,45 @@ pub fn serve_chamber_rtu(
             tracing::warn!(error = %e, "modbus rtu server stopped");
         }
     });
-    let proxy = tokio::spawn(rtu_proxy(outer, proxy_end, shared.opts.faults.clone(), clock));
+    let proxy = tokio::spawn(rtu_proxy(outer, proxy_end, shared.clone(), clock));
     Ok(ServedChamber { endpoint, shared, tasks: vec![server, proxy] })
 }
 
 /// Forwards bytes between the driver's pty and the RTU server's, applying `Corrupt` (replies)
-/// and `Disconnect` (requests dropped for a while).
+/// and `Disconnect` (requests dropped for a while), and counting state reads
+/// ([`ChamberWireStats`]).
 async fn rtu_proxy(
     mut outer: Pty,
     mut inner: tokio_serial::SerialStream,
-    faults: FaultSwitch,
+    shared: Arc<Shared>,
     clock: Arc<dyn Clock>,
 ) {
+    let faults = shared.opts.faults.clone();
+    let wire = shared.wire.clone();
+    let map = &shared.opts.map;
     let mut req = [0u8; 512];
     let mut rep = [0u8; 512];
     let mut counter = FaultCounter::default();
     let mut dead_until: Option<Duration> = None;
+    // What each forwarded request reads, oldest first (the server answers in order); the
+    // replies not yet parsed into frames; whether the process value of the poll in progress
+    // came back intact.
+    let mut pending: std::collections::VecDeque<StateRead> = Default::default();
+    let mut replies: Vec<u8> = Vec::new();
+    let mut pv_ok = false;
+    let classify = |frame: &[u8]| match (frame.get(1), frame.get(2), frame.get(3)) {
+        (Some(3 | 4), Some(&hi), Some(&lo)) => {
+            let addr = u16::from_be_bytes([hi, lo]);
+            if addr == map.process_value {
+                StateRead::ProcessValue
+            } else if Some(addr) == map.working_set_point {
+                StateRead::WorkingSetPoint
+            } else {
+                StateRead::Other
+            }
+        }
+        _ => StateRead::Other,
+    };
     loop {
         tokio::select! {
             r = outer.server.read(&mut req) => {
@@ -439,7 +509,21 @@ async fn rtu_proxy(
                     let secs = if seconds.is_finite() { seconds.max(0.0) } else { 0.0 };
                     dead_until = Some(clock.now() + Duration::from_secs_f64(secs));
                 }
-                if dead_until.is_some_and(|t| clock.now() < t) {
+                let dead = dead_until.is_some_and(|t| clock.now() < t);
+                let mut rest = bytes;
+                while let Some(len) = rtu_request_len(rest) {
+                    let (frame, tail) = rest.split_at(len.min(rest.len()));
+                    let kind = classify(frame);
+                    if dead {
+                        if kind != StateRead::Other {
+                            bump(&wire.state_dropped);
+                        }
+                    } else {
+                        pending.push_back(kind);
+                    }
+                    rest = tail;
+                }
+                if dead {
                     continue;
                 }
                 if inner.write_all(bytes).await.is_err() {
@@ -449,15 +533,61 @@ async fn rtu_proxy(
             r = inner.read(&mut rep) => {
                 let Ok(n) = r else { break };
                 let Some(bytes) = rep.get_mut(..n) else { break };
+                let mut damaged_at = None;
                 if let Some(Fault::Corrupt { every }) =
                     faults.find(|f| matches!(f, Fault::Corrupt { .. }))
                 {
                     if counter.tick(every) {
                         if let Some(last) = bytes.last_mut() {
                             *last ^= 0xFF;
+                            bump(&wire.corrupted);
+                            damaged_at = Some(replies.len() + n - 1);
                         }
                     }
                 }
+                replies.extend_from_slice(bytes);
+                // Every complete reply frame, paired with the request it answers.
+                let mut start = 0;
+                while let Some(len) = replies.get(start..).and_then(rtu_reply_len) {
+                    let end = start + len;
+                    if end > replies.len() {
+                        break;
+                    }
+                    let damaged = damaged_at.is_some_and(|d| (start..end).contains(&d));
+                    let exception = replies.get(start + 1).is_some_and(|fc| fc & 0x80 != 0);
+                    let state = pending.pop_front().unwrap_or(StateRead::Other);
+                    if state != StateRead::Other {
+                        if damaged {
+                            bump(&wire.state_corrupted);
+                        } else if exception {
+                            bump(&wire.state_exceptions);
+                        }
+                    }
+                    let intact = !damaged && !exception;
+                    let complete = |wire: &ChamberWireStats| {
+                        bump(&wire.state_replies);
+                        let now = clock.now().as_nanos() as u64;
+                        wire.last_state_reply_ns.store(now, Ordering::Relaxed);
+                    };
+                    match state {
+                        StateRead::ProcessValue if intact && map.working_set_point.is_none() => {
+                            complete(&wire);
+                        }
+                        StateRead::ProcessValue => pv_ok = intact,
+                        // A damaged working set point is read again by the driver within
+                        // the same poll: the process value stays good.
+                        StateRead::WorkingSetPoint if intact => {
+                            if pv_ok {
+                                complete(&wire);
+                            }
+                            pv_ok = false;
+                        }
+                        StateRead::WorkingSetPoint => {}
+                        StateRead::Other => pv_ok = false,
+                    }
+                    start = end;
+                }
+                replies.drain(..start.min(replies.len()));
                 if outer.server.write_all(bytes).await.is_err() {
                     break;
                 }
@@ -465,6 +595,29 @@ async fn rtu_proxy(
         }
     }
     tracing::debug!("modbus rtu proxy stopped");
+}
+
+/// Length of the Modbus RTU request frame at the start of `b` (functions 3, 4, 6, 16), if
+/// known from the bytes there.
+fn rtu_request_len(b: &[u8]) -> Option<usize> {
+    match b.get(1)? {
+        3 | 4 | 6 => Some(8),
+        16 => Some(9 + usize::from(*b.get(6)?)),
+        _ => (!b.is_empty()).then_some(b.len()),
+    }
+}
+
+/// Length of the Modbus RTU reply frame at the start of `b`, if known from the bytes there.
+fn rtu_reply_len(b: &[u8]) -> Option<usize> {
+    let fc = *b.get(1)?;
+    if fc & 0x80 != 0 {
+        return Some(5);
+    }
+    match fc {
+        3 | 4 => Some(5 + usize::from(*b.get(2)?)),
+        6 | 16 => Some(8),
+        _ => Some(b.len()),
+    }
 }
 
 /// A server-side TCP stream applying `Disconnect` (EOF at the next request) and `Corrupt`.

@@ -43,8 +43,108 @@ use crate::faults::{Fault, FaultCounter, FaultSwitch};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Action {
     Send,
+    /// Withheld by [`Fault::Drop`].
     Skip,
+    /// Not sent: the line is dead ([`Fault::Silence`], [`Fault::Disconnect`]).
+    Dead,
     Corrupt,
+}
+
+/// What became of one sample on a gyro output, as the server knows it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Disposition {
+    /// Withheld by [`Fault::Drop`].
+    Dropped,
+    /// Not sent while the line was dead ([`Fault::Silence`], [`Fault::Disconnect`]).
+    Silenced,
+    /// Sent with a byte damaged by [`Fault::Corrupt`] (the receiver must reject it).
+    Corrupted,
+}
+
+/// The samples an output sent, by device sequence number: how many went out intact, and the
+/// sequence number of each one the fault injector withheld or damaged (only those are kept,
+/// so the memory grows with the faults, not with the samples). Samples of a closed SLCAN
+/// channel are not counted (nothing is on the wire).
+#[derive(Debug, Default)]
+pub struct GyroTally(std::sync::Mutex<TallyInner>);
+
+#[derive(Debug, Default, Clone)]
+struct TallyInner {
+    intact: u64,
+    first_seq: Option<u64>,
+    last_seq: Option<u64>,
+    faulted: Vec<(u64, Disposition)>,
+}
+
+/// Counts of a [`GyroTally`] over a range of sequence numbers.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct TallyCounts {
+    /// Samples the server handled in the range (sent intact, damaged or withheld).
+    pub handled: u64,
+    /// Sent intact.
+    pub intact: u64,
+    /// Withheld by [`Fault::Drop`].
+    pub dropped: u64,
+    /// Not sent while the line was dead.
+    pub silenced: u64,
+    /// Sent damaged.
+    pub corrupted: u64,
+}
+
+impl GyroTally {
+    fn lock(&self) -> std::sync::MutexGuard<'_, TallyInner> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn note(&self, seq: u64, action: Action) {
+        let mut t = self.lock();
+        t.first_seq = Some(t.first_seq.map_or(seq, |f| f.min(seq)));
+        t.last_seq = Some(t.last_seq.map_or(seq, |l| l.max(seq)));
+        match action {
+            Action::Send => t.intact += 1,
+            Action::Skip => t.faulted.push((seq, Disposition::Dropped)),
+            Action::Dead => t.faulted.push((seq, Disposition::Silenced)),
+            Action::Corrupt => t.faulted.push((seq, Disposition::Corrupted)),
+        }
+    }
+
+    /// Sequence numbers of the first and last sample handled.
+    pub fn seq_range(&self) -> Option<(u64, u64)> {
+        let t = self.lock();
+        t.first_seq.zip(t.last_seq)
+    }
+
+    /// Counts over sequence numbers `lo..=hi` (the server handles every sample of the gyro in
+    /// turn, so every number in the range is one sample).
+    pub fn counts_in(&self, lo: u64, hi: u64) -> TallyCounts {
+        let t = self.lock();
+        let (Some(first), Some(last)) = (t.first_seq, t.last_seq) else {
+            return TallyCounts::default();
+        };
+        let (lo, hi) = (lo.max(first), hi.min(last));
+        if lo > hi {
+            return TallyCounts::default();
+        }
+        let mut c = TallyCounts { handled: hi - lo + 1, ..TallyCounts::default() };
+        for (seq, d) in &t.faulted {
+            if (lo..=hi).contains(seq) {
+                match d {
+                    Disposition::Dropped => c.dropped += 1,
+                    Disposition::Silenced => c.silenced += 1,
+                    Disposition::Corrupted => c.corrupted += 1,
+                }
+            }
+        }
+        c.intact = c.handled - c.dropped - c.silenced - c.corrupted;
+        c
+    }
+
+    /// Counts over every sample handled.
+    pub fn counts(&self) -> TallyCounts {
+        let range = self.seq_range();
+        range.map_or_else(TallyCounts::default, |(lo, hi)| self.counts_in(lo, hi))
+    }
 }
 
 /// Applies a [`FaultSwitch`] sample by sample.
@@ -86,7 +186,7 @@ impl FaultGate {
 
     fn action(&mut self) -> Action {
         if self.dead() {
-            return Action::Skip;
+            return Action::Dead;
         }
         if let Some(Fault::Drop { every }) = self.faults.find(|f| matches!(f, Fault::Drop { .. })) {
             if self.drops.tick(every) {
@@ -172,11 +272,27 @@ fn info_frame(rate_hz: f64, ids: &GyroCanIds) -> io::Result<CanFrame> {
 /// Serve `gyro` as an SLCAN adapter on `port` (see the module docs). `clock` is the bench clock
 /// (time stamps with `Z1`, disconnect durations).
 pub async fn serve_slcan<G, S>(
+    gyro: G,
+    port: S,
+    options: SlcanAdapterOptions,
+    faults: FaultSwitch,
+    clock: Arc<dyn Clock>,
+) -> io::Result<()>
+where
+    G: Gyro,
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    serve_slcan_tallied(gyro, port, options, faults, clock, Arc::default()).await
+}
+
+/// [`serve_slcan`], noting what became of every sample of the open channel in `tally`.
+pub async fn serve_slcan_tallied<G, S>(
     mut gyro: G,
     mut port: S,
     options: SlcanAdapterOptions,
     faults: FaultSwitch,
     clock: Arc<dyn Clock>,
+    tally: Arc<GyroTally>,
 ) -> io::Result<()>
 where
     G: Gyro,
@@ -250,8 +366,12 @@ where
             }
             s = gyro.next_sample() => {
                 let s = s.map_err(sample_err)?;
+                if !open {
+                    continue;
+                }
                 let action = gate.action();
-                if !open || action == Action::Skip {
+                tally.note(s.seq, action);
+                if matches!(action, Action::Skip | Action::Dead) {
                     continue;
                 }
                 let rate_hz = gyro.sample_rate_hz();
@@ -404,7 +524,7 @@ where
             s = gyro.next_sample() => {
                 let s = s.map_err(sample_err)?;
                 let action = gate.action();
-                if action == Action::Skip {
+                if matches!(action, Action::Skip | Action::Dead) {
                     continue;
                 }
                 let bytes = encode(&s, gyro.sample_rate_hz(), action)?;

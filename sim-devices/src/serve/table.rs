@@ -105,6 +105,18 @@ pub struct TableServerStats {
     pub watchdog_trips: AtomicU64,
     /// Connections accepted (TCP) or sessions served.
     pub connections: AtomicU64,
+    /// State requests (Actidyn `PRV`, ACUTROL rate reads: one per driver poll) answered with
+    /// an intact reply: the samples this controller sent.
+    pub state_replies: AtomicU64,
+    /// State requests whose reply [`Fault::Corrupt`] damaged.
+    pub state_corrupted: AtomicU64,
+    /// State requests whose reply [`Fault::Drop`] withheld.
+    pub state_dropped: AtomicU64,
+    /// State requests not answered because the line was silent ([`Fault::Silence`], a serial
+    /// [`Fault::Disconnect`]).
+    pub state_silenced: AtomicU64,
+    /// Bench time of the last intact state reply, ns (0: none yet).
+    pub last_state_reply_ns: AtomicU64,
 }
 
 impl TableServerStats {
@@ -579,11 +591,24 @@ impl<T: RateTable> TableController<T> {
                     },
                 };
                 bump(&self.stats.requests);
+                let state = match &request {
+                    Ok(Request::Actidyn(cmds)) => {
+                        cmds.iter().any(|c| matches!(c, actidyn::Command::QueryPrv { .. }))
+                    }
+                    Ok(Request::Acutrol(c)) => matches!(c, acutrol::Command::ReadRate(_)),
+                    Err(_) => false,
+                };
                 self.check_watchdog().await;
                 if let Some(end) = self.swallowed(port) {
+                    if state {
+                        bump(&self.stats.state_silenced);
+                    }
                     return Ok(end);
                 }
                 if self.is_silent() {
+                    if state {
+                        bump(&self.stats.state_silenced);
+                    }
                     continue;
                 }
                 let reply = match request {
@@ -595,10 +620,29 @@ impl<T: RateTable> TableController<T> {
                     Ok(Request::Actidyn(cmds)) => self.answer_actidyn(cmds).await,
                     Ok(Request::Acutrol(c)) => self.answer_acutrol(c).await,
                 };
-                if let Some(bytes) = reply.and_then(|b| self.faulted_reply(b)) {
-                    stream.write_all(&bytes).await?;
-                    stream.flush().await?;
-                    bump(&self.stats.replies);
+                let corrupted_before = TableServerStats::get(&self.stats.corrupted);
+                let encoded = reply.is_some();
+                match reply.and_then(|b| self.faulted_reply(b)) {
+                    Some(bytes) => {
+                        stream.write_all(&bytes).await?;
+                        stream.flush().await?;
+                        bump(&self.stats.replies);
+                        if state {
+                            let damaged =
+                                TableServerStats::get(&self.stats.corrupted) != corrupted_before;
+                            bump(if damaged {
+                                &self.stats.state_corrupted
+                            } else {
+                                &self.stats.state_replies
+                            });
+                            if !damaged {
+                                let now = self.clock.now().as_nanos() as u64;
+                                self.stats.last_state_reply_ns.store(now, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    None if state && encoded => bump(&self.stats.state_dropped),
+                    None => {}
                 }
             }
         }

@@ -1,0 +1,874 @@
+//! `bench soak`: many hours of bench time through the virtual ports — the simulated bench
+//! served on ptys ([`bench_sim::serve::bench::serve_bench`]) and reached by the real drivers
+//! (Actidyn table on a pty, Modbus RTU chamber on a pty, SLCAN gyro on a pty: the bench config
+//! `bench sim serve` writes) at a scaled time — with faults injected at random.
+//!
+//! The run is cut into segments (one run of the scenario each, its own recording, a freshly
+//! served bench), so that a fault that aborts a run by design (a silent table trips
+//! `stream_stale`) ends its segment and the soak goes on with the next one until the bench
+//! time asked for is covered. After each segment:
+//!
+//! - every channel's samples **sent** on the wire (the servers' counters, [`WireStats`]) are
+//!   compared with those **recorded** (the segment's MCAP read back with
+//!   [`bench_recording::Recording`]): `recorded = sent intact` must hold, samples the injector
+//!   withheld or damaged being counted apart (see [`ChannelCount`]);
+//! - each injected fault gets its outcome from the run ([`FaultOutcome`]);
+//! - the process's memory (VmRSS, VmHWM) is sampled every `memory_every` of bench time.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use bench_drivers::{Clock, SystemClock};
+use bench_recording::Recording;
+use bench_sim::faults::Fault as SimFault;
+use bench_sim::serve::bench::{serve_bench, BenchFaults, WireStats};
+use rand::{Rng as _, SeedableRng as _};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::bench_config::for_served_bench;
+use crate::plan::RunPlan;
+use crate::run::FaultCause;
+use crate::runner::{run_info, run_realtime, RunOptions};
+use crate::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
+
+/// Default time scale: bench time per wall time the wire path sustains on a 2-core machine
+/// shared with other work (measured, `docs/soak.md`).
+pub const DEFAULT_TIME_SCALE: f64 = 60.0;
+
+/// Memory growth above which the soak fails, MiB per bench hour (least-squares slope of VmRSS
+/// after the warm-up).
+pub const MEMORY_SLOPE_LIMIT_MIB_PER_H: f64 = 1.0;
+
+/// Bench time excluded from the memory slope (allocator pools, first segment's caches).
+pub const MEMORY_WARM_UP: Duration = Duration::from_secs(3600);
+
+/// Wall-clock reply timeout of the table and chamber drivers in a soak.
+pub const WIRE_TIMEOUT: Duration = Duration::from_millis(200);
+
+/// Options of a soak.
+#[derive(Debug, Clone)]
+pub struct SoakOptions {
+    /// Bench time to cover.
+    pub bench_time: Duration,
+    /// Bench time per wall time.
+    pub time_scale: f64,
+    /// Seed of the fault schedule and of the simulators.
+    pub seed: u64,
+    /// A scenario to run segment after segment (name, text); `None`: the built-in thermal
+    /// segment ([`builtin_segment`]).
+    pub scenario: Option<(String, String)>,
+    /// Bench length of a built-in segment.
+    pub segment: Duration,
+    /// Mean number of faults per bench hour (each segment gets at least one).
+    pub faults_per_hour: f64,
+    /// The kinds drawn from (empty: all).
+    pub kinds: Vec<SoakFaultKind>,
+    /// Memory sampling period, bench time.
+    pub memory_every: Duration,
+    /// Keep the segments' recordings here (else they are deleted once read back).
+    pub keep: Option<PathBuf>,
+}
+
+impl Default for SoakOptions {
+    fn default() -> Self {
+        Self {
+            bench_time: Duration::from_secs(24 * 3600),
+            time_scale: DEFAULT_TIME_SCALE,
+            seed: 1,
+            scenario: None,
+            segment: Duration::from_secs(3600),
+            faults_per_hour: 3.0,
+            kinds: Vec::new(),
+            memory_every: Duration::from_secs(600),
+            keep: None,
+        }
+    }
+}
+
+/// The faults the soak injects: the served devices' faults ([`SimFault`]) for a while.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
+pub enum SoakFaultKind {
+    /// Every 20th gyro sample withheld.
+    GyroDrop,
+    /// Every 20th gyro sample's delta-angle line damaged.
+    GyroCorrupt,
+    /// The gyro line dead for 2 s (within the driver's 5 timeouts of 10 sample periods).
+    GyroDisconnect,
+    /// Every 10th table reply damaged.
+    TableCorrupt,
+    /// Every 10th table reply withheld.
+    TableDrop,
+    /// The table line dead for 3 s.
+    TableDisconnect,
+    /// Every 10th chamber reply damaged (bad CRC).
+    ChamberCorrupt,
+    /// The chamber line dead for 3 s.
+    ChamberDisconnect,
+    /// The table silent for 2 min: aborts by design (`stream_stale` or the table's device error).
+    TableSilence,
+    /// The chamber answering exception 4: aborts by design (chamber device error).
+    ChamberException,
+}
+
+impl SoakFaultKind {
+    /// Every kind.
+    pub const ALL: [SoakFaultKind; 10] = [
+        Self::GyroDrop,
+        Self::GyroCorrupt,
+        Self::GyroDisconnect,
+        Self::TableCorrupt,
+        Self::TableDrop,
+        Self::TableDisconnect,
+        Self::ChamberCorrupt,
+        Self::ChamberDisconnect,
+        Self::TableSilence,
+        Self::ChamberException,
+    ];
+
+    /// The device and the served fault.
+    pub fn fault(self) -> (&'static str, SimFault) {
+        match self {
+            Self::GyroDrop => ("gyro", SimFault::Drop { every: 20 }),
+            Self::GyroCorrupt => ("gyro", SimFault::Corrupt { every: 20 }),
+            Self::GyroDisconnect => ("gyro", SimFault::Disconnect { seconds: 2.0 }),
+            Self::TableCorrupt => ("table", SimFault::Corrupt { every: 10 }),
+            Self::TableDrop => ("table", SimFault::Drop { every: 10 }),
+            Self::TableDisconnect => ("table", SimFault::Disconnect { seconds: 3.0 }),
+            Self::ChamberCorrupt => ("chamber", SimFault::Corrupt { every: 10 }),
+            Self::ChamberDisconnect => ("chamber", SimFault::Disconnect { seconds: 3.0 }),
+            Self::TableSilence => ("table", SimFault::Silence),
+            Self::ChamberException => ("chamber", SimFault::ModbusException { code: 4 }),
+        }
+    }
+
+    /// How long it stays on, bench time (a disconnect clears itself after its own time).
+    pub fn duration(self) -> Duration {
+        Duration::from_secs(match self {
+            Self::GyroDisconnect => 2,
+            Self::TableDisconnect | Self::ChamberDisconnect => 3,
+            Self::TableSilence | Self::GyroDrop | Self::GyroCorrupt => 120,
+            _ => 60,
+        })
+    }
+
+    /// Whether the run must abort, and for which causes.
+    fn aborts_by_design(self, cause: &FaultCause) -> bool {
+        match self {
+            Self::TableSilence => matches!(
+                cause,
+                FaultCause::Stale { device: "rate table" | "table" }
+                    | FaultCause::Device { device: "table", .. }
+            ),
+            Self::ChamberException => {
+                matches!(cause, FaultCause::Device { device: "chamber", .. })
+            }
+            _ => false,
+        }
+    }
+
+    fn must_abort(self) -> bool {
+        matches!(self, Self::TableSilence | Self::ChamberException)
+    }
+}
+
+/// What became of an injected fault.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultOutcome {
+    /// The run went on past the fault (or completed with it on) without aborting.
+    Recovered,
+    /// The run aborted within the fault (or its grace time) with the cause the fault must give.
+    AbortedByDesign,
+    /// The run aborted by design for another fault injected while this one was on: this one
+    /// had no part in it (its cause is the other fault's).
+    Overtaken,
+    /// The run aborted within the fault with a cause the fault should not give, or a fault that
+    /// must abort the run did not: a finding.
+    Unexpected,
+}
+
+/// One injected fault and its outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct FaultRecord {
+    /// Segment index (0-based).
+    pub segment: usize,
+    /// Bench time into the segment when it was switched on, s.
+    pub at_s: f64,
+    /// Bench time into the soak, s.
+    pub soak_at_s: f64,
+    /// The fault.
+    pub kind: SoakFaultKind,
+    /// Device it was injected on.
+    pub device: &'static str,
+    /// The served fault, as `bench sim serve`'s control port takes it.
+    pub fault: SimFault,
+    /// How long it was meant to stay on, s.
+    pub duration_s: f64,
+    /// Its outcome.
+    pub outcome: FaultOutcome,
+    /// The run's outcome text when it aborted within the fault, else `None`.
+    pub abort: Option<String>,
+}
+
+/// Samples of one channel over the soak. For the gyro, counted by device sequence number
+/// over the recorded range of each segment; for the table and chamber (polled), one state
+/// request answered = one sample, counted between connecting and the end of the run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ChannelCount {
+    /// Topic.
+    pub topic: String,
+    /// Sent intact on the wire by the simulator (`None`: not a wire channel).
+    pub sent: Option<u64>,
+    /// Recorded in the MCAP.
+    pub recorded: u64,
+    /// Withheld by the injector (drop).
+    pub dropped: u64,
+    /// Not sent while the injector held the line dead (silence, disconnect).
+    pub silenced: u64,
+    /// Sent damaged by the injector (the receiver must reject them).
+    pub corrupted: u64,
+    /// Gyro: sent intact outside each segment's recorded sequence range (before the run's
+    /// first recorded sample, after its last: the stream runs from the driver's open to its
+    /// close).
+    pub outside_run: u64,
+    /// `sent − recorded` (gyro: within the recorded ranges): samples that arrived intact and
+    /// are not in the recording (must be 0). Negative: recorded more than sent.
+    pub lost: i64,
+}
+
+/// One memory sample.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MemorySample {
+    /// Bench time into the soak, h.
+    pub bench_h: f64,
+    /// Wall time into the soak, s.
+    pub wall_s: f64,
+    /// Resident set size, MiB.
+    pub rss_mib: f64,
+    /// Peak resident set size so far, MiB.
+    pub hwm_mib: f64,
+}
+
+/// The memory series and its verdict.
+#[derive(Debug, Clone, Serialize)]
+pub struct MemoryReport {
+    /// Samples, every `memory_every` of bench time and at each segment's end.
+    pub samples: Vec<MemorySample>,
+    /// First, last and peak RSS, MiB.
+    pub start_mib: f64,
+    /// Last RSS, MiB.
+    pub end_mib: f64,
+    /// Peak RSS (VmHWM), MiB.
+    pub peak_mib: f64,
+    /// Bench time left out of the slope, h.
+    pub warm_up_h: f64,
+    /// Least-squares slope of RSS after the warm-up, MiB per bench hour (`None`: fewer than 4
+    /// samples after it).
+    pub slope_mib_per_h: Option<f64>,
+    /// The limit on the slope, MiB per bench hour.
+    pub limit_mib_per_h: f64,
+    /// `flat`, `grew` or `not judged` (run too short).
+    pub verdict: String,
+}
+
+/// One segment.
+#[derive(Debug, Clone, Serialize)]
+pub struct SegmentReport {
+    /// Index.
+    pub index: usize,
+    /// Bench time the run covered, s.
+    pub bench_time_s: f64,
+    /// Wall time of the segment (serving, connecting, running, reading back), s.
+    pub wall_time_s: f64,
+    /// The run's outcome (`bench.run` `outcome`).
+    pub outcome: String,
+    /// Faults injected.
+    pub faults: usize,
+    /// The run's abort when no injected fault accounts for it (a finding).
+    pub unprovoked_abort: Option<String>,
+    /// The recording, if kept.
+    pub recording: Option<String>,
+}
+
+/// Everything a soak found.
+#[derive(Debug, Clone, Serialize)]
+pub struct SoakReport {
+    /// Whether nothing that arrived was lost, memory stayed flat and every fault had its
+    /// expected outcome.
+    pub passed: bool,
+    /// Why not, one line each.
+    pub problems: Vec<String>,
+    /// Seed.
+    pub seed: u64,
+    /// Bench time asked for, s.
+    pub bench_time_asked_s: f64,
+    /// Bench time covered by the runs, s.
+    pub bench_time_s: f64,
+    /// Wall time, s.
+    pub wall_time_s: f64,
+    /// Time scale asked for.
+    pub time_scale: f64,
+    /// Bench time covered per wall time (everything included: serving, connecting, reading
+    /// back).
+    pub achieved_time_scale: f64,
+    /// The scenario run in each segment.
+    pub scenario: String,
+    /// Per channel.
+    pub channels: Vec<ChannelCount>,
+    /// Every fault injected, in order.
+    pub faults: Vec<FaultRecord>,
+    /// Memory.
+    pub memory: MemoryReport,
+    /// Segments.
+    pub segments: Vec<SegmentReport>,
+}
+
+/// The built-in segment: `minutes` of bench time of a thermal profile through the wire — the
+/// chamber ramping at 1 °C/min towards `target_c` while the table turns at 10 °/s clockwise,
+/// then counter-clockwise, recording all along.
+pub fn builtin_segment(minutes: f64, target_c: f64) -> String {
+    // Spin-up at 5 °/s² and settling take a few seconds; a stop at the end.
+    let half = ((minutes * 60.0 - 20.0) / 2.0).max(10.0);
+    format!(
+        "[scenario]\nname = \"soak\"\ndescription = \"bench soak segment: the chamber ramping \
+         to {target_c} °C at 1 °C/min while the table turns both ways\"\n\n\
+         [site]\nlatitude_deg = 48.0\n\n[simulation]\ninitial_temp = \"20 °C\"\n\n\
+         [[step]]\nlabel = \"ramp\"\nchamber = \"{target_c} °C\"\nramp = \"1 °C/min\"\n\n\
+         [[step]]\nlabel = \"spin cw\"\nspin = \"10 °/s\"\ndirection = \"cw\"\n\
+         accel = \"5 °/s²\"\nsettle = true\n\n\
+         [[step]]\nlabel = \"record cw\"\nrecord = \"{half:.0} s\"\n\n\
+         [[step]]\nlabel = \"spin ccw\"\nspin = \"10 °/s\"\ndirection = \"ccw\"\n\
+         accel = \"5 °/s²\"\nsettle = true\n\n\
+         [[step]]\nlabel = \"record ccw\"\nrecord = \"{half:.0} s\"\n\n\
+         [[step]]\nstop = \"table\"\n"
+    )
+}
+
+/// VmRSS and VmHWM of this process, MiB (Linux; `None` elsewhere).
+pub fn memory_mib() -> Option<(f64, f64)> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| -> Option<f64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb / 1024.0)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+/// Least-squares slope of `y` over `x`; `None` with fewer than 2 distinct `x`.
+fn slope(points: &[(f64, f64)]) -> Option<f64> {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return None;
+    }
+    let mx = points.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = points.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// The memory verdict over `samples`.
+pub fn memory_report(samples: Vec<MemorySample>) -> MemoryReport {
+    let warm_up_h = MEMORY_WARM_UP.as_secs_f64() / 3600.0;
+    let after: Vec<(f64, f64)> =
+        samples.iter().filter(|s| s.bench_h >= warm_up_h).map(|s| (s.bench_h, s.rss_mib)).collect();
+    let slope_mib_per_h = if after.len() >= 4 { slope(&after) } else { None };
+    let verdict = match slope_mib_per_h {
+        None => "not judged",
+        Some(s) if s < MEMORY_SLOPE_LIMIT_MIB_PER_H => "flat",
+        Some(_) => "grew",
+    };
+    MemoryReport {
+        start_mib: samples.first().map_or(0.0, |s| s.rss_mib),
+        end_mib: samples.last().map_or(0.0, |s| s.rss_mib),
+        peak_mib: samples.iter().map(|s| s.hwm_mib).fold(0.0, f64::max),
+        warm_up_h,
+        slope_mib_per_h,
+        limit_mib_per_h: MEMORY_SLOPE_LIMIT_MIB_PER_H,
+        verdict: verdict.into(),
+        samples,
+    }
+}
+
+/// Counters of the polled devices at one instant.
+#[derive(Debug, Clone, Copy, Default)]
+struct PolledSnapshot {
+    last_sent_ns: u64,
+    sent: u64,
+    dropped: u64,
+    silenced: u64,
+    corrupted: u64,
+}
+
+fn table_snapshot(w: &WireStats) -> PolledSnapshot {
+    use bench_sim::serve::table::TableServerStats as S;
+    PolledSnapshot {
+        last_sent_ns: S::get(&w.table.last_state_reply_ns),
+        sent: S::get(&w.table.state_replies),
+        dropped: S::get(&w.table.state_dropped),
+        silenced: S::get(&w.table.state_silenced),
+        corrupted: S::get(&w.table.state_corrupted),
+    }
+}
+
+fn chamber_snapshot(w: &WireStats) -> PolledSnapshot {
+    use bench_sim::serve::chamber::ChamberWireStats as S;
+    PolledSnapshot {
+        last_sent_ns: S::get(&w.chamber.last_state_reply_ns),
+        sent: S::get(&w.chamber.state_replies),
+        dropped: S::get(&w.chamber.state_dropped),
+        silenced: 0,
+        corrupted: S::get(&w.chamber.state_corrupted),
+    }
+}
+
+/// Add a polled device's segment to its count. `last_recorded_ns`: bench time of the last
+/// sample recorded (its log time from the run's epoch). A reply the server sent after it was
+/// in flight when the run ended (the poller stopped before reading it): counted outside the run.
+fn add_polled(
+    c: &mut ChannelCount,
+    before: PolledSnapshot,
+    after: PolledSnapshot,
+    recorded: u64,
+    last_recorded_ns: Option<u64>,
+) {
+    let sent = after.sent - before.sent;
+    let in_flight =
+        u64::from(sent > recorded && last_recorded_ns.is_none_or(|t| after.last_sent_ns > t));
+    *c.sent.get_or_insert(0) += sent - in_flight;
+    c.outside_run += in_flight;
+    c.recorded += recorded;
+    c.dropped += after.dropped - before.dropped;
+    c.silenced += after.silenced - before.silenced;
+    c.corrupted += after.corrupted - before.corrupted;
+    c.lost += (sent - in_flight) as i64 - recorded as i64;
+}
+
+/// A fault due in a segment.
+#[derive(Debug, Clone, Copy)]
+struct Planned {
+    at: Duration,
+    kind: SoakFaultKind,
+}
+
+fn plan_faults(
+    rng: &mut ChaCha8Rng,
+    length: Duration,
+    per_hour: f64,
+    kinds: &[SoakFaultKind],
+) -> Vec<Planned> {
+    let kinds = if kinds.is_empty() { &SoakFaultKind::ALL[..] } else { kinds };
+    use rand_distr::Distribution as _;
+    let hours = length.as_secs_f64() / 3600.0;
+    let mean = (per_hour * hours).max(0.0);
+    let n = if mean > 0.0 {
+        rand_distr::Poisson::new(mean).map_or(1.0, |p| p.sample(rng)) as usize
+    } else {
+        0
+    };
+    let n = n.max(1);
+    // Between 1 min in and 3 min before the end (so transient faults end within the run).
+    let (lo, hi) = (60.0, (length.as_secs_f64() - 180.0).max(61.0));
+    let mut v: Vec<Planned> = (0..n)
+        .map(|_| {
+            let kind =
+                *kinds.get(rng.random_range(0..kinds.len())).unwrap_or(&SoakFaultKind::GyroDrop);
+            Planned { at: Duration::from_secs_f64(rng.random_range(lo..hi)), kind }
+        })
+        .collect();
+    v.sort_by_key(|p| p.at);
+    v
+}
+
+fn switch<'a>(faults: &'a BenchFaults, device: &str) -> &'a bench_sim::faults::FaultSwitch {
+    match device {
+        "table" => &faults.table,
+        "chamber" => &faults.chamber,
+        _ => &faults.gyro,
+    }
+}
+
+/// What one segment gave.
+struct Segment {
+    report: SegmentReport,
+    faults: Vec<FaultRecord>,
+}
+
+/// Run a soak; `on_segment` is told of each segment as it ends (for a progress line).
+pub async fn soak(
+    opts: &SoakOptions,
+    mut on_segment: impl FnMut(&SegmentReport, &[FaultRecord]),
+) -> anyhow::Result<SoakReport> {
+    anyhow::ensure!(
+        opts.time_scale.is_finite() && opts.time_scale > 0.0,
+        "the time scale must be a positive number, got {}",
+        opts.time_scale
+    );
+    let wall = Instant::now();
+    let dir = match &opts.keep {
+        Some(d) => {
+            std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+            d.clone()
+        }
+        None => {
+            let d = std::env::temp_dir().join(format!("bench-soak-{}", std::process::id()));
+            std::fs::create_dir_all(&d)
+                .with_context(|| format!("cannot create {}", d.display()))?;
+            d
+        }
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let mut channels: Vec<ChannelCount> = ["/gyro/rate", "/table/state", "/chamber/state"]
+        .iter()
+        .map(|t| ChannelCount { topic: (*t).into(), sent: Some(0), ..ChannelCount::default() })
+        .collect();
+    let mut others: std::collections::BTreeMap<String, u64> = Default::default();
+    let memory = Arc::new(Mutex::new(Vec::<MemorySample>::new()));
+    let mut faults = Vec::new();
+    let mut segments = Vec::new();
+    let mut covered = Duration::ZERO;
+    let mut scenario_name = String::new();
+    let mut index = 0usize;
+    let sample_memory = |memory: &Mutex<Vec<MemorySample>>, bench: Duration| {
+        if let Some((rss, hwm)) = memory_mib() {
+            let s = MemorySample {
+                bench_h: bench.as_secs_f64() / 3600.0,
+                wall_s: wall.elapsed().as_secs_f64(),
+                rss_mib: rss,
+                hwm_mib: hwm,
+            };
+            memory.lock().unwrap_or_else(|p| p.into_inner()).push(s);
+        }
+    };
+    sample_memory(&memory, Duration::ZERO);
+    while covered < opts.bench_time {
+        let left = opts.bench_time - covered;
+        let (name, text) = match &opts.scenario {
+            Some((name, text)) => (name.clone(), text.clone()),
+            None => {
+                let minutes = opts.segment.min(left).as_secs_f64() / 60.0;
+                let target = if index.is_multiple_of(2) { 40.0 } else { 0.0 };
+                ("soak.toml".to_string(), builtin_segment(minutes.max(5.0), target))
+            }
+        };
+        let plan = crate::scenario::parse(&text, &name, &capabilities())
+            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        scenario_name.clone_from(&plan.name);
+        let seg_seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(index as u64);
+        let length = plan_length(&plan).unwrap_or(opts.segment);
+        let planned = plan_faults(&mut rng, length, opts.faults_per_hour, &opts.kinds);
+        let out = dir.join(format!("soak-{index:03}.mcap"));
+        let seg = run_segment(
+            opts,
+            index,
+            &plan,
+            seg_seed,
+            &planned,
+            &out,
+            covered,
+            &mut channels,
+            &mut others,
+            &memory,
+            wall,
+        )
+        .await
+        .with_context(|| format!("segment {index}"))?;
+        covered += Duration::from_secs_f64(seg.report.bench_time_s);
+        sample_memory(&memory, covered);
+        if opts.keep.is_none() {
+            let _ = std::fs::remove_file(&out);
+        }
+        on_segment(&seg.report, &seg.faults);
+        faults.extend(seg.faults);
+        segments.push(seg.report);
+        index += 1;
+    }
+    if opts.keep.is_none() {
+        let _ = std::fs::remove_dir(&dir);
+    }
+    for (topic, n) in others {
+        channels.push(ChannelCount { topic, sent: None, recorded: n, ..ChannelCount::default() });
+    }
+    let samples = std::mem::take(&mut *memory.lock().unwrap_or_else(|p| p.into_inner()));
+    let memory = memory_report(samples);
+    let wall_time_s = wall.elapsed().as_secs_f64();
+    let mut problems = Vec::new();
+    for c in &channels {
+        if c.lost != 0 {
+            problems
+                .push(format!("{}: {} sample(s) sent intact but not recorded", c.topic, c.lost));
+        }
+    }
+    for f in &faults {
+        if f.outcome == FaultOutcome::Unexpected {
+            problems.push(format!(
+                "segment {} at {:.0} s: {:?} had an unexpected outcome ({})",
+                f.segment,
+                f.at_s,
+                f.kind,
+                f.abort.as_deref().unwrap_or("the run did not abort")
+            ));
+        }
+    }
+    if memory.verdict == "grew" {
+        problems.push(format!(
+            "memory grew {:.2} MiB per bench hour after the warm-up (limit {})",
+            memory.slope_mib_per_h.unwrap_or(f64::NAN),
+            MEMORY_SLOPE_LIMIT_MIB_PER_H
+        ));
+    }
+    if faults.is_empty() {
+        problems.push("no fault was injected".into());
+    }
+    for seg in &segments {
+        if let Some(cause) = &seg.unprovoked_abort {
+            problems.push(format!("segment {} aborted with no fault on: {cause}", seg.index));
+        }
+    }
+    Ok(SoakReport {
+        passed: problems.is_empty(),
+        problems,
+        seed: opts.seed,
+        bench_time_asked_s: opts.bench_time.as_secs_f64(),
+        bench_time_s: covered.as_secs_f64(),
+        wall_time_s,
+        time_scale: opts.time_scale,
+        achieved_time_scale: covered.as_secs_f64() / wall_time_s.max(1e-9),
+        scenario: scenario_name,
+        channels,
+        faults,
+        memory,
+        segments,
+    })
+}
+
+/// The bench length of a plan with fixed-length steps (the built-in segment); `None` if it
+/// has none.
+fn plan_length(plan: &RunPlan) -> Option<Duration> {
+    Some(plan.estimated_duration()).filter(|d| !d.is_zero())
+}
+
+#[allow(clippy::too_many_arguments)]
+async fn run_segment(
+    opts: &SoakOptions,
+    index: usize,
+    plan: &RunPlan,
+    seed: u64,
+    planned: &[Planned],
+    out: &Path,
+    soak_offset: Duration,
+    channels: &mut [ChannelCount],
+    others: &mut std::collections::BTreeMap<String, u64>,
+    memory: &Arc<Mutex<Vec<MemorySample>>>,
+    wall0: Instant,
+) -> anyhow::Result<Segment> {
+    let wall = Instant::now();
+    let clock = SystemClock::new(opts.time_scale);
+    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let served = serve_bench(sim_config(plan, seed), shared.clone()).await?;
+    let mut config = for_served_bench(
+        &served.endpoints,
+        opts.time_scale,
+        plan.site.latitude_deg,
+        plan.site.axis_up(),
+    );
+    // Wall-clock reply timeouts short enough that a lost reply costs a few seconds of bench
+    // time at the soak's scale (as in the wire tests); the fault policy is the bench's.
+    if let Some(table) = config.table.as_mut() {
+        table.reply_timeout_s = WIRE_TIMEOUT.as_secs_f64();
+        table.retry_backoff_s = 0.005;
+    }
+    if let Some(chamber) = config.chamber.as_mut() {
+        chamber.request_timeout_ms = WIRE_TIMEOUT.as_millis() as u64;
+        chamber.retry_backoff_ms = 5;
+    }
+    let (devices, _) = config.connect(shared.clone()).await?;
+    let table0 = table_snapshot(&served.wire);
+    let chamber0 = chamber_snapshot(&served.wire);
+    let start = clock.now();
+    // The injector: each fault on at its time, off after its duration (a disconnect clears
+    // itself), noted with its bench time.
+    let injected = Arc::new(Mutex::new(Vec::<(Duration, SoakFaultKind)>::new()));
+    let injector = {
+        let (faults, clock, injected) = (served.faults.clone(), shared.clone(), injected.clone());
+        let planned = planned.to_vec();
+        tokio::spawn(async move {
+            let mut off: Vec<(Duration, SoakFaultKind)> = Vec::new();
+            for p in planned {
+                let at = start + p.at;
+                // Clear faults due off before this one goes on.
+                off.sort_by_key(|o| o.0);
+                while let Some(&(t, k)) = off.first() {
+                    if t > at {
+                        break;
+                    }
+                    clock.sleep_until(t).await;
+                    let (device, f) = k.fault();
+                    switch(&faults, device).remove(&f);
+                    off.remove(0);
+                }
+                clock.sleep_until(at).await;
+                let (device, f) = p.kind.fault();
+                switch(&faults, device).inject(f);
+                injected.lock().unwrap_or_else(|e| e.into_inner()).push((clock.now(), p.kind));
+                off.push((clock.now() + p.kind.duration(), p.kind));
+            }
+            off.sort_by_key(|o| o.0);
+            for (t, k) in off {
+                clock.sleep_until(t).await;
+                let (device, f) = k.fault();
+                switch(&faults, device).remove(&f);
+            }
+        })
+    };
+    let sampler = {
+        let (clock, memory, every) = (shared.clone(), memory.clone(), opts.memory_every);
+        tokio::spawn(async move {
+            let mut next = start + every;
+            loop {
+                clock.sleep_until(next).await;
+                if let Some((rss, hwm)) = memory_mib() {
+                    let bench = soak_offset + clock.now().saturating_sub(start);
+                    memory.lock().unwrap_or_else(|p| p.into_inner()).push(MemorySample {
+                        bench_h: bench.as_secs_f64() / 3600.0,
+                        wall_s: wall0.elapsed().as_secs_f64(),
+                        rss_mib: rss,
+                        hwm_mib: hwm,
+                    });
+                }
+                next += every;
+            }
+        })
+    };
+    let file = std::fs::File::create(out)
+        .with_context(|| format!("cannot create recording {}", out.display()))?;
+    let (report, writer) = run_realtime(
+        plan,
+        devices,
+        clock.clone(),
+        run_info(plan, SIM_EPOCH_NS),
+        std::io::BufWriter::new(file),
+        RunOptions {
+            policy: config.bench.policy(),
+            flush_interval: plan.flush_interval,
+            ..RunOptions::default()
+        },
+    )
+    .await?;
+    injector.abort();
+    sampler.abort();
+    let table1 = table_snapshot(&served.wire);
+    let chamber1 = chamber_snapshot(&served.wire);
+    writer
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .and_then(|f| f.sync_all())
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    let rec = Recording::load(out).with_context(|| format!("cannot read {}", out.display()))?;
+    let tally = served.wire.gyro.clone();
+    drop(served);
+
+    // Gyro: by sequence number over the recorded range.
+    let mut seqs: Vec<u64> = rec.gyro.iter().map(|g| g.msg.seq).collect();
+    seqs.sort_unstable();
+    seqs.dedup();
+    if let Some(g) = channels.get_mut(0) {
+        g.recorded += rec.gyro.len() as u64;
+        let all = tally.counts();
+        match (seqs.first(), seqs.last()) {
+            (Some(&lo), Some(&hi)) => {
+                let c = tally.counts_in(lo, hi);
+                *g.sent.get_or_insert(0) += c.intact;
+                g.dropped += c.dropped;
+                g.silenced += c.silenced;
+                g.corrupted += c.corrupted;
+                g.outside_run += all.intact - c.intact;
+                g.lost += c.intact as i64 - rec.gyro.len() as i64;
+            }
+            _ => g.outside_run += all.intact,
+        }
+    }
+    let since_epoch = |t: u64| t.saturating_sub(SIM_EPOCH_NS);
+    if let Some(t) = channels.get_mut(1) {
+        let last = rec.table.last().map(|m| since_epoch(m.log_time_ns));
+        add_polled(t, table0, table1, rec.table.len() as u64, last);
+    }
+    if let Some(c) = channels.get_mut(2) {
+        let last = rec.chamber.last().map(|m| since_epoch(m.log_time_ns));
+        add_polled(c, chamber0, chamber1, rec.chamber.len() as u64, last);
+    }
+    *others.entry("/bench/step".into()).or_default() += rec.steps.len() as u64;
+    for (topic, n) in &rec.other_counts {
+        *others.entry(topic.clone()).or_default() += n;
+    }
+
+    // Outcomes: the abort, if any, at the recording's last step event.
+    let abort_at = report.fault.as_ref().map(|_| {
+        let t = rec.steps.last().map_or(0, |s| s.log_time_ns);
+        Duration::from_nanos(t.saturating_sub(SIM_EPOCH_NS))
+    });
+    let grace = Duration::from_secs(90);
+    let injected = std::mem::take(&mut *injected.lock().unwrap_or_else(|e| e.into_inner()));
+    // Whether another fault injected in the segment, before the abort, explains it by design.
+    let by_design_elsewhere = |this: SoakFaultKind| {
+        report.fault.as_ref().is_some_and(|f| {
+            injected.iter().any(|(at, k)| {
+                *k != this
+                    && k.aborts_by_design(&f.cause)
+                    && abort_at.is_some_and(|a| a + Duration::from_secs(1) >= *at)
+            })
+        })
+    };
+    let faults: Vec<FaultRecord> = injected
+        .iter()
+        .copied()
+        .map(|(at, kind)| {
+            let end = at + kind.duration() + grace;
+            let aborted_here = abort_at.filter(|a| *a + Duration::from_secs(1) >= at && *a <= end);
+            let (outcome, abort) = match (aborted_here, &report.fault) {
+                (Some(_), Some(f)) if kind.aborts_by_design(&f.cause) => {
+                    (FaultOutcome::AbortedByDesign, Some(f.message.clone()))
+                }
+                (Some(_), Some(f)) if by_design_elsewhere(kind) => {
+                    (FaultOutcome::Overtaken, Some(f.message.clone()))
+                }
+                (Some(_), Some(f)) => (FaultOutcome::Unexpected, Some(f.message.clone())),
+                _ if kind.must_abort() => (FaultOutcome::Unexpected, None),
+                _ => (FaultOutcome::Recovered, None),
+            };
+            let (device, fault) = kind.fault();
+            FaultRecord {
+                segment: index,
+                at_s: at.saturating_sub(start).as_secs_f64(),
+                soak_at_s: (soak_offset + at.saturating_sub(start)).as_secs_f64(),
+                kind,
+                device,
+                fault,
+                duration_s: kind.duration().as_secs_f64(),
+                outcome,
+                abort,
+            }
+        })
+        .collect();
+    let unprovoked_abort = report
+        .fault
+        .as_ref()
+        .filter(|_| faults.iter().all(|f| f.abort.is_none()))
+        .map(|f| f.message.clone());
+    let report = SegmentReport {
+        unprovoked_abort,
+        index,
+        bench_time_s: report.bench_time.as_secs_f64(),
+        wall_time_s: wall.elapsed().as_secs_f64(),
+        outcome: report.outcome.to_string(),
+        faults: faults.len(),
+        recording: opts.keep.as_ref().map(|_| out.display().to_string()),
+    };
+    Ok(Segment { report, faults })
+}
