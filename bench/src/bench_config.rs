@@ -682,10 +682,15 @@ impl BenchSource {
 /// Wall time a served simulator's stream may stay silent before it is stale, s.
 pub const SERVED_STALE_WALL_S: f64 = 5.0;
 
+/// Wall time without a gyro sample before the served gyro's driver counts a timeout, s.
+pub const SERVED_GYRO_WATCHDOG_WALL_S: f64 = 0.25;
+
 /// The bench config that reaches a served simulated bench (`bench sim serve`): the table's
 /// Actidyn port, the chamber's Modbus RTU port and the gyro's SLCAN adapter, at the served
-/// time scale and the simulator's latitude; streams go stale after 30 s of bench time or
-/// [`SERVED_STALE_WALL_S`] of wall time, whichever is longer.
+/// time scale and the simulator's latitude. A loaded host's scheduling is wall time, which a
+/// time scale multiplies: streams go stale after 30 s of bench time or
+/// [`SERVED_STALE_WALL_S`] of wall time, and the gyro's watchdog waits 10 sample periods or
+/// [`SERVED_GYRO_WATCHDOG_WALL_S`], whichever is longer.
 pub fn for_served_bench(
     endpoints: &bench_sim::serve::bench::ServedEndpoints,
     time_scale: f64,
@@ -696,6 +701,9 @@ pub fn for_served_bench(
     use bench_drivers::real::chamber::MapChoice;
     let mut gyro = CanGyroConfig::slcan(endpoints.gyro_slcan.path.clone());
     gyro.sample_rate_hz = endpoints.gyro_rate_hz;
+    gyro.watchdog_periods = gyro
+        .watchdog_periods
+        .max((SERVED_GYRO_WATCHDOG_WALL_S * time_scale * gyro.sample_rate_hz).ceil());
     BenchConfig {
         site: Some(SiteConfig {
             latitude_deg,
