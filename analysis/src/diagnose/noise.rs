@@ -21,8 +21,9 @@ const WHITE_BEYOND: f64 = 40.0;
 #[derive(Debug, Clone)]
 pub struct BinNoise {
     centre: Vec<f64>,
-    /// Per component: (T, σ², g per bin, diagonal correction per bin).
-    comps: Vec<(f64, f64, Vec<f64>, Vec<f64>)>,
+    /// Per component: (σ², g per bin, diagonal correction per bin, decay from the bin before:
+    /// `e^{−(c_i − c_{i−1})/T}`, 0 for the first bin — computed once, not per product).
+    comps: Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>)>,
     /// Independent variance per bin (white part and white-like components).
     diag: Vec<f64>,
     rrw2: f64,
@@ -56,7 +57,12 @@ impl BinNoise {
                     }
                 }
                 if !white {
-                    comps.push((t, var, g, corr));
+                    let decay: Vec<f64> = (0..centre.len())
+                        .map(
+                            |i| if i == 0 { 0.0 } else { (-(centre[i] - centre[i - 1]) / t).exp() },
+                        )
+                        .collect();
+                    comps.push((var, g, corr, decay));
                 }
             }
         }
@@ -92,21 +98,20 @@ impl BinNoise {
         let mut out: Vec<f64> = (0..n).map(|i| b[i] * self.diag[i]).collect();
         let mut v = vec![0.0; n];
         let mut fwd = vec![0.0; n];
-        for (t, var, g, corr) in &self.comps {
+        for (var, g, corr, decay) in &self.comps {
             for i in 0..n {
                 v[i] = b[i] * g[i];
                 out[i] += b[i] * corr[i];
             }
             let mut f = 0.0;
             for i in 0..n {
-                let decay = if i == 0 { 0.0 } else { (-(c[i] - c[i - 1]) / t).exp() };
-                f = v[i] + decay * f;
+                f = v[i] + decay[i] * f;
                 fwd[i] = f;
             }
             let mut bsum = 0.0;
             for i in (0..n).rev() {
-                let decay = if i + 1 == n { 0.0 } else { (-(c[i + 1] - c[i]) / t).exp() };
-                bsum = v[i] + decay * bsum;
+                let d = if i + 1 == n { 0.0 } else { decay[i + 1] };
+                bsum = v[i] + d * bsum;
                 out[i] += var * g[i] * (fwd[i] + bsum - v[i]);
             }
         }
