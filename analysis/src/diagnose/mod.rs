@@ -28,6 +28,7 @@
 //!    temperature band and table angle; blocks whose mean departs from the noise model are
 //!    `unexplained`, with the signal they correlate with best.
 
+mod columns;
 pub mod family;
 pub mod fit;
 pub mod identify;
@@ -343,6 +344,15 @@ struct Prepared {
     pred: Vec<f64>,
     base: Vec<Vec<f64>>,
     short_adev: Vec<AdevPoint>,
+    /// The sinusoidal regressors computed so far ([`columns`]).
+    memo: columns::ColumnMemo,
+}
+
+impl Prepared {
+    /// The (sin, cos) columns of a sinusoidal regressor at `p`, computed once ([`columns`]).
+    fn sinusoid(&self, kind: columns::Kind, p: f64) -> Vec<Vec<f64>> {
+        self.memo.get(&self.native, &self.bins, self.axis, kind, p)
+    }
 }
 
 fn prepare(
@@ -425,6 +435,7 @@ fn prepare(
         pred,
         base,
         short_adev,
+        memo: columns::ColumnMemo::default(),
     })
 }
 
@@ -533,22 +544,10 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
         EffectId::EarthRate => vec![vec![prep.earth; bins.len()]],
         EffectId::OncePerRevolution | EffectId::AngleHarmonic => {
             let h = if id == EffectId::OncePerRevolution { 1.0 } else { p };
-            let s = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).sin());
-            let c = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).cos());
-            vec![s, c]
+            prep.sinusoid(columns::Kind::Angle, h)
         }
-        EffectId::RateRipple => {
-            let (tr, th) = (&nat.table_rate_rad_s, &nat.angle_mid_rad);
-            let s = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).sin());
-            let c = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).cos());
-            vec![s, c]
-        }
-        EffectId::PeriodicBias => {
-            let w = std::f64::consts::TAU / p;
-            let s = bin_mean(bins, dt, |k| (w * nat.t[k]).sin());
-            let c = bin_mean(bins, dt, |k| (w * nat.t[k]).cos());
-            vec![s, c]
-        }
+        EffectId::RateRipple => prep.sinusoid(columns::Kind::Ripple, p),
+        EffectId::PeriodicBias => prep.sinusoid(columns::Kind::Periodic, p),
         // Grid positions are bin starts: the step is exactly 0 before and 1 from there on.
         EffectId::BiasStep => {
             vec![bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()]
@@ -598,11 +597,11 @@ fn refine_period(
             (1..=PERIOD_REFINE).map(|j| f0 + (f1 - f0) * j as f64 / (PERIOD_REFINE + 1) as f64),
         );
     }
-    let tries = freqs.into_iter().map(|f| {
+    let tries = columns::par_map(&freqs, |&f| {
         let p = 1.0 / f;
         (p, candidate_columns(prep, EffectId::PeriodicBias, p, model))
     });
-    keep_best(proj, y, noise, tries, fitted, profile);
+    keep_best(proj, y, noise, tries.into_iter(), fitted, profile);
 }
 
 /// Test each `(value, columns)` of `tries`: its Wald statistic joins the profile, and the best
@@ -615,8 +614,10 @@ fn keep_best(
     fitted: &mut Fitted,
     profile: &mut Vec<(f64, f64)>,
 ) {
-    for (p, cols) in tries {
-        if let Some(t) = proj.test(&cols, y, noise) {
+    let tries: Vec<(f64, Vec<Vec<f64>>)> = tries.collect();
+    let tests = columns::par_map(&tries, |(_, cols)| proj.test(cols, y, noise));
+    for ((p, cols), t) in tries.into_iter().zip(tests) {
+        if let Some(t) = t {
             profile.push((p, t.wald));
             if t.delta_rss > fitted.test.delta_rss {
                 *fitted = Fitted { p, cols, test: t };
@@ -686,8 +687,9 @@ fn refit_grid(
     let cached = cache.get(&id)?;
     let mut top: Option<Fitted> = None;
     let mut profile = Vec::new();
-    for (&p, cols) in g.iter().zip(cached) {
-        if let Some(t) = proj.test(cols, y, noise) {
+    let tests = columns::par_map(cached, |cols| proj.test(cols, y, noise));
+    for ((&p, cols), t) in g.iter().zip(cached).zip(tests) {
+        if let Some(t) = t {
             profile.push((p, t.wald));
             if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
                 top = Some(Fitted { p, cols: cols.clone(), test: t });
@@ -1502,6 +1504,17 @@ fn search(
     let n_eff = noise.n_eff();
     let mut best: Option<(f64, Finding, Fitted)> = None;
     let mut tried: Vec<Finding> = Vec::new();
+    // Every candidate's grid columns not computed yet, computed together (in parallel).
+    let missing: Vec<(EffectId, f64)> = candidates
+        .iter()
+        .filter(|id| !cache.contains_key(id))
+        .flat_map(|&id| grid(ctx.prep, id).into_iter().map(move |p| (id, p)))
+        .collect();
+    let computed =
+        columns::par_map(&missing, |&(id, p)| candidate_columns(ctx.prep, id, p, ctx.model));
+    for (&(id, _), cols) in missing.iter().zip(computed) {
+        cache.entry(id).or_default().push(cols);
+    }
     for &id in candidates {
         let g = grid(ctx.prep, id);
         let m_grid = g.len() as f64;
@@ -1510,15 +1523,15 @@ fn search(
         let cached = cache.entry(id).or_insert_with(|| {
             g.iter().map(|&p| candidate_columns(ctx.prep, id, p, ctx.model)).collect()
         });
-        for (&p, cols) in g.iter().zip(cached.iter()) {
+        let tests: Vec<Option<fit::TermTest>> = if id == EffectId::EarthRate {
+            // Earth's rate is a constant: it can only show as the bias correction
+            // being Earth's rate. Test that shift (bias column, current design).
+            g.iter().map(|_| earth_test(proj, design, y, noise, ctx.prep.earth)).collect()
+        } else {
+            columns::par_map(cached, |cols| proj.test(cols, y, noise))
+        };
+        for ((&p, cols), t) in g.iter().zip(cached.iter()).zip(tests) {
             let cols = cols.clone();
-            let t = if id == EffectId::EarthRate {
-                // Earth's rate is a constant: it can only show as the bias correction
-                // being Earth's rate. Test that shift (bias column, current design).
-                earth_test(proj, design, y, noise, ctx.prep.earth)
-            } else {
-                proj.test(&cols, y, noise)
-            };
             let Some(t) = t else { continue };
             profile.push((p, t.wald));
             // The grid value is chosen by fit (least squares), the term judged by W there.
@@ -1874,10 +1887,8 @@ fn locate(
     }
     loc.change_point = best;
     for h in [1u32, 2] {
-        let hf = f64::from(h);
-        let s = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).sin());
-        let c = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).cos());
-        if let Some(t) = proj.test(&[s, c], y, noise) {
+        let sc = prep.sinusoid(columns::Kind::Angle, f64::from(h));
+        if let Some(t) = proj.test(&sc, y, noise) {
             loc.harmonics.push((h, t.theta[0].hypot(t.theta[1]), t.wald));
         }
     }
