@@ -27,9 +27,14 @@ pub(super) enum Kind {
     Periodic,
 }
 
-/// Columns already computed, by kind and grid value (its bits).
+/// A regressor's key: its kind and grid value (the value's bits).
+type Key = (Kind, u64);
+/// A regressor's columns (sin, cos), each a bin mean per bin.
+type Columns = Vec<Vec<f64>>;
+
+/// Columns already computed, by kind and grid value.
 #[derive(Debug, Default)]
-pub(super) struct ColumnMemo(Mutex<HashMap<(Kind, u64), Vec<Vec<f64>>>>);
+pub(super) struct ColumnMemo(Mutex<HashMap<Key, Columns>>);
 
 impl ColumnMemo {
     /// The two columns (sin, cos) of `kind` at `p`, computed once.
@@ -46,7 +51,7 @@ impl ColumnMemo {
         }
         // Computed outside the lock: another thread may compute the same columns meanwhile,
         // to the same bits.
-        let computed: Vec<((Kind, u64), Vec<Vec<f64>>)> = match kind {
+        let computed: Vec<(Key, Columns)> = match kind {
             Kind::Periodic => vec![((kind, p.to_bits()), periodic(native, bins, p))],
             Kind::Angle | Kind::Ripple => {
                 let (angle, ripple) = angle_and_ripple(native, bins, axis, p);
@@ -64,7 +69,7 @@ impl ColumnMemo {
         out
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<(Kind, u64), Vec<Vec<f64>>>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Key, Columns>> {
         // A panic elsewhere cannot leave a half-written entry: entries are inserted whole.
         self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }

@@ -17,13 +17,26 @@ use super::series::Bin;
 /// below `σ²·(T/S)²`, and `sinh` would overflow).
 const WHITE_BEYOND: f64 = 40.0;
 
+/// One Gauss–Markov component of the flicker over the bins.
+#[derive(Debug, Clone)]
+struct Component {
+    /// σ².
+    var: f64,
+    /// g per bin.
+    g: Vec<f64>,
+    /// Diagonal correction per bin.
+    corr: Vec<f64>,
+    /// Decay from the bin before, `e^{−(c_i − c_{i−1})/T}` (0 for the first bin): computed
+    /// once, not in every product.
+    decay: Vec<f64>,
+}
+
 /// Covariance of the noise of bin means (module docs).
 #[derive(Debug, Clone)]
 pub struct BinNoise {
     centre: Vec<f64>,
-    /// Per component: (σ², g per bin, diagonal correction per bin, decay from the bin before:
-    /// `e^{−(c_i − c_{i−1})/T}`, 0 for the first bin — computed once, not per product).
-    comps: Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>)>,
+    /// The Gauss–Markov components that are not white at the bin scale.
+    comps: Vec<Component>,
     /// Independent variance per bin (white part and white-like components).
     diag: Vec<f64>,
     rrw2: f64,
@@ -62,7 +75,7 @@ impl BinNoise {
                             |i| if i == 0 { 0.0 } else { (-(centre[i] - centre[i - 1]) / t).exp() },
                         )
                         .collect();
-                    comps.push((var, g, corr, decay));
+                    comps.push(Component { var, g, corr, decay });
                 }
             }
         }
@@ -98,7 +111,7 @@ impl BinNoise {
         let mut out: Vec<f64> = (0..n).map(|i| b[i] * self.diag[i]).collect();
         let mut v = vec![0.0; n];
         let mut fwd = vec![0.0; n];
-        for (var, g, corr, decay) in &self.comps {
+        for Component { var, g, corr, decay } in &self.comps {
             for i in 0..n {
                 v[i] = b[i] * g[i];
                 out[i] += b[i] * corr[i];
