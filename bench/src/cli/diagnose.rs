@@ -308,8 +308,10 @@ fn scan_only(
             (m.model, m.effects, "bench.gyro_model".into())
         }
     };
+    let cpu0 = process_cpu_s();
     let scan = bench_analysis::diagnose::residual_scan(&data.series, &model, &effects, opts)
         .with_context(|| format!("cannot scan {}", args.recording.display()))?;
+    let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
     let best: Vec<serde_json::Value> = scan
         .best
         .iter()
@@ -326,6 +328,7 @@ fn scan_only(
         "recording": args.recording.display().to_string(), "nominal_model": source,
         "samples": scan.samples, "bins": scan.bins, "threads": threads,
         "time_s": {"read": read_s, "load": load_s, "prepare": scan.prepare_s, "scan": scan.scan_s},
+        "cpu_s_prepare_and_scan": cpu_s,
         "best": best,
     });
     if !args.quiet {
@@ -348,8 +351,11 @@ fn scan_only(
             );
         }
         println!(
-            "time: read {read_s:.3} s, load {load_s:.3} s, prepare {:.3} s, scan {:.3} s",
-            scan.prepare_s, scan.scan_s
+            "time: read {read_s:.3} s, load {load_s:.3} s, prepare {:.3} s, scan {:.3} s \
+             (CPU of prepare and scan, every thread: {})",
+            scan.prepare_s,
+            scan.scan_s,
+            cpu_s.map_or("unknown".into(), |c| format!("{c:.2} s"))
         );
     }
     if let Some(path) = &args.json {
@@ -399,4 +405,16 @@ fn npy(values: &[f64]) -> Vec<u8> {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out
+}
+
+/// CPU time of this process so far, every thread, user and system (Linux `/proc/self/stat`,
+/// in clock ticks of 10 ms); `None` elsewhere.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses: utime and stime
+    // are the 14th and 15th fields of the line, the 12th and 13th after ") ".
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
