@@ -125,29 +125,32 @@ fn angle_and_ripple(
 }
 
 /// `f` over `items` on up to [`threads`] threads, results in order (each item computed as it
-/// would be alone: the results do not depend on the number of threads).
+/// would be alone: the results do not depend on the number of threads). Items are dealt out in
+/// turn (thread `t` takes items `t`, `t + T`, …), so neighbouring items of unequal cost — a
+/// grid's expensive columns next to a cheap grid — are shared evenly.
 pub(super) fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let n_threads = threads().min(items.len());
     if n_threads <= 1 {
         return items.iter().map(&f).collect();
     }
-    let chunk = items.len().div_ceil(n_threads);
-    std::thread::scope(|s| {
-        let handles: Vec<_> = items
-            .chunks(chunk)
-            .map(|part| {
+    let parts: Vec<Vec<R>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..n_threads)
+            .map(|t| {
                 let f = &f;
-                s.spawn(move || part.iter().map(f).collect::<Vec<R>>())
+                s.spawn(move || items.iter().skip(t).step_by(n_threads).map(f).collect::<Vec<R>>())
             })
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| match h.join() {
+            .map(|h| match h.join() {
                 Ok(v) => v,
                 Err(e) => std::panic::resume_unwind(e),
             })
             .collect()
-    })
+    });
+    // Back to the items' order: item i is the (i / T)-th result of thread i % T.
+    let mut iters: Vec<_> = parts.into_iter().map(Vec::into_iter).collect();
+    (0..items.len()).filter_map(|i| iters[i % n_threads].next()).collect()
 }
 
 /// Threads for the diagnosis's parallel parts: the machine's parallelism, at most 8;
