@@ -1,24 +1,31 @@
-//! Diagnosis speed: `scenarios/thermal-short.toml` (7.4 h of bench time at 20 Hz: 532 k gyro,
-//! table and chamber samples each) simulated once into memory, then timed:
+//! Diagnosis speed (issue 14: a 5 h 20 Hz recording diagnosed in ≤ 5 s).
 //!
-//! - `diagnose`: loading the run's arrays, the diagnosis (table fit, bins, noise model, parameter
-//!   refit, location, the search over every effect) and the re-simulation under the updated
-//!   model (`diagnose_recording`);
-//! - `read_and_diagnose`: what `bench diagnose --no-report` does after opening the file.
+//! - `diagnose_lab_null_5h`: the independent lab writer's 5 h 20 Hz null recording
+//!   (`tests/fixtures/lab/labwriter.py --preset lab-null --seed 1`: 366 k gyro samples at
+//!   20 Hz, 10 Hz table, 1 Hz chamber, every lab trait; generated once by the pinned Python,
+//!   cached in `target/lab-fixtures/`, so the same bytes every run), read from its bytes and
+//!   diagnosed as `bench diagnose --no-report` does: `read_and_diagnose` (reading the MCAP,
+//!   loading the arrays, the diagnosis with the re-simulation), `diagnose` (without reading),
+//!   and `residual_scan` (the scan alone: every candidate's regressors over its grid tested
+//!   against the refitted nominal design, the part `scripts/diagnose_numpy.py` does in NumPy);
+//! - `diagnose_thermal_short_7h`: `scenarios/thermal-short.toml` (7.4 h of bench time at
+//!   20 Hz, 532 k gyro samples) simulated once into memory, then `diagnose` and
+//!   `read_and_diagnose` as above.
 //!
-//! Run: `cargo bench -p bench --bench diagnose`. Goal: a 5 h 20 Hz recording in ≤ 10 s, so this
-//! longer one in ≤ 14.8 s.
+//! Run: `cargo bench -p bench --bench diagnose` (needs the pinned Python for the lab file:
+//! `BENCH_PYTHON` or `target/pyenv`, see `bench_tests::python`). `BENCH_DIAGNOSE_THREADS=1`
+//! measures the serial time.
 #![allow(missing_docs)] // criterion's macros generate undocumented items
 
 use std::{hint::black_box, io::Cursor, path::Path, time::Duration};
 
 use bench::simulate::{capabilities, run_plan, SimOptions};
-use bench_analysis::diagnose::DiagnoseOptions;
+use bench_analysis::diagnose::{residual_scan, DiagnoseOptions};
 use bench_recording::Recording;
 use bench_report::diagnose::diagnose_recording;
 use criterion::{criterion_group, criterion_main, Criterion};
 
-fn recording() -> Vec<u8> {
+fn simulated() -> Vec<u8> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/thermal-short.toml");
     let plan = bench::scenario::load(&path, &capabilities()).expect("valid scenario");
     let (_, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None)
@@ -26,8 +33,35 @@ fn recording() -> Vec<u8> {
     cursor.into_inner()
 }
 
-fn diagnose(c: &mut Criterion) {
-    let bytes = recording();
+fn lab_null_5h(c: &mut Criterion) {
+    let path = bench_tests::lab_fixture("lab-null", 1, &[]);
+    let bytes = std::fs::read(&path).expect("the lab writer's file");
+    let rec = Recording::from_bytes(&bytes).expect("reads");
+    let opts = DiagnoseOptions::default();
+    let mut g = c.benchmark_group("diagnose_lab_null_5h");
+    g.sample_size(10).measurement_time(Duration::from_secs(40));
+    g.bench_function("read_and_diagnose", |b| {
+        b.iter(|| {
+            let rec = Recording::from_bytes(black_box(&bytes)).expect("reads");
+            diagnose_recording(&rec, None, &opts).expect("diagnoses")
+        })
+    });
+    g.bench_function("diagnose", |b| {
+        b.iter(|| diagnose_recording(black_box(&rec), None, &opts).expect("diagnoses"))
+    });
+    let data = bench_report::load::load(&rec).expect("loads");
+    let nominal = data.model.clone().expect("the recording's model");
+    g.bench_function("residual_scan", |b| {
+        b.iter(|| {
+            residual_scan(black_box(&data.series), &nominal.model, &nominal.effects, &opts)
+                .expect("scans")
+        })
+    });
+    g.finish();
+}
+
+fn thermal_short_7h(c: &mut Criterion) {
+    let bytes = simulated();
     let rec = Recording::from_bytes(&bytes).expect("reads");
     let opts = DiagnoseOptions::default();
     let mut g = c.benchmark_group("diagnose_thermal_short_7h");
@@ -44,5 +78,5 @@ fn diagnose(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, diagnose);
+criterion_group!(benches, lab_null_5h, thermal_short_7h);
 criterion_main!(benches);

@@ -162,3 +162,42 @@ fn diagnose_shows_every_number_with_its_unit() {
     assert!(html.contains("amplitude = ") && html.contains(" °/h<br>"), "effects table");
     assert!(html.contains("<br>phase = "), "effects table");
 }
+
+/// `scripts/diagnose_numpy.py` (the residual scan written again in NumPy, docs/diagnose.md
+/// "Speed") agrees with `bench diagnose --scan-only` on the lab writer's short null recording:
+/// every effect's best grid value, its Wald statistic and ΔRSS within a relative 1e-6, and the
+/// gyro samples it reads with the `mcap` package equal to the scan's. Agreement only: no timing.
+#[test]
+fn the_numpy_residual_scan_agrees_with_the_rust_one() {
+    let path = bench_tests::lab_fixture("lab-null", 7, &[("procedure.length", "short")]);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = path.to_str().expect("utf-8 path");
+    let out = bench(
+        &["diagnose", rec, "--scan-only", "--scan-inputs", "inputs", "--json", "scan.json", "-q"],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let scan = json(&dir.path().join("scan.json"));
+    let best = scan["best"].as_array().expect("best");
+    // Every candidate of the search but Earth's rate and the thermal lag, with a grid where it
+    // has one.
+    assert!(best.len() >= 10, "{best:?}");
+    assert!(best
+        .iter()
+        .any(|b| b["effect"] == "periodic_bias" && b["grid_values"].as_u64() > Some(10)));
+    let script = bench_tests::workspace_root().join("scripts/diagnose_numpy.py");
+    let run = Command::new(bench_tests::python())
+        .arg(&script)
+        .arg(rec)
+        .arg("--inputs")
+        .arg(dir.path().join("inputs"))
+        .output()
+        .expect("python runs");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success() && stdout.lines().any(|l| l == "agree"),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("equal to the scan's"), "{stdout}");
+}

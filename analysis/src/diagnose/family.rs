@@ -27,6 +27,7 @@ use bench_physics::allan::chi2_quantile;
 use bench_physics::effects::EffectId;
 use bench_physics::GyroModel;
 
+use super::columns::Kind;
 use super::fit::{Projector, TermTest};
 use super::noise::BinNoise;
 use super::series::bin_mean;
@@ -147,26 +148,15 @@ pub(super) fn harmonic_max(prep: &Prepared) -> u32 {
 }
 
 fn sin_cos(prep: &Prepared, k: f64) -> Vec<Vec<f64>> {
-    let nat = &prep.native;
-    let s = bin_mean(&prep.bins, &nat.dt, |i| (k * nat.angle_mid_rad[i]).sin());
-    let c = bin_mean(&prep.bins, &nat.dt, |i| (k * nat.angle_mid_rad[i]).cos());
-    vec![s, c]
+    prep.sinusoid(Kind::Angle, k)
 }
 
 fn ripple(prep: &Prepared, k: f64) -> Vec<Vec<f64>> {
-    let nat = &prep.native;
-    let (tr, th, axis) = (&nat.table_rate_rad_s, &nat.angle_mid_rad, prep.axis);
-    let s = bin_mean(&prep.bins, &nat.dt, |i| axis * tr[i] * (k * th[i]).sin());
-    let c = bin_mean(&prep.bins, &nat.dt, |i| axis * tr[i] * (k * th[i]).cos());
-    vec![s, c]
+    prep.sinusoid(Kind::Ripple, k)
 }
 
 fn periodic(prep: &Prepared, period_s: f64) -> Vec<Vec<f64>> {
-    let nat = &prep.native;
-    let w = std::f64::consts::TAU / period_s;
-    let s = bin_mean(&prep.bins, &nat.dt, |i| (w * nat.t[i]).sin());
-    let c = bin_mean(&prep.bins, &nat.dt, |i| (w * nat.t[i]).cos());
-    vec![s, c]
+    prep.sinusoid(Kind::Periodic, period_s)
 }
 
 fn one(prep: &Prepared, f: impl Fn(usize) -> f64) -> Vec<Vec<f64>> {

@@ -114,15 +114,7 @@ impl Projector {
         let len = noise.len();
         let p = self.kept.len();
         let w: Vec<Vec<f64>> = (0..p).map(|j| self.weights(j, len)).collect();
-        let mut v = DMatrix::zeros(p, p);
-        for a in 0..p {
-            for b in a..p {
-                let q = noise.quad(&w[a], &w[b]);
-                v[(a, b)] = q;
-                v[(b, a)] = q;
-            }
-        }
-        v
+        quad_matrix(&w, noise)
     }
 
     /// `G` (columns, full length) with the design projected out, at the rows.
@@ -171,18 +163,27 @@ impl Projector {
                 w
             })
             .collect();
-        let mut cov = DMatrix::<f64>::zeros(k, k);
-        for a in 0..k {
-            for b in a..k {
-                let q = noise.quad(&p_rows[a], &p_rows[b]);
-                cov[(a, b)] = q;
-                cov[(b, a)] = q;
-            }
-        }
+        let cov = quad_matrix(&p_rows, noise);
         let wald = cov.clone().try_inverse().map(|ci| (theta.transpose() * ci * &theta)[(0, 0)])?;
         let drss = (theta.transpose() * &gtg * &theta)[(0, 0)];
         Some(TermTest { theta: theta.iter().copied().collect(), cov, wald, delta_rss: drss })
     }
+}
+
+/// The symmetric matrix `wₐᵀ·Σ·w_b` of the rows `w`, from one `Σ·w_b` per row (each product
+/// is [`BinNoise::quad`]'s, term for term: `Σ·w_b` computed once serves every `a ≤ b`).
+fn quad_matrix(w: &[Vec<f64>], noise: &BinNoise) -> DMatrix<f64> {
+    let p = w.len();
+    let applied: Vec<Vec<f64>> = w.iter().map(|b| noise.apply(b)).collect();
+    let mut v = DMatrix::zeros(p, p);
+    for a in 0..p {
+        for b in a..p {
+            let q: f64 = applied[b].iter().zip(&w[a]).map(|(x, y)| x * y).sum();
+            v[(a, b)] = q;
+            v[(b, a)] = q;
+        }
+    }
+    v
 }
 
 /// The result of testing one candidate term.

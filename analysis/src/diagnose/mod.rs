@@ -28,6 +28,8 @@
 //!    temperature band and table angle; blocks whose mean departs from the noise model are
 //!    `unexplained`, with the signal they correlate with best.
 
+mod columns;
+pub use columns::threads;
 pub mod family;
 pub mod fit;
 pub mod identify;
@@ -343,6 +345,15 @@ struct Prepared {
     pred: Vec<f64>,
     base: Vec<Vec<f64>>,
     short_adev: Vec<AdevPoint>,
+    /// The sinusoidal regressors computed so far ([`columns`]).
+    memo: columns::ColumnMemo,
+}
+
+impl Prepared {
+    /// The (sin, cos) columns of a sinusoidal regressor at `p`, computed once ([`columns`]).
+    fn sinusoid(&self, kind: columns::Kind, p: f64) -> Vec<Vec<f64>> {
+        self.memo.get(&self.native, &self.bins, self.axis, kind, p)
+    }
 }
 
 fn prepare(
@@ -425,6 +436,7 @@ fn prepare(
         pred,
         base,
         short_adev,
+        memo: columns::ColumnMemo::default(),
     })
 }
 
@@ -533,22 +545,10 @@ fn candidate_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
         EffectId::EarthRate => vec![vec![prep.earth; bins.len()]],
         EffectId::OncePerRevolution | EffectId::AngleHarmonic => {
             let h = if id == EffectId::OncePerRevolution { 1.0 } else { p };
-            let s = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).sin());
-            let c = bin_mean(bins, dt, |k| (h * nat.angle_mid_rad[k]).cos());
-            vec![s, c]
+            prep.sinusoid(columns::Kind::Angle, h)
         }
-        EffectId::RateRipple => {
-            let (tr, th) = (&nat.table_rate_rad_s, &nat.angle_mid_rad);
-            let s = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).sin());
-            let c = bin_mean(bins, dt, |k| axis * tr[k] * (p * th[k]).cos());
-            vec![s, c]
-        }
-        EffectId::PeriodicBias => {
-            let w = std::f64::consts::TAU / p;
-            let s = bin_mean(bins, dt, |k| (w * nat.t[k]).sin());
-            let c = bin_mean(bins, dt, |k| (w * nat.t[k]).cos());
-            vec![s, c]
-        }
+        EffectId::RateRipple => prep.sinusoid(columns::Kind::Ripple, p),
+        EffectId::PeriodicBias => prep.sinusoid(columns::Kind::Periodic, p),
         // Grid positions are bin starts: the step is exactly 0 before and 1 from there on.
         EffectId::BiasStep => {
             vec![bins.iter().map(|b| f64::from(u8::from(b.start_s >= p))).collect()]
@@ -598,11 +598,11 @@ fn refine_period(
             (1..=PERIOD_REFINE).map(|j| f0 + (f1 - f0) * j as f64 / (PERIOD_REFINE + 1) as f64),
         );
     }
-    let tries = freqs.into_iter().map(|f| {
+    let tries = columns::par_map(&freqs, |&f| {
         let p = 1.0 / f;
         (p, candidate_columns(prep, EffectId::PeriodicBias, p, model))
     });
-    keep_best(proj, y, noise, tries, fitted, profile);
+    keep_best(proj, y, noise, tries.into_iter(), fitted, profile);
 }
 
 /// Test each `(value, columns)` of `tries`: its Wald statistic joins the profile, and the best
@@ -615,8 +615,10 @@ fn keep_best(
     fitted: &mut Fitted,
     profile: &mut Vec<(f64, f64)>,
 ) {
-    for (p, cols) in tries {
-        if let Some(t) = proj.test(&cols, y, noise) {
+    let tries: Vec<(f64, Vec<Vec<f64>>)> = tries.collect();
+    let tests = columns::par_map(&tries, |(_, cols)| proj.test(cols, y, noise));
+    for ((p, cols), t) in tries.into_iter().zip(tests) {
+        if let Some(t) = t {
             profile.push((p, t.wald));
             if t.delta_rss > fitted.test.delta_rss {
                 *fitted = Fitted { p, cols, test: t };
@@ -686,8 +688,9 @@ fn refit_grid(
     let cached = cache.get(&id)?;
     let mut top: Option<Fitted> = None;
     let mut profile = Vec::new();
-    for (&p, cols) in g.iter().zip(cached) {
-        if let Some(t) = proj.test(cols, y, noise) {
+    let tests = columns::par_map(cached, |cols| proj.test(cols, y, noise));
+    for ((&p, cols), t) in g.iter().zip(cached).zip(tests) {
+        if let Some(t) = t {
             profile.push((p, t.wald));
             if top.as_ref().is_none_or(|b| t.delta_rss > b.test.delta_rss) {
                 top = Some(Fitted { p, cols: cols.clone(), test: t });
@@ -1502,6 +1505,17 @@ fn search(
     let n_eff = noise.n_eff();
     let mut best: Option<(f64, Finding, Fitted)> = None;
     let mut tried: Vec<Finding> = Vec::new();
+    // Every candidate's grid columns not computed yet, computed together (in parallel).
+    let missing: Vec<(EffectId, f64)> = candidates
+        .iter()
+        .filter(|id| !cache.contains_key(id))
+        .flat_map(|&id| grid(ctx.prep, id).into_iter().map(move |p| (id, p)))
+        .collect();
+    let computed =
+        columns::par_map(&missing, |&(id, p)| candidate_columns(ctx.prep, id, p, ctx.model));
+    for (&(id, _), cols) in missing.iter().zip(computed) {
+        cache.entry(id).or_default().push(cols);
+    }
     for &id in candidates {
         let g = grid(ctx.prep, id);
         let m_grid = g.len() as f64;
@@ -1510,15 +1524,15 @@ fn search(
         let cached = cache.entry(id).or_insert_with(|| {
             g.iter().map(|&p| candidate_columns(ctx.prep, id, p, ctx.model)).collect()
         });
-        for (&p, cols) in g.iter().zip(cached.iter()) {
+        let tests: Vec<Option<fit::TermTest>> = if id == EffectId::EarthRate {
+            // Earth's rate is a constant: it can only show as the bias correction
+            // being Earth's rate. Test that shift (bias column, current design).
+            g.iter().map(|_| earth_test(proj, design, y, noise, ctx.prep.earth)).collect()
+        } else {
+            columns::par_map(cached, |cols| proj.test(cols, y, noise))
+        };
+        for ((&p, cols), t) in g.iter().zip(cached.iter()).zip(tests) {
             let cols = cols.clone();
-            let t = if id == EffectId::EarthRate {
-                // Earth's rate is a constant: it can only show as the bias correction
-                // being Earth's rate. Test that shift (bias column, current design).
-                earth_test(proj, design, y, noise, ctx.prep.earth)
-            } else {
-                proj.test(&cols, y, noise)
-            };
             let Some(t) = t else { continue };
             profile.push((p, t.wald));
             // The grid value is chosen by fit (least squares), the term judged by W there.
@@ -1874,10 +1888,8 @@ fn locate(
     }
     loc.change_point = best;
     for h in [1u32, 2] {
-        let hf = f64::from(h);
-        let s = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).sin());
-        let c = bin_mean(bins, dt, |k| (hf * prep.native.angle_mid_rad[k]).cos());
-        if let Some(t) = proj.test(&[s, c], y, noise) {
+        let sc = prep.sinusoid(columns::Kind::Angle, f64::from(h));
+        if let Some(t) = proj.test(&sc, y, noise) {
             loc.harmonics.push((h, t.theta[0].hypot(t.theta[1]), t.wald));
         }
     }
@@ -1961,4 +1973,148 @@ fn unexplained(
         correlates_with: format!("{name} (r = {c:.2})"),
         rms: rms(&sel),
     }]
+}
+
+/// The best grid value of one candidate in the residual scan ([`residual_scan`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanBest {
+    /// Which effect.
+    pub effect: EffectId,
+    /// Grid values tried (1 for an effect without a grid).
+    pub grid_values: usize,
+    /// The grid value that fits best (least squares; NaN for none).
+    pub value: f64,
+    /// Its Wald statistic under the noise model.
+    pub wald: f64,
+    /// Its drop of the residual sum of squares, (rad/s)².
+    pub delta_rss: f64,
+}
+
+/// The inputs of the residual scan, for an independent implementation of it
+/// (`scripts/diagnose_numpy.py`): per-sample and per-bin arrays, scalars, the grids.
+#[derive(Debug, Clone, Default)]
+pub struct ScanInputs {
+    /// Named arrays (per sample, per bin, or the noise model's components).
+    pub arrays: Vec<(&'static str, Vec<f64>)>,
+    /// Named numbers.
+    pub scalars: Vec<(&'static str, f64)>,
+    /// Each scanned effect's grid.
+    pub grids: Vec<(EffectId, Vec<f64>)>,
+}
+
+/// The residual scan alone, timed: the first round of the effect search (every candidate's
+/// regressors binned over its grid, each tested against the refitted nominal design by its
+/// Wald statistic under the noise model, the least-squares best kept), without thresholds,
+/// refinements, hold-out, family or identifiability checks.
+#[derive(Debug, Clone)]
+pub struct ResidualScan {
+    /// Each scanned effect's best grid value, in library order.
+    pub best: Vec<ScanBest>,
+    /// Bins.
+    pub bins: usize,
+    /// Gyro samples.
+    pub samples: usize,
+    /// Time to prepare (table motion, per-sample arrays, bins, nominal residual, parameter
+    /// refit, noise model), s.
+    pub prepare_s: f64,
+    /// Time of the scan itself (regressors binned and tested), s.
+    pub scan_s: f64,
+    /// The scan's inputs.
+    pub inputs: ScanInputs,
+}
+
+/// The effects of the residual scan: every candidate of the search except Earth's rate (a test
+/// of the bias correction, not a regressor) and the thermal lag (its regressor is a
+/// first-order filter of the temperature per time constant, a sequential recursion).
+pub fn residual_scan_effects(effects: &Effects) -> Vec<EffectId> {
+    EffectId::ALL
+        .into_iter()
+        .filter(|&id| !effects.has(id))
+        .filter(|&id| id != EffectId::EarthRate && id != EffectId::ThermalLag)
+        .collect()
+}
+
+/// Run the residual scan ([`ResidualScan`]) of `run` against the nominal `model`.
+pub fn residual_scan(
+    run: &RunSeries,
+    model: &GyroModel,
+    effects: &Effects,
+    opts: &DiagnoseOptions,
+) -> Result<ResidualScan, AnalysisError> {
+    let started = std::time::Instant::now();
+    let prep = prepare(run, model, effects, opts)?;
+    let n = prep.bins.len();
+    let all: Vec<usize> = (0..n).collect();
+    let y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
+    let proj = Projector::new(&prep.base, &all)?;
+    let (spec, _) = noise_model(&prep)?;
+    let noise = BinNoise::new(&prep.bins, spec);
+    let prepare_s = started.elapsed().as_secs_f64();
+    let ids = residual_scan_effects(effects);
+    let started = std::time::Instant::now();
+    let items: Vec<(EffectId, f64)> =
+        ids.iter().flat_map(|&id| grid(&prep, id).into_iter().map(move |p| (id, p))).collect();
+    let best_of = |(id, p): &(EffectId, f64)| {
+        let cols = candidate_columns(&prep, *id, *p, model);
+        proj.test(&cols, &y, &noise).map(|t| (t.wald, t.delta_rss))
+    };
+    let tests = columns::par_map(&items, best_of);
+    let mut best: Vec<ScanBest> = Vec::new();
+    for (&(id, p), t) in items.iter().zip(tests) {
+        let Some((wald, delta_rss)) = t else { continue };
+        match best.iter_mut().find(|b| b.effect == id) {
+            Some(b) => {
+                b.grid_values += 1;
+                if delta_rss > b.delta_rss {
+                    (b.value, b.wald, b.delta_rss) = (p, wald, delta_rss);
+                }
+            }
+            None => best.push(ScanBest { effect: id, grid_values: 1, value: p, wald, delta_rss }),
+        }
+    }
+    let scan_s = started.elapsed().as_secs_f64();
+    let nat = &prep.native;
+    let hyst = HysteresisStateSeries::new(HYST_C_S, &prep.temp_rate).0;
+    let bins = &prep.bins;
+    let per_bin = |f: &dyn Fn(&Bin) -> f64| bins.iter().map(f).collect::<Vec<f64>>();
+    let mut arrays: Vec<(&'static str, Vec<f64>)> = vec![
+        ("t", nat.t.clone()),
+        ("dt", nat.dt.clone()),
+        ("v", nat.v.clone()),
+        ("angle_mid", nat.angle_mid_rad.clone()),
+        ("table_rate", nat.table_rate_rad_s.clone()),
+        ("temp", prep.temp.clone()),
+        ("hysteresis", hyst),
+        ("bin_first", per_bin(&|b| b.first as f64)),
+        ("bin_end", per_bin(&|b| b.end as f64)),
+        ("bin_start_s", per_bin(&|b| b.start_s)),
+        ("bin_end_s", per_bin(&|b| b.end_s)),
+        ("bin_accel", per_bin(&|b| b.table_accel_rad_s2)),
+        ("y", y.clone()),
+    ];
+    for (j, name) in ["base_0", "base_1", "base_2", "base_3"].into_iter().enumerate() {
+        if let Some(c) = prep.base.get(j) {
+            arrays.push((name, c.clone()));
+        }
+    }
+    let comps = if spec.flicker_floor > 0.0 {
+        bench_physics::noise::bias_instability_components(spec.flicker_floor).to_vec()
+    } else {
+        Vec::new()
+    };
+    arrays.push(("noise_t", comps.iter().map(|c| c.0).collect()));
+    arrays.push(("noise_var", comps.iter().map(|c| c.1 * c.1).collect()));
+    let inputs = ScanInputs {
+        arrays,
+        scalars: vec![
+            ("axis", prep.axis),
+            ("earth_in", prep.earth_in),
+            ("t0", prep.t0),
+            ("scale", 1.0 + model.scale_factor_error),
+            ("arw", spec.arw),
+            ("rrw", spec.rrw),
+        ],
+        grids: ids.iter().map(|&id| (id, grid(&prep, id))).collect(),
+    };
+    Ok(ResidualScan { best, bins: n, samples: nat.t.len(), prepare_s, scan_s, inputs })
 }

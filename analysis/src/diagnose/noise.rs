@@ -17,12 +17,26 @@ use super::series::Bin;
 /// below `σ²·(T/S)²`, and `sinh` would overflow).
 const WHITE_BEYOND: f64 = 40.0;
 
+/// One Gauss–Markov component of the flicker over the bins.
+#[derive(Debug, Clone)]
+struct Component {
+    /// σ².
+    var: f64,
+    /// g per bin.
+    g: Vec<f64>,
+    /// Diagonal correction per bin.
+    corr: Vec<f64>,
+    /// Decay from the bin before, `e^{−(c_i − c_{i−1})/T}` (0 for the first bin): computed
+    /// once, not in every product.
+    decay: Vec<f64>,
+}
+
 /// Covariance of the noise of bin means (module docs).
 #[derive(Debug, Clone)]
 pub struct BinNoise {
     centre: Vec<f64>,
-    /// Per component: (T, σ², g per bin, diagonal correction per bin).
-    comps: Vec<(f64, f64, Vec<f64>, Vec<f64>)>,
+    /// The Gauss–Markov components that are not white at the bin scale.
+    comps: Vec<Component>,
     /// Independent variance per bin (white part and white-like components).
     diag: Vec<f64>,
     rrw2: f64,
@@ -56,7 +70,12 @@ impl BinNoise {
                     }
                 }
                 if !white {
-                    comps.push((t, var, g, corr));
+                    let decay: Vec<f64> = (0..centre.len())
+                        .map(
+                            |i| if i == 0 { 0.0 } else { (-(centre[i] - centre[i - 1]) / t).exp() },
+                        )
+                        .collect();
+                    comps.push(Component { var, g, corr, decay });
                 }
             }
         }
@@ -92,21 +111,20 @@ impl BinNoise {
         let mut out: Vec<f64> = (0..n).map(|i| b[i] * self.diag[i]).collect();
         let mut v = vec![0.0; n];
         let mut fwd = vec![0.0; n];
-        for (t, var, g, corr) in &self.comps {
+        for Component { var, g, corr, decay } in &self.comps {
             for i in 0..n {
                 v[i] = b[i] * g[i];
                 out[i] += b[i] * corr[i];
             }
             let mut f = 0.0;
             for i in 0..n {
-                let decay = if i == 0 { 0.0 } else { (-(c[i] - c[i - 1]) / t).exp() };
-                f = v[i] + decay * f;
+                f = v[i] + decay[i] * f;
                 fwd[i] = f;
             }
             let mut bsum = 0.0;
             for i in (0..n).rev() {
-                let decay = if i + 1 == n { 0.0 } else { (-(c[i + 1] - c[i]) / t).exp() };
-                bsum = v[i] + decay * bsum;
+                let d = if i + 1 == n { 0.0 } else { decay[i + 1] };
+                bsum = v[i] + d * bsum;
                 out[i] += var * g[i] * (fwd[i] + bsum - v[i]);
             }
         }

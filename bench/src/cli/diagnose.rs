@@ -46,6 +46,16 @@ pub struct DiagnoseArgs {
     /// No progress bar and no timing line.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Only the residual scan (docs/diagnose.md, Speed): every candidate's regressors over its
+    /// grid tested against the refitted nominal design, each one's best grid value and Wald
+    /// statistic printed with the time to read, prepare and scan (`--json`: the same as JSON);
+    /// no search, model or report.
+    #[arg(long, conflicts_with_all = ["suggest_scenario"])]
+    pub scan_only: bool,
+    /// With `--scan-only`: write the scan's inputs to this directory (`.npy` arrays and
+    /// `scan.json`) for `scripts/diagnose_numpy.py`.
+    #[arg(long, value_name = "DIR", requires = "scan_only")]
+    pub scan_inputs: Option<PathBuf>,
 }
 
 /// The family check and rate dependence of each finding, the effects not named for their
@@ -151,6 +161,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let opts = DiagnoseOptions { bin_s: args.bin_s, alpha: args.alpha, ..Default::default() };
     let rec = super::load_recording(&args.recording, args.quiet)?;
+    if args.scan_only {
+        return scan_only(&args, nominal, &opts, &rec, started);
+    }
     let working = bench::progress::Working::new(
         &format!("diagnosing {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),
@@ -273,4 +286,135 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         Verdict::ParametersOnly => Exit::ParametersOnly.into(),
         Verdict::MissingPhysics => Exit::MissingPhysics.into(),
     })
+}
+
+/// `--scan-only`: the residual scan alone, timed ([`bench_analysis::diagnose::residual_scan`]).
+fn scan_only(
+    args: &DiagnoseArgs,
+    nominal: Option<(bench_physics::GyroModel, bench_physics::effects::Effects, String)>,
+    opts: &DiagnoseOptions,
+    rec: &bench_recording::Recording,
+    started: std::time::Instant,
+) -> anyhow::Result<ExitCode> {
+    let read_s = started.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let data = bench_report::load::load(rec)
+        .with_context(|| format!("cannot load {}", args.recording.display()))?;
+    let load_s = t.elapsed().as_secs_f64();
+    let (model, effects, source) = match nominal {
+        Some(n) => n,
+        None => {
+            let m = data.model.clone().context("the recording holds no bench.gyro_model")?;
+            (m.model, m.effects, "bench.gyro_model".into())
+        }
+    };
+    let cpu0 = process_cpu_s();
+    let scan = bench_analysis::diagnose::residual_scan(&data.series, &model, &effects, opts)
+        .with_context(|| format!("cannot scan {}", args.recording.display()))?;
+    let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
+    let best: Vec<serde_json::Value> = scan
+        .best
+        .iter()
+        .map(|b| {
+            serde_json::json!({
+                "effect": b.effect.key(), "grid_values": b.grid_values,
+                "value": if b.value.is_finite() { Some(b.value) } else { None },
+                "wald": b.wald, "delta_rss": b.delta_rss,
+            })
+        })
+        .collect();
+    let threads = bench_analysis::diagnose::threads();
+    let out = serde_json::json!({
+        "recording": args.recording.display().to_string(), "nominal_model": source,
+        "samples": scan.samples, "bins": scan.bins, "threads": threads,
+        "time_s": {"read": read_s, "load": load_s, "prepare": scan.prepare_s, "scan": scan.scan_s},
+        "cpu_s_prepare_and_scan": cpu_s,
+        "best": best,
+    });
+    if !args.quiet {
+        println!(
+            "residual scan of {}: {} samples, {} bins, {threads} thread(s)",
+            args.recording.display(),
+            scan.samples,
+            scan.bins
+        );
+        println!("| effect | grid values | best value | Wald | ΔRSS (rad/s)² |");
+        println!("| --- | --- | --- | --- | --- |");
+        for b in &scan.best {
+            println!(
+                "| {} | {} | {} | {:.3} | {:.6e} |",
+                b.effect.key(),
+                b.grid_values,
+                if b.value.is_finite() { display::sig(b.value, 6) } else { "—".into() },
+                b.wald,
+                b.delta_rss
+            );
+        }
+        println!(
+            "time: read {read_s:.3} s, load {load_s:.3} s, prepare {:.3} s, scan {:.3} s \
+             (CPU of prepare and scan, every thread: {})",
+            scan.prepare_s,
+            scan.scan_s,
+            cpu_s.map_or("unknown".into(), |c| format!("{c:.2} s"))
+        );
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&out)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(dir) = &args.scan_inputs {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for (name, values) in &scan.inputs.arrays {
+            let path = dir.join(format!("{name}.npy"));
+            std::fs::write(&path, npy(values))
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        let scalars: serde_json::Map<String, serde_json::Value> =
+            scan.inputs.scalars.iter().map(|(k, v)| ((*k).to_string(), (*v).into())).collect();
+        let grids: serde_json::Map<String, serde_json::Value> = scan
+            .inputs
+            .grids
+            .iter()
+            .map(|(id, g)| {
+                let g: Vec<Option<f64>> = g.iter().map(|v| v.is_finite().then_some(*v)).collect();
+                (id.key().to_string(), serde_json::json!(g))
+            })
+            .collect();
+        let meta = serde_json::json!({"scalars": scalars, "grids": grids, "result": out});
+        let path = dir.join("scan.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&meta)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(Exit::Success.into())
+}
+
+/// A one-dimensional little-endian f64 array in NumPy's `.npy` format (version 1.0).
+fn npy(values: &[f64]) -> Vec<u8> {
+    let mut header =
+        format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({},), }}", values.len());
+    // Magic (6) + version (2) + length (2) + header + '\n', padded to a multiple of 64.
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + 8 * values.len());
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&u16::try_from(header.len()).unwrap_or(u16::MAX).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// CPU time of this process so far, every thread, user and system (Linux `/proc/self/stat`,
+/// in clock ticks of 10 ms); `None` elsewhere.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses: utime and stime
+    // are the 14th and 15th fields of the line, the 12th and 13th after ") ".
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
