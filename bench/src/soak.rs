@@ -109,7 +109,8 @@ pub enum SoakFaultKind {
     ChamberCorrupt,
     /// The chamber line dead for 3 s.
     ChamberDisconnect,
-    /// The table silent for 2 min: aborts by design (`stream_stale` or the table's device error).
+    /// The table silent for twice the stale limit (10 min at 60×): aborts by design
+    /// (`stream_stale` or the table's device error).
     TableSilence,
     /// The chamber answering exception 4: aborts by design (chamber device error).
     ChamberException,
@@ -146,13 +147,17 @@ impl SoakFaultKind {
         }
     }
 
-    /// How long it stays on, bench time (a disconnect clears itself after its own time).
-    pub fn duration(self) -> Duration {
-        Duration::from_secs(match self {
-            Self::GyroDisconnect => 2,
-            Self::TableDisconnect | Self::ChamberDisconnect => 3,
-            Self::TableSilence | Self::GyroDrop | Self::GyroCorrupt => 120,
-            _ => 60,
+    /// How long it stays on, bench time at `time_scale` (a disconnect clears itself after its
+    /// own time). The table's silence outlasts the served bench's stale limit twice over (30 s
+    /// of bench time or [`crate::bench_config::SERVED_STALE_WALL_S`] of wall time).
+    pub fn duration(self, time_scale: f64) -> Duration {
+        let stale_s = 30f64.max(crate::bench_config::SERVED_STALE_WALL_S * time_scale);
+        Duration::from_secs_f64(match self {
+            Self::GyroDisconnect => 2.0,
+            Self::TableDisconnect | Self::ChamberDisconnect => 3.0,
+            Self::TableSilence => 120f64.max(2.0 * stale_s),
+            Self::GyroDrop | Self::GyroCorrupt => 120.0,
+            _ => 60.0,
         })
     }
 
@@ -695,6 +700,7 @@ async fn run_segment(
     // The injector: each fault on at its time, off after its duration (a disconnect clears
     // itself), noted with its bench time.
     let injected = Arc::new(Mutex::new(Vec::<(Duration, SoakFaultKind)>::new()));
+    let scale = opts.time_scale;
     let injector = {
         let (faults, clock, injected) = (served.faults.clone(), shared.clone(), injected.clone());
         let planned = planned.to_vec();
@@ -717,7 +723,7 @@ async fn run_segment(
                 let (device, f) = p.kind.fault();
                 switch(&faults, device).inject(f);
                 injected.lock().unwrap_or_else(|e| e.into_inner()).push((clock.now(), p.kind));
-                off.push((clock.now() + p.kind.duration(), p.kind));
+                off.push((clock.now() + p.kind.duration(scale), p.kind));
             }
             off.sort_by_key(|o| o.0);
             for (t, k) in off {
@@ -829,7 +835,7 @@ async fn run_segment(
         .iter()
         .copied()
         .map(|(at, kind)| {
-            let end = at + kind.duration() + grace;
+            let end = at + kind.duration(opts.time_scale) + grace;
             let aborted_here = abort_at.filter(|a| *a + Duration::from_secs(1) >= at && *a <= end);
             let (outcome, abort) = match (aborted_here, &report.fault) {
                 (Some(_), Some(f)) if kind.aborts_by_design(&f.cause) => {
@@ -850,7 +856,7 @@ async fn run_segment(
                 kind,
                 device,
                 fault,
-                duration_s: kind.duration().as_secs_f64(),
+                duration_s: kind.duration(opts.time_scale).as_secs_f64(),
                 outcome,
                 abort,
             }
