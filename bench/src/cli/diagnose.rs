@@ -142,12 +142,15 @@ fn suggest_scenario(
         let sigma = |c: &bench_analysis::diagnose::Collinearity| {
             format!("σ {} (ρ = {:.3})", display::si_value(unit, c.sigma, 2), c.rho)
         };
+        // A pair the suggestion does not improve is said to stay confounded.
+        let worse = t.after.as_ref().is_some_and(|a| a.sigma >= t.before.sigma && a.rho >= 0.9);
         println!(
-            "  {} vs {}: {} on this recording → {} on the suggested run",
+            "  {} vs {}: {} on this recording → {} on the suggested run{}",
             t.before.effect.key(),
             t.before.with,
             sigma(&t.before),
-            t.after.as_ref().map_or("not testable".into(), sigma)
+            t.after.as_ref().map_or("not testable".into(), sigma),
+            if worse { " (not separated by it)" } else { "" }
         );
     }
     println!("wrote {} (bench validate passes; run it with `bench run`)", path.display());
