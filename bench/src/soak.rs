@@ -167,7 +167,7 @@ impl SoakFaultKind {
             Self::TableSilence => matches!(
                 cause,
                 FaultCause::Stale { device: "rate table" | "table" }
-                    | FaultCause::Device { device: "table", .. }
+                    | FaultCause::Device { device: "rate table" | "table", .. }
             ),
             Self::ChamberException => {
                 matches!(cause, FaultCause::Device { device: "chamber", .. })
@@ -877,4 +877,24 @@ async fn run_segment(
         recording: opts.keep.as_ref().map(|_| out.display().to_string()),
     };
     Ok(Segment { report, faults })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bench_drivers::ErrorKind;
+
+    #[test]
+    fn a_silent_table_aborts_by_design_through_its_error_budget_or_the_stale_limit() {
+        let t = SoakFaultKind::TableSilence;
+        assert!(t.aborts_by_design(&FaultCause::Device {
+            device: "rate table",
+            kind: ErrorKind::Timeout
+        }));
+        assert!(t.aborts_by_design(&FaultCause::Stale { device: "rate table" }));
+        assert!(!t.aborts_by_design(&FaultCause::Stale { device: "gyro" }));
+        // It outlasts the served bench's stale limit at the soak's scale.
+        assert_eq!(t.duration(60.0), Duration::from_secs(600));
+        assert_eq!(t.duration(1.0), Duration::from_secs(120));
+    }
 }

@@ -125,14 +125,14 @@ pub fn outcome_of(fault: Option<&Fault>) -> Outcome {
 pub enum FaultCause {
     /// A device failed; its error's kind decides nothing more here (the run is over).
     Device {
-        /// `table`, `chamber` or `gyro`.
+        /// `rate table`, `chamber` or `gyro`.
         device: &'static str,
         /// The device error's kind.
         kind: ErrorKind,
     },
     /// A device stream had no good reading for longer than the policy allows.
     Stale {
-        /// `table`, `chamber` or `gyro`.
+        /// `rate table`, `chamber` or `gyro`.
         device: &'static str,
     },
     /// A step's condition was not met within its time (temperature or ramp end not reached).
