@@ -83,6 +83,41 @@ fn param(f: &bench_analysis::diagnose::Finding, name: &str) -> (f64, f64) {
     (p.value, p.sigma)
 }
 
+/// What `--suggest-scenario` needs to know of the recording `d` diagnosed.
+fn facts(name: &str, d: &bench_analysis::diagnose::Diagnosis) -> bench::suggest::RecordingFacts {
+    let temps = &d.series.temp_c;
+    bench::suggest::RecordingFacts {
+        name: name.into(),
+        latitude_deg: 43.56,
+        temp_range_c: (
+            temps.iter().copied().fold(f64::INFINITY, f64::min),
+            temps.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ),
+    }
+}
+
+/// The suggested scenario simulated with `effects` (TOML of `[simulation.truth.effects]`)
+/// concealed, and diagnosed.
+fn diagnose_suggestion_with(
+    s: &bench::suggest::Suggestion,
+    effects: &str,
+) -> bench_analysis::diagnose::Diagnosis {
+    let text = format!("{}\n[simulation.truth.effects]\n{effects}\n", s.text);
+    let plan = bench::scenario::parse(&text, "suggested", &bench::simulate::capabilities())
+        .expect("validates");
+    let sim = bench::simulate::SimOptions {
+        seed: 3,
+        flush_interval: bench::simulate::SimOptions::IN_MEMORY,
+        ..Default::default()
+    };
+    let (report, cursor) =
+        bench::simulate::run_plan(&plan, std::io::Cursor::new(Vec::new()), &sim, None)
+            .expect("runs");
+    assert!(report.completed(), "{}", report.outcome);
+    let run = Recording::from_bytes(cursor.get_ref()).expect("reads");
+    diagnose_recording(&run, None, &Default::default()).expect("diagnoses").diagnosis
+}
+
 /// Issue 14, items 1 and 2: a bias at 2 (or 3) cycles per revolution on 120° arcs, where
 /// `sin θ` takes up most of `sin 2θ`, is named by its harmonic with its amplitude and phase
 /// within 3σ, judged the gyro's (not the table's rate ripple), and its family check passes:
@@ -199,20 +234,11 @@ fn a_term_collinear_with_a_parameter_is_stated_with_its_bound() {
 /// simulation of it with a concealed 400 s coil lag has the lag named, τ and gain within 3σ.
 #[test]
 fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
-    use std::io::Cursor;
     let path = lab_fixture("effect-gradient", 1, &[]);
     let rec = Recording::load(&path).expect("reads");
     let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
-    let temps = &d.series.temp_c;
-    let facts = bench::suggest::RecordingFacts {
-        name: "gradient.mcap".into(),
-        latitude_deg: 43.56,
-        temp_range_c: (
-            temps.iter().copied().fold(f64::INFINITY, f64::min),
-            temps.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        ),
-    };
-    let mut s = bench::suggest::suggest(&d, &facts).expect("builds").expect("a suggestion");
+    let mut s =
+        bench::suggest::suggest(&d, &facts("gradient.mcap", &d)).expect("builds").expect("one");
     bench::suggest::predict(&mut s, 1).expect("predicts");
     let t = s
         .targets
@@ -223,22 +249,7 @@ fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
     assert!(after.rho < t.before.rho && after.sigma < t.before.sigma, "{t:?}");
 
     // The proof: the suggestion simulated with a concealed lag names it.
-    let text = format!(
-        "{}\n[simulation.truth.effects]\nthermal_lag = {{ time_constant_s = 400 }}\n",
-        s.text
-    );
-    let plan = bench::scenario::parse(&text, "suggested", &bench::simulate::capabilities())
-        .expect("validates");
-    let sim = bench::simulate::SimOptions {
-        seed: 3,
-        flush_interval: bench::simulate::SimOptions::IN_MEMORY,
-        ..Default::default()
-    };
-    let (report, cursor) =
-        bench::simulate::run_plan(&plan, Cursor::new(Vec::new()), &sim, None).expect("runs");
-    assert!(report.completed(), "{}", report.outcome);
-    let run = Recording::from_bytes(cursor.get_ref()).expect("reads");
-    let d = diagnose_recording(&run, None, &Default::default()).expect("diagnoses").diagnosis;
+    let d = diagnose_suggestion_with(&s, "thermal_lag = { time_constant_s = 400 }");
     let f = d
         .findings
         .iter()
@@ -271,38 +282,16 @@ fn per_revolution_harmonics_that_cannot_be_told_apart_are_not_named() {
 /// concealed names it, amplitude and phase within 3σ.
 #[test]
 fn the_suggested_scenario_names_a_once_per_revolution_bias_the_arcs_could_not() {
-    use std::io::Cursor;
     let path = lab_fixture("effect-1rev", 8, &[]);
     let rec = Recording::load(&path).expect("reads");
     let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
-    let facts = bench::suggest::RecordingFacts {
-        name: "1rev.mcap".into(),
-        latitude_deg: 43.56,
-        temp_range_c: (
-            d.series.temp_c.iter().copied().fold(f64::INFINITY, f64::min),
-            d.series.temp_c.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        ),
-    };
-    let s = bench::suggest::suggest(&d, &facts).expect("builds").expect("a suggestion");
+    let s = bench::suggest::suggest(&d, &facts("1rev.mcap", &d)).expect("builds").expect("one");
     assert!(s.text.contains("full revolutions"), "{}", s.text);
     let (amplitude, phase) = (5e-8, 0.7);
-    let text = format!(
-        "{}\n[simulation.truth.effects]\nonce_per_revolution = {{ amplitude_rad_s = {amplitude}, \
-         phase_rad = {phase} }}\n",
-        s.text
+    let d = diagnose_suggestion_with(
+        &s,
+        &format!("once_per_revolution = {{ amplitude_rad_s = {amplitude}, phase_rad = {phase} }}"),
     );
-    let plan = bench::scenario::parse(&text, "suggested", &bench::simulate::capabilities())
-        .expect("validates");
-    let sim = bench::simulate::SimOptions {
-        seed: 3,
-        flush_interval: bench::simulate::SimOptions::IN_MEMORY,
-        ..Default::default()
-    };
-    let (report, cursor) =
-        bench::simulate::run_plan(&plan, Cursor::new(Vec::new()), &sim, None).expect("runs");
-    assert!(report.completed(), "{}", report.outcome);
-    let run = Recording::from_bytes(cursor.get_ref()).expect("reads");
-    let d = diagnose_recording(&run, None, &Default::default()).expect("diagnoses").diagnosis;
     let f = d
         .findings
         .iter()
