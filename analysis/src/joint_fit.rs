@@ -328,11 +328,13 @@ pub fn joint_fit(
         Some(spec) => noise_model_variance(&pinv, &times, &dts, spec),
         None => [f64::NAN; 4],
     };
+    // Each sample's white-noise variance, for the GLS (and the reference errors through it).
+    let white: Vec<f64> = match &noise {
+        Some(spec) if spec.arw > 0.0 => dts.iter().map(|dt| spec.arw * spec.arw / dt).collect(),
+        _ => Vec::new(),
+    };
     let gls_fit = match &noise {
-        Some(spec) if spec.arw > 0.0 => {
-            let white: Vec<f64> = dts.iter().map(|dt| spec.arw * spec.arw / dt).collect();
-            Some(gls(&x, &y, &times, &white, spec)?)
-        }
+        Some(spec) if spec.arw > 0.0 => Some(gls(&x, &y, &times, &white, spec)?),
         _ => None,
     };
     // The bootstrap resamples the residual that should be closest to white: whitened for GLS.
@@ -359,7 +361,7 @@ pub fn joint_fit(
     // The table rate's own error, one constant per reference line: its variance through the
     // estimator's linear map, added to the noise model's.
     let reference =
-        reference_covariance(windows, &pinv, gls_fit.as_ref(), &times, &dts, noise.as_ref())?;
+        reference_covariance(windows, &pinv, gls_fit.as_ref(), &times, &white, noise.as_ref())?;
     let est = |j: usize| {
         let naive = (sigma2 * pinv.row(j).norm_squared()).sqrt() / scale[j];
         let boot = boot_var[j].max(0.0).sqrt() / scale[j];
@@ -431,7 +433,7 @@ fn reference_covariance(
     pinv: &DMatrix<f64>,
     gls_fit: Option<&crate::gls::Gls>,
     times: &[f64],
-    dts: &[f64],
+    white_var: &[f64],
     noise: Option<&NoiseSpec>,
 ) -> Result<DMatrix<f64>, AnalysisError> {
     let p = pinv.nrows();
@@ -464,7 +466,7 @@ fn reference_covariance(
             let mut order: Vec<usize> = (0..n).collect();
             order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
             let t: Vec<f64> = order.iter().map(|&i| times[i]).collect();
-            let r: Vec<f64> = order.iter().map(|&i| spec.arw * spec.arw / dts[i]).collect();
+            let r: Vec<f64> = order.iter().map(|&i| white_var[i]).collect();
             let mut zs = DMatrix::<f64>::zeros(n, keys.len());
             for (k, &i) in order.iter().enumerate() {
                 zs.row_mut(k).copy_from(&z.row(i));

@@ -13,13 +13,7 @@ use serde_json::Value;
 #[test]
 fn a_lab_null_recording_names_only_the_stamping_offset_between_gyro_and_table() {
     let path = lab_fixture("lab-null", 1, &[]);
-    let truth: Value = serde_json::from_slice(&std::fs::read(lab_truth(&path)).expect("truth"))
-        .expect("truth JSON");
-    let realised = &truth["traits"]["realised_stamp_offset_s"];
-    let mean = |ch: &str| realised[ch]["mean"].as_f64().expect("realised stamp offset");
-    // δ > 0 when the gyro is late against the table.
-    let delta_s = mean("gyro") - mean("table");
-    assert!((delta_s + 0.009).abs() < 1e-4, "the writer's traits: {delta_s}");
+    let delta_s = stamping_offset_s(&truth_of(&path));
 
     let rec = Recording::load(&path).expect("reads");
     let out = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses");
@@ -44,10 +38,7 @@ fn a_short_lab_null_recording_names_only_the_stamping_offset() {
     let path = lab_fixture("lab-null", 7, &[("procedure.length", "short")]);
     let truth = truth_of(&path);
     assert_eq!(truth["procedure"]["table_commands"].as_array().map(Vec::len), Some(9));
-    let realised = &truth["traits"]["realised_stamp_offset_s"];
-    let mean = |ch: &str| realised[ch]["mean"].as_f64().expect("realised stamp offset");
-    let delta_s = mean("gyro") - mean("table");
-    assert!((delta_s + 0.009).abs() < 1e-4, "the writer's traits: {delta_s}");
+    let delta_s = stamping_offset_s(&truth);
 
     let rec = Recording::load(&path).expect("reads");
     let out = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses");
@@ -62,6 +53,16 @@ fn a_short_lab_null_recording_names_only_the_stamping_offset() {
 }
 
 /// The writer's truth of a fixture.
+/// The writer's realised stamping offset of the gyro against the table, s (δ > 0 when the
+/// gyro is late), checked to be its 9 ms trait.
+fn stamping_offset_s(truth: &Value) -> f64 {
+    let realised = &truth["traits"]["realised_stamp_offset_s"];
+    let mean = |ch: &str| realised[ch]["mean"].as_f64().expect("realised stamp offset");
+    let delta_s = mean("gyro") - mean("table");
+    assert!((delta_s + 0.009).abs() < 1e-4, "the writer's traits: {delta_s}");
+    delta_s
+}
+
 fn truth_of(path: &std::path::Path) -> Value {
     serde_json::from_slice(&std::fs::read(lab_truth(path)).expect("truth")).expect("truth JSON")
 }
