@@ -13,7 +13,9 @@
 //! - **per revolution** (angle harmonics, the table's rate ripple, against each other or the
 //!   parameters): two full revolutions per direction at 10 °/min and at 30 °/min, at constant
 //!   temperature: full turns make the harmonics orthogonal, and two rates tell a term of the
-//!   gyro (independent of rate) from the table's ripple (∝ rate).
+//!   gyro (independent of rate) from the table's ripple (∝ rate);
+//! - **rate²** (against the bias and scale factor, on a run at one |rate|): the same two rates,
+//!   at which `Ω²` is no longer a constant.
 //!
 //! The scenario is validated against the simulated bench (and so stays within its
 //! capabilities) before it is written. [`predict`] simulates it under the diagnosed model and
@@ -61,8 +63,15 @@ pub struct RecordingFacts {
     pub temp_range_c: (f64, f64),
 }
 
+/// Terms that full turns at two rates separate: the angle's and the rate's.
 fn is_angle(id: EffectId) -> bool {
-    matches!(id, EffectId::OncePerRevolution | EffectId::AngleHarmonic | EffectId::RateRipple)
+    matches!(
+        id,
+        EffectId::OncePerRevolution
+            | EffectId::AngleHarmonic
+            | EffectId::RateRipple
+            | EffectId::RateSquared
+    )
 }
 
 /// A scenario that separates the diagnosis's confounded pairs (module docs), or `None` when
@@ -126,7 +135,8 @@ pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<S
         why.push(format!(
             "per revolution: two full revolutions per direction at 10 °/min and at 30 °/min at \
              {t0} °C: full turns make the angle harmonics orthogonal, and two rates tell a term \
-             of the gyro (independent of rate) from the table's rate ripple (∝ rate)"
+             of the gyro (independent of rate) from the table's rate ripple (∝ rate), and a \
+             rate² term from the bias"
         ));
         soak(&mut step, t0);
         for (rate, minutes) in [(10.0, 72), (30.0, 24)] {
@@ -186,6 +196,7 @@ pub fn predict(s: &mut Suggestion, seed: u64) -> anyhow::Result<()> {
     // Each target judged at the recording's grid value (a lag's τ, a harmonic's k).
     let opts = DiagnoseOptions {
         identify_at: s.targets.iter().map(|t| (t.before.effect, t.before.grid_value)).collect(),
+        identify_with: s.targets.iter().map(|t| (t.before.effect, t.before.with.clone())).collect(),
         ..Default::default()
     };
     let out = bench_report::diagnose::diagnose_recording(

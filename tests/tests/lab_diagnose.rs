@@ -188,6 +188,22 @@ fn a_table_rate_ripple_is_told_apart_from_a_gyro_harmonic() {
     assert!(!accepted(&d).contains(&EffectId::AngleHarmonic), "{:?}", d.findings);
 }
 
+/// A rate² term on the lab writer's procedure is known only from the table's rests (120 s
+/// before the first spin-up, 60 s after the stop): while the table turns at one |rate|, `Ω²` is
+/// a constant the bias takes. It is named with its coefficient within 3σ; its held-out check
+/// places the rests in both sets (600 s clock blocks put both in one, and rejected it).
+#[test]
+fn a_rate_squared_term_known_only_from_the_rests_is_named() {
+    let (d, truth) = diagnose("effect-rate-squared");
+    assert_eq!(accepted(&d), [EffectId::TimeOffset, EffectId::RateSquared], "{:?}", d.findings);
+    let f = d.findings.iter().find(|f| f.effect == EffectId::RateSquared).expect("found");
+    let coeff = truth["effects"]["rate_squared"]["parameters"]["coeff"].as_f64().expect("coeff");
+    let (c, sc) = param(f, "coeff_s_per_rad");
+    assert!((c - coeff).abs() < 3.0 * sc && sc < 0.3 * coeff, "{c} ± {sc} vs {coeff}");
+    assert!(f.holdout_z > 3.0, "held-out z {}", f.holdout_z);
+    assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
+}
+
 /// Issue 14, item 3: the writer's temperature-gradient term `c·(T_air − T_gyro)` is exactly
 /// `c·τ·dT/dt` for a first-order coil: the refit of `temp_rate_coeff` takes it (to the writer's
 /// effective coefficient within 3σ), and the diagnosis says that a thermal lag — the library's

@@ -83,15 +83,33 @@ fn trace(t: &TermTest) -> f64 {
     (0..t.theta.len()).map(|a| t.cov[(a, a)]).sum()
 }
 
+/// Most terms in a set that together hold an effect no single term does (beyond it, the
+/// confusion is the whole model's, and a set says little).
+const MAX_SET: usize = 3;
+
 /// Every pair of `effects` (id, accepted, grid value, columns; an accepted effect's columns are in
 /// `design` too, at the indices of its [`Term`]) with the `terms` of the final `design`: the
 /// pairs that reach [`COLLINEAR_RHO`] are the ones reported.
+///
+/// Two more cases are measured, because a pair alone misses them:
+/// - **an effect the design spans** (its regressors a combination of the model's to 1e-9: a
+///   rate² term on a run at one |rate| is a bias plus a scale factor): no σ exists with the
+///   model as it is, so each term whose removal frees the effect is paired with it at `ρ = 1`,
+///   with an infinite σ and bound (any size is absorbed); if no single term does, the pairs of
+///   terms that do;
+/// - **a set of terms** that together hold an effect no single one does: when every pair stays
+///   below [`COLLINEAR_RHO`], terms are added greedily (the one that raises `ρ` most) until the
+///   set reaches it, at most [`MAX_SET`] of them; the set is named `a + b`.
+///
+/// `sets` asks for the collinearity of an effect with a given set of terms as well (a
+/// recording's set, measured again on a suggested run).
 pub(super) fn collinear_pairs(
     design: &[Vec<f64>],
     terms: &[Term],
     effects: &[(EffectId, bool, f64, Vec<Vec<f64>>)],
     y: &[f64],
     noise: &BinNoise,
+    sets: &[(EffectId, String)],
 ) -> Vec<Collinearity> {
     let all: Vec<usize> = (0..noise.len()).collect();
     let mut out = Vec::new();
@@ -99,38 +117,214 @@ pub(super) fn collinear_pairs(
         let own = terms.iter().find(|t| t.name == id.key()).map(|t| t.cols.clone());
         let without_own: Vec<usize> =
             (0..design.len()).filter(|j| own.as_ref().is_none_or(|o| !o.contains(j))).collect();
-        let pick = |skip: &[usize]| -> Vec<Vec<f64>> {
-            without_own.iter().filter(|j| !skip.contains(j)).map(|&j| design[j].clone()).collect()
+        // The effect's test against the design without its own columns and those of `skip`.
+        let test_without = |skip: &[&Term]| -> Option<TermTest> {
+            let kept: Vec<Vec<f64>> = without_own
+                .iter()
+                .filter(|j| !skip.iter().any(|t| t.cols.contains(j)))
+                .map(|&j| design[j].clone())
+                .collect();
+            Projector::new(&kept, &all).ok()?.test(cols, y, noise)
         };
-        let Ok(p_full) = Projector::new(&pick(&[]), &all) else { continue };
-        let Some(t_full) = p_full.test(cols, y, noise) else { continue };
-        for term in terms {
-            if term.name == id.key() {
-                continue;
-            }
-            let Ok(p_minus) = Projector::new(&pick(&term.cols), &all) else { continue };
-            let Some(t_minus) = p_minus.test(cols, y, noise) else { continue };
-            let (vf, vm) = (trace(&t_full), trace(&t_minus));
-            if !(vf > 0.0 && vm > 0.0) {
-                continue;
-            }
-            let vif = (vf / vm).max(1.0);
-            let rho = (1.0 - 1.0 / vif).sqrt();
-            let (parameter, unit) = bounded_parameter(*id);
-            out.push(Collinearity {
+        let others: Vec<&Term> = terms.iter().filter(|t| t.name != id.key()).collect();
+        let (parameter, unit) = bounded_parameter(*id);
+        let entry =
+            |with: &[&Term], rho: f64, inflation: f64, sigma: f64, bound: f64| Collinearity {
                 effect: *id,
                 effect_accepted: *accepted,
                 grid_value: *p,
-                with: term.name.clone(),
+                with: with.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(" + "),
                 rho,
-                sigma_inflation: vif.sqrt(),
-                sigma: vf.sqrt(),
-                bound: bound(&t_full),
+                sigma_inflation: inflation,
+                sigma,
+                bound,
                 parameter,
                 unit,
-            });
+            };
+        let Some(t_full) = test_without(&[]) else {
+            // Spanned by the design: the terms (or pairs of terms) whose removal frees it.
+            let singles: Vec<&Term> =
+                others.iter().copied().filter(|t| test_without(&[t]).is_some()).collect();
+            let freeing: Vec<Vec<&Term>> = if singles.is_empty() {
+                let mut v = Vec::new();
+                for (a, ta) in others.iter().enumerate() {
+                    for tb in &others[a + 1..] {
+                        if test_without(&[ta, tb]).is_some() {
+                            v.push(vec![*ta, *tb]);
+                        }
+                    }
+                }
+                v
+            } else {
+                singles.into_iter().map(|t| vec![t]).collect()
+            };
+            for set in freeing {
+                let inf = f64::INFINITY;
+                out.push(entry(&set, 1.0, inf, inf, inf));
+            }
+            continue;
+        };
+        let vf = trace(&t_full);
+        if vf.is_nan() || vf <= 0.0 {
+            continue;
+        }
+        // ρ of the effect with the set `skip` (given the rest), and the σ ratio.
+        let rho_with = |skip: &[&Term]| -> Option<(f64, f64)> {
+            let vm = trace(&test_without(skip)?);
+            if vm.is_nan() || vm <= 0.0 {
+                return None;
+            }
+            let vif = (vf / vm).max(1.0);
+            Some(((1.0 - 1.0 / vif).sqrt(), vif.sqrt()))
+        };
+        let bound_full = bound(&t_full);
+        let mut best_single = 0.0f64;
+        for term in &others {
+            let Some((rho, inflation)) = rho_with(&[term]) else { continue };
+            best_single = best_single.max(rho);
+            out.push(entry(&[term], rho, inflation, vf.sqrt(), bound_full));
+        }
+        let mut pushed: Vec<String> = Vec::new();
+        // A set, when no single term holds the effect but the whole model might.
+        if best_single < COLLINEAR_RHO
+            && others.len() >= 2
+            && rho_with(&others).is_some_and(|(rho, _)| rho >= COLLINEAR_RHO)
+        {
+            let mut set: Vec<&Term> = Vec::new();
+            let mut reached = None;
+            while set.len() < MAX_SET {
+                let step = others
+                    .iter()
+                    .filter(|t| !set.iter().any(|s| s.name == t.name))
+                    .filter_map(|t| {
+                        let mut s = set.clone();
+                        s.push(t);
+                        rho_with(&s).map(|r| (*t, r))
+                    })
+                    .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+                let Some((t, r)) = step else { break };
+                set.push(t);
+                if r.0 >= COLLINEAR_RHO {
+                    reached = Some(r);
+                    break;
+                }
+            }
+            if let (Some((rho, inflation)), true) = (reached, set.len() >= 2) {
+                let e = entry(&set, rho, inflation, vf.sqrt(), bound_full);
+                pushed.push(e.with.clone());
+                out.push(e);
+            }
+        }
+        // Sets asked for.
+        for (_, names) in sets.iter().filter(|(e, n)| e == id && !pushed.contains(n)) {
+            let set: Vec<&Term> = others
+                .iter()
+                .copied()
+                .filter(|t| names.split(" + ").any(|n| n == t.name))
+                .collect();
+            if set.len() < 2 {
+                continue;
+            }
+            if let Some((rho, inflation)) = rho_with(&set) {
+                out.push(entry(&set, rho, inflation, vf.sqrt(), bound_full));
+            }
         }
     }
     out.sort_by(|a, b| b.rho.total_cmp(&a.rho));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::series::Bin;
+    use crate::joint_fit::NoiseSpec;
+
+    const N: usize = 400;
+
+    fn noise() -> BinNoise {
+        let bins: Vec<Bin> = (0..N)
+            .map(|i| Bin {
+                first: i,
+                end: i + 1,
+                start_s: i as f64 * 10.0,
+                end_s: (i + 1) as f64 * 10.0,
+                table_rate_rad_s: 0.0,
+                table_accel_rad_s2: 0.0,
+                transition: false,
+            })
+            .collect();
+        BinNoise::new(&bins, NoiseSpec { arw: 1.0, flicker_floor: 0.0, rrw: 0.0 })
+    }
+
+    /// Mutually orthogonal zero-mean columns: sinusoids of distinct whole numbers of cycles.
+    fn wave(cycles: f64) -> Vec<f64> {
+        (0..N)
+            .map(|i| (std::f64::consts::TAU * cycles * (i as f64 + 0.5) / N as f64).sin())
+            .collect()
+    }
+
+    fn term(name: &str, j: usize) -> Term {
+        Term { name: name.into(), cols: vec![j] }
+    }
+
+    fn add(a: &[f64], b: &[f64], k: f64) -> Vec<f64> {
+        a.iter().zip(b).map(|(x, y)| x + k * y).collect()
+    }
+
+    #[test]
+    fn an_effect_the_model_spans_is_paired_with_the_terms_that_free_it_at_rho_one() {
+        // A table that turns at one |rate| the whole run: a rate² column is a constant, which is
+        // the bias; the scale factor (±1) has nothing to do with it.
+        let bias = vec![1.0; N];
+        let sf: Vec<f64> = (0..N).map(|i| if (i / 40) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let rate2 = vec![8.5e-6; N];
+        let y = wave(3.0);
+        let pairs = collinear_pairs(
+            &[bias, sf],
+            &[term("bias", 0), term("scale_factor_error", 1)],
+            &[(EffectId::RateSquared, false, f64::NAN, vec![rate2])],
+            &y,
+            &noise(),
+            &[],
+        );
+        assert_eq!(pairs.len(), 1, "{pairs:?}");
+        let c = &pairs[0];
+        assert_eq!((c.with.as_str(), c.rho), ("bias", 1.0), "{c:?}");
+        assert!(c.bound.is_infinite() && c.sigma.is_infinite(), "{c:?}");
+    }
+
+    #[test]
+    fn two_terms_that_together_hold_an_effect_are_named_as_a_set() {
+        // x1 and x2 share the direction u; the effect is u plus a little of its own. Either term
+        // alone, the other still takes u (each pair's ρ is low); without both, nothing does.
+        let (u, a, b, w) = (wave(1.0), wave(2.0), wave(3.0), wave(4.0));
+        let x1 = add(&u, &a, 0.05);
+        let x2 = add(&u, &b, 0.05);
+        let e = add(&u, &w, 0.1);
+        let y = wave(5.0);
+        let run = |sets: &[(EffectId, String)]| {
+            collinear_pairs(
+                &[vec![1.0; N], x1.clone(), x2.clone()],
+                &[term("bias", 0), term("temp_coeff", 1), term("temp_rate_coeff", 2)],
+                &[(EffectId::ThermalLag, false, 400.0, vec![e.clone()])],
+                &y,
+                &noise(),
+                sets,
+            )
+        };
+        let pairs = run(&[]);
+        let single = |name: &str| pairs.iter().find(|c| c.with == name).expect(name).rho;
+        assert!(single("temp_coeff") < 0.7 && single("temp_rate_coeff") < 0.7, "{pairs:?}");
+        let set = pairs.iter().find(|c| c.with.contains(" + ")).expect("a set");
+        let mut names: Vec<&str> = set.with.split(" + ").collect();
+        names.sort_unstable();
+        assert_eq!(names, ["temp_coeff", "temp_rate_coeff"], "{set:?}");
+        // ‖e‖² = 1.01 over what the design leaves of it (≈ 0.01): ρ ≈ 0.995.
+        assert!(set.rho > 0.99 && set.rho < 1.0, "{set:?}");
+        // A set asked for is measured even when below the threshold: here the set with the bias.
+        let asked = run(&[(EffectId::ThermalLag, "bias + temp_coeff".into())]);
+        let c = asked.iter().find(|c| c.with == "bias + temp_coeff").expect("the set asked for");
+        assert!(c.rho < COLLINEAR_RHO, "{c:?}");
+    }
 }

@@ -72,6 +72,9 @@ pub struct DiagnoseOptions {
     /// Grid values at which the identifiability of these effects is judged, instead of their
     /// best fit (e.g. a recording's, to predict a new run's separation of the same term).
     pub identify_at: Vec<(EffectId, f64)>,
+    /// Sets of terms (`a + b`, as a [`Collinearity::with`] names them) whose collinearity with
+    /// these effects is measured as well (a recording's set, measured again on another run).
+    pub identify_with: Vec<(EffectId, String)>,
 }
 
 impl Default for DiagnoseOptions {
@@ -82,6 +85,7 @@ impl Default for DiagnoseOptions {
             holdout_block_s: 600.0,
             max_effects: 4,
             identify_at: Vec::new(),
+            identify_with: Vec::new(),
         }
     }
 }
@@ -770,7 +774,9 @@ fn rms(v: &[f64]) -> f64 {
 /// leave either set less than [`HOLDOUT_MIN_SHARE`] of the term's information, the bins on the
 /// term's support are placed by the support time before them instead (the time off the support
 /// left out, so its instants alternate between the sets whatever their schedule), the others by
-/// the clock as before. The choice reads the columns only, never the data.
+/// the clock as before. Where neither does, the support is that of the columns with the design
+/// projected out (a rate² term's information lies in the table's rests, where its column is
+/// smallest). The choice reads the columns only, never the data.
 fn holdout_z(
     design: &[Vec<f64>],
     g: &[Vec<f64>],
@@ -779,36 +785,8 @@ fn holdout_z(
     noise: &BinNoise,
     block_s: f64,
 ) -> f64 {
-    // Blocks short enough that both sets see the term: a quarter of the time it is above a
-    // tenth of its peak (a warm-up lives in the first few τ), at most `block_s`, at least six
-    // bins.
     let mag: Vec<f64> = (0..bins.len()).map(|i| g.iter().map(|c| c[i].abs()).sum()).collect();
-    let peak = mag.iter().fold(0.0f64, |m, v| m.max(*v));
-    let support: f64 =
-        bins.iter().zip(&mag).filter(|(_, m)| **m > 0.1 * peak).map(|(b, _)| b.span_s()).sum();
-    let bin_s = bins.first().map_or(1.0, Bin::span_s);
-    let block_s = (0.25 * support).min(block_s).max(6.0 * bin_s);
-    let parity = |x: f64| ((x / block_s).floor() as i64).rem_euclid(2);
-    // The sets of a partition given each bin's time on it.
-    let sets = |clock: &[f64]| -> (Vec<usize>, Vec<usize>) {
-        (0..bins.len()).partition(|&i| parity(clock[i]) == 0)
-    };
-    let on_clock: Vec<f64> = bins.iter().map(Bin::centre_s).collect();
-    // Support time: a bin on the support at its centre less the span of the bins off the
-    // support before it.
-    let mut off_s = 0.0;
-    let on_support: Vec<f64> = bins
-        .iter()
-        .zip(&mag)
-        .map(|(b, m)| {
-            if *m > 0.1 * peak {
-                b.centre_s() - off_s
-            } else {
-                off_s += b.span_s();
-                b.centre_s()
-            }
-        })
-        .collect();
+    let (on_clock, on_support) = holdout_partitions(bins, &mag, block_s);
     // What each set knows of the term: the variance of its coefficients fitted on all bins
     // over that fitted on the set alone (noise model). A set holding less than
     // HOLDOUT_MIN_SHARE of the information is never the fitting set: its fit would be noise of
@@ -833,11 +811,30 @@ fn holdout_z(
             _ => 0.0,
         }
     };
-    let (mut a, mut b) = sets(&on_clock);
+    let (mut a, mut b) = on_clock;
     if share(&a).min(share(&b)) < HOLDOUT_MIN_SHARE {
-        let (a2, b2) = sets(&on_support);
+        let (a2, b2) = on_support;
         if share(&a2).min(share(&b2)) > share(&a).min(share(&b)) {
             (a, b) = (a2, b2);
+        }
+    }
+    if share(&a).min(share(&b)) < HOLDOUT_MIN_SHARE {
+        // The term's information may lie where its columns are small: a rate² term is a
+        // constant the bias takes while the table turns, and is known only from the rests.
+        // The support of what the design cannot take (the columns with the design projected
+        // out) places those bins in both sets.
+        if let Ok(pd) = Projector::new(design, &all) {
+            let free = pd.orthogonalise(g);
+            let mut info = vec![0.0; bins.len()];
+            for col in &free {
+                for (r, &i) in pd.rows.iter().enumerate() {
+                    info[i] += col[r].abs();
+                }
+            }
+            let (_, (a3, b3)) = holdout_partitions(bins, &info, block_s);
+            if share(&a3).min(share(&b3)) > share(&a).min(share(&b)) {
+                (a, b) = (a3, b3);
+            }
         }
     }
     let mut num = 0.0;
@@ -877,6 +874,45 @@ fn holdout_z(
     } else {
         0.0
     }
+}
+
+/// The hold-out's two partitions of the bins for a term of magnitude `mag` per bin: by blocks
+/// on the clock, and by blocks on the term's support time ([`holdout_z`]). Blocks are short
+/// enough that both sets see the term: a quarter of the time it is above a tenth of its peak
+/// (a warm-up lives in the first few τ), at most `block_s`, at least six bins.
+#[allow(clippy::type_complexity)]
+fn holdout_partitions(
+    bins: &[Bin],
+    mag: &[f64],
+    block_s: f64,
+) -> ((Vec<usize>, Vec<usize>), (Vec<usize>, Vec<usize>)) {
+    let peak = mag.iter().fold(0.0f64, |m, v| m.max(*v));
+    let support: f64 =
+        bins.iter().zip(mag).filter(|(_, m)| **m > 0.1 * peak).map(|(b, _)| b.span_s()).sum();
+    let bin_s = bins.first().map_or(1.0, Bin::span_s);
+    let block_s = (0.25 * support).min(block_s).max(6.0 * bin_s);
+    let parity = |x: f64| ((x / block_s).floor() as i64).rem_euclid(2);
+    // The sets of a partition given each bin's time on it.
+    let sets = |clock: &[f64]| -> (Vec<usize>, Vec<usize>) {
+        (0..bins.len()).partition(|&i| parity(clock[i]) == 0)
+    };
+    let on_clock: Vec<f64> = bins.iter().map(Bin::centre_s).collect();
+    // Support time: a bin on the support at its centre less the span of the bins off the
+    // support before it.
+    let mut off_s = 0.0;
+    let on_support: Vec<f64> = bins
+        .iter()
+        .zip(mag)
+        .map(|(b, m)| {
+            if *m > 0.1 * peak {
+                b.centre_s() - off_s
+            } else {
+                off_s += b.span_s();
+                b.centre_s()
+            }
+        })
+        .collect();
+    (sets(&on_clock), sets(&on_support))
 }
 
 /// Mean of `r` over bins `idx` and its σ under the noise model.
@@ -1298,7 +1334,8 @@ pub fn diagnose(
             Some((id, false, p, cols))
         })
         .collect();
-    let collinearity = identify::collinear_pairs(&design, &terms, &effect_cols, &y, &noise);
+    let collinearity =
+        identify::collinear_pairs(&design, &terms, &effect_cols, &y, &noise, &opts.identify_with);
     let mut unexplained = unexplained(&prep, &r, &noise, opts);
     unexplained.splice(0..0, downgraded);
     let verdict = if !findings.is_empty() || !unexplained.is_empty() {

@@ -92,23 +92,30 @@ pub fn diagnose_file(
 }
 
 /// The caveats a diagnosis's verdict carries: every effect not in the updated model that is
-/// nearly collinear with a term that is, with the largest size the data cannot rule out (in
-/// display units). They matter most for `consistent` and `parameters_only`: a term in the model
+/// nearly collinear with a term that is (or a set of them, `a + b`), with the largest size the
+/// data cannot rule out (in display units; "of any size" where the model's terms span it). They matter most for `consistent` and `parameters_only`: a term in the model
 /// may hold an effect that this recording cannot show.
 pub fn verdict_caveats(d: &bench_analysis::diagnose::Diagnosis) -> Vec<String> {
     d.identifiability()
         .iter()
         .filter(|c| !c.effect_accepted)
         .map(|c| {
+            let size = if c.bound.is_finite() {
+                format!(
+                    "up to {}",
+                    crate::display::si_value(crate::display::for_si(c.unit), c.bound, 2)
+                )
+            } else {
+                "of any size (the model's terms span it)".to_string()
+            };
             format!(
-                "{} cannot be told apart from {} on this recording (ρ = {:.3}): a {} {} up to {} \
+                "{} cannot be told apart from {} on this recording (ρ = {:.3}): a {} {} {size} \
                  is not ruled out (95 %)",
                 c.effect.key(),
                 c.with,
                 c.rho,
                 c.effect.key(),
                 crate::display::parameter_name(c.parameter),
-                crate::display::si_value(crate::display::for_si(c.unit), c.bound, 2)
             )
         })
         .collect()
