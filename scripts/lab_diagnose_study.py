@@ -85,7 +85,8 @@ def judge(preset, d, truth):
         eff = truth["effects"]["temperature_gradient"]["effective_temp_rate_coeff"]
         u = d["parameter_updates"]["temp_rate_coeff"]
         ok = abs(u["fitted"] - eff) <= 3 * u["sigma"]
-        caveat = any(c["effect"] == "thermal_lag" and c["with"] == "temp_rate_coeff"
+        # The lag against temp_rate_coeff, alone or in a set of terms ("a + b").
+        caveat = any(c["effect"] == "thermal_lag" and "temp_rate_coeff" in c["with"].split(" + ")
                      for c in d["identifiability"])
         return (caveat, caveat and not others and not unexpl, ok, bool(others), bool(unexpl))
     raise SystemExit(f"no judgement for {preset}")

@@ -51,7 +51,7 @@ use crate::error::AnalysisError;
 use crate::joint_fit::NoiseSpec;
 use crate::windows::RecordWindow;
 
-use crate::steady::TableMotion;
+use crate::steady::{TableMotion, TableSegment};
 pub use family::{FamilyCheck, FamilyMember, RateDependence};
 use fit::Projector;
 pub use identify::Collinearity;
@@ -349,6 +349,8 @@ struct Prepared {
     pred: Vec<f64>,
     base: Vec<Vec<f64>>,
     short_adev: Vec<AdevPoint>,
+    /// σ of a time offset from the table's angle readout ([`readout_offset_sigma_s`]), s.
+    readout_offset_sigma_s: f64,
     /// The sinusoidal regressors computed so far ([`columns`]).
     memo: columns::ColumnMemo,
 }
@@ -427,6 +429,7 @@ fn prepare(
         .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
         .collect();
     let short_adev = native_adev(&native, &motion, axis, &thermal);
+    let readout_offset_sigma_s = readout_offset_sigma_s(&motion, &bins);
     Ok(Prepared {
         native,
         bins,
@@ -440,8 +443,45 @@ fn prepare(
         pred,
         base,
         short_adev,
+        readout_offset_sigma_s,
         memo: columns::ColumnMemo::default(),
     })
+}
+
+/// σ that the table's angle readout leaves a time offset, s. The offset lives in the bins that
+/// hold a rate change, as the angle step between the two steady lines; each line is known only
+/// to within its readings' rounding. A readout whose rounding stays in phase along a segment
+/// (the rate a whole number of steps per reading, e.g. 10 °/min read at 10 Hz in 1″ steps: 60
+/// steps) puts one offset of up to ±q/2 on the whole segment, the same for every segment of
+/// that rate and phase: at each reversal `(e_after − e_before)/Δω`, the same at every reversal,
+/// so it does not average down. With the two offsets uniform in ±q/2: `σ = q/√6/|Δω|` (1″ at
+/// ±10 °/min: 0.34 ms). 0 without a grid or where the rounding's phase runs through the steps.
+fn readout_offset_sigma_s(motion: &TableMotion, bins: &[Bin]) -> f64 {
+    let q = motion.quantum_rad;
+    if q <= 0.0 {
+        return 0.0;
+    }
+    // The rounding's phase moves by less than one step over the segment.
+    let in_phase = |s: &TableSegment| {
+        if s.readings < 2 {
+            return false;
+        }
+        let per_reading = s.rate_rad_s.abs() * s.duration_s() / (s.readings - 1) as f64 / q;
+        (per_reading - per_reading.round()).abs() * (s.readings as f64) < 1.0
+    };
+    if !motion.segments.iter().filter(|s| s.command_rad_s != 0.0).any(in_phase) {
+        return 0.0;
+    }
+    let step = bins
+        .iter()
+        .filter(|b| b.transition)
+        .map(|b| (b.table_accel_rad_s2 * b.span_s()).abs())
+        .fold(0.0, f64::max);
+    if step > 0.0 {
+        q / 6f64.sqrt() / step
+    } else {
+        0.0
+    }
 }
 
 struct HysteresisStateSeries(Vec<f64>);
@@ -1757,7 +1797,12 @@ fn effect_parameters(
             );
             v
         }
-        EffectId::TimeOffset => vec![lin("offset_s", "s", 0)],
+        EffectId::TimeOffset => {
+            // The readout's share (not in the noise model of the gyro's bins).
+            let mut p = lin("offset_s", "s", 0);
+            p.sigma = p.sigma.hypot(prep.readout_offset_sigma_s);
+            vec![p]
+        }
         EffectId::WarmUp => vec![
             lin("amplitude_rad_s", "rad/s", 0),
             EffectParameter { name: "time_constant_s", value: p, sigma: grid_sigma(), unit: "s" },
