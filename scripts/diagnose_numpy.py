@@ -2,6 +2,7 @@
 """The residual scan of `bench diagnose` written in NumPy, to check it and time it against Rust.
 
     scripts/diagnose_numpy.py RECORDING.mcap [--bench target/release/bench] [--inputs DIR]
+                              [--repeat N] [--recurrence]
 
 The scan (docs/diagnose.md, "Speed"; `residual_scan` in analysis/src/diagnose/mod.rs): every
 candidate effect's regressors, binned (dt-weighted means over each bin's samples), tested
@@ -17,6 +18,11 @@ the Allan-deviation fit are not written again here. The gyro's samples are read 
 file with the `mcap` package and checked against the samples the inputs hold. Everything the
 scan does from there is NumPy: the regressors, their bin means, the dense Σ, the projections
 and the statistics.
+
+The sinusoids (angle harmonics, rate ripple, periodic bias) take one sin and cos per sample
+and grid value by default; `--recurrence` computes them as Rust does, by rotation: an exact sin
+and cos per sample every 64 grid values, a complex multiplication per sample and value between
+(vectorized over the samples), with the same correction of the periods' uneven spacing.
 
 Prints each effect's best grid value, Wald and ΔRSS, the agreement with Rust's scan (same best
 grid value, Wald and ΔRSS within a relative 1e-6) and both times. Exit 0 when they agree, 1
@@ -98,10 +104,12 @@ def noise_matrix(inp):
 class Binner:
     """dt-weighted means over each bin's sample range."""
 
-    def __init__(self, inp):
+    def __init__(self, inp, recurrence=False):
         a = inp.a
+        self.recurrence = recurrence
         first = a["bin_first"].astype(np.int64)
         end = a["bin_end"].astype(np.int64)
+        self.sel_first_last = (first, end - 1)
         lengths = end - first
         self.idx = np.concatenate([np.arange(f, e) for f, e in zip(first, end)])
         self.starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
@@ -112,10 +120,58 @@ class Binner:
         """Bin means of per-sample columns x (samples × m, already at the bins' samples)."""
         if x.ndim == 1:
             return np.add.reduceat(x * self.dt, self.starts) / self.wsum
+        if not x.flags.c_contiguous and x.T.flags.c_contiguous:
+            # values × samples in memory (the recurrence's arrays): reduce along the rows.
+            return (np.add.reduceat(x.T * self.dt[None, :], self.starts, axis=1) / self.wsum).T
         return np.add.reduceat(x * self.dt[:, None], self.starts, axis=0) / self.wsum[:, None]
 
     def sel(self, x):
         return x[self.idx]
+
+
+ANCHOR_EVERY = 64  # grid values per rotation block, as in Rust (analysis/src/diagnose/columns.rs)
+CHUNK = 16  # grid values whose per-sample sin and cos are held at once
+
+
+def rotated_sin_cos(x, w_a, h, steps):
+    """sin and cos of (w_a + m·h)·x for m in 0..steps, by rotation (--recurrence): the anchor
+    e^{i·w_a·x} and the step e^{i·h·x} from one sin and cos each, then one complex
+    multiplication per value, vectorized over the samples. Yields (m, sin, cos) per CHUNK
+    values as arrays samples × values (views of values × samples arrays: each value's samples
+    contiguous)."""
+    z = np.exp(1j * (w_a * x))
+    step = np.exp(1j * (h * x))
+    for j in range(0, steps, CHUNK):
+        n = min(CHUNK, steps - j)
+        sn = np.empty((n, len(x)))
+        cs = np.empty((n, len(x)))
+        for i in range(n):
+            sn[i] = z.imag
+            cs[i] = z.real
+            np.multiply(z, step, out=z)
+        yield j, sn.T, cs.T
+
+
+def rotated_periodic(binner, t, grid):
+    """Bin means of sin(2π t/P) and cos(2π t/P) for the periods of an evenly-in-frequency grid,
+    by rotation in blocks of ANCHOR_EVERY as Rust does, with the same per-bin correction of the
+    frequencies' departure from even spacing (ε·t̄ per value, t̄ the bin's middle time)."""
+    w = 2.0 * np.pi / grid
+    out = np.empty((len(binner.wsum), len(grid), 2))
+    first = binner.sel_first_last
+    t_mid = 0.5 * (t[first[0]] + t[first[1]])
+    ts = binner.sel(t)
+    for b in range(0, len(grid), ANCHOR_EVERY):
+        wb = w[b : b + ANCHOR_EVERY]
+        n = len(wb)
+        h = (wb[-1] - wb[0]) / (n - 1) if n > 1 else 0.0
+        eps = (wb - wb[0]) - np.arange(n) * h
+        for j, sn, cs in rotated_sin_cos(ts, wb[0], h, n):
+            ms, mc = binner.mean(sn), binner.mean(cs)
+            d = eps[j : j + sn.shape[1]][None, :] * t_mid[:, None]
+            out[:, b + j : b + j + sn.shape[1], 0] = ms + d * mc
+            out[:, b + j : b + j + sn.shape[1], 1] = mc - d * ms
+    return out
 
 
 def columns(inp, binner, effect, grid):
@@ -132,6 +188,8 @@ def columns(inp, binner, effect, grid):
     if effect in ("once_per_revolution", "periodic_bias"):
         if effect == "once_per_revolution":
             grid = np.array([1.0])
+        if effect == "periodic_bias" and binner.recurrence:
+            return rotated_periodic(binner, a["t"], grid)
         out = np.empty((n, len(grid), 2))
         if effect == "periodic_bias":
             arg_base = binner.sel(a["t"])
@@ -179,6 +237,24 @@ def angle_and_ripple(inp, binner):
     theta = binner.sel(a["angle_mid"])
     amp = inp.s["axis"] * binner.sel(a["table_rate"])
     angle, ripple = {}, {}
+    if binner.recurrence:
+        # Integer orders k in blocks ⌊k / ANCHOR_EVERY⌋ anchored at the block's first integer,
+        # step e^{iθ} (as Rust).
+        blocks = sorted({int(k) // ANCHOR_EVERY for k in ks})
+        for blk in blocks:
+            k0 = blk * ANCHOR_EVERY
+            want = [k for k in ks if int(k) // ANCHOR_EVERY == blk]
+            steps = int(max(want)) - k0 + 1
+            for j, sn, cs in rotated_sin_cos(theta, float(k0), 1.0, steps):
+                ms, mc = binner.mean(sn), binner.mean(cs)
+                rs, rc = binner.mean(sn * amp[:, None]), binner.mean(cs * amp[:, None])
+                for i in range(sn.shape[1]):
+                    k = float(k0 + j + i)
+                    if k in want:
+                        angle[k] = np.column_stack([ms[:, i], mc[:, i]])
+                        ripple[k] = np.column_stack([rs[:, i], rc[:, i]])
+        binner.shared = (angle, ripple)
+        return binner.shared
     chunk = 16
     for j in range(0, len(ks), chunk):
         kk = np.asarray(ks[j : j + chunk])
@@ -212,7 +288,7 @@ def test_all(g, x, x_pinv, y, sigma):
     return np.where(ok, wald, np.nan), np.where(ok, drss, np.nan)
 
 
-def scan(inp):
+def scan(inp, recurrence=False):
     """Each effect's best grid value: {effect: (value, wald, drss, grid values)}; the times of
     the setup (Σ, X⁺, bin index) and of the scan proper."""
     t_setup = time.perf_counter()
@@ -221,7 +297,7 @@ def scan(inp):
     sigma = noise_matrix(inp)
     x = np.column_stack([a[f"base_{j}"] for j in range(4) if f"base_{j}" in a])
     x_pinv = np.linalg.pinv(x)
-    binner = Binner(inp)
+    binner = Binner(inp, recurrence)
     y = a["y"]
     setup_s = time.perf_counter() - t_setup
     t_scan = time.perf_counter()
@@ -252,6 +328,13 @@ def main():
         "--inputs", type=Path, help="inputs already written by `bench diagnose --scan-only`"
     )
     ap.add_argument("--repeat", type=int, default=1, help="time the scan this many times (min)")
+    ap.add_argument(
+        "--recurrence",
+        action="store_true",
+        help="the sinusoids by the rotation recurrence Rust uses (an exact sin and cos per "
+        f"sample every {ANCHOR_EVERY} grid values, complex multiplications between, vectorized "
+        "over the samples) instead of a sin and cos per sample and grid value",
+    )
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -272,7 +355,7 @@ def main():
         f"{'equal to' if same_samples else 'DIFFERENT from'} the scan's {len(v)} samples"
     )
 
-    runs = [scan(inp) for _ in range(max(1, args.repeat))]
+    runs = [scan(inp, args.recurrence) for _ in range(max(1, args.repeat))]
     best, setup_s, scan_s, cpu_s, cpu_all = min(runs, key=lambda r: r[2])
     rust = inp.meta["result"]
     rust_best = {b["effect"]: b for b in rust["best"]}
@@ -298,7 +381,8 @@ def main():
         )
     rust_scan = rust["time_s"]["scan"]
     print(
-        f"NumPy: setup (Σ, X⁺, bin index) {setup_s:.3f} s, scan {scan_s:.3f} s (CPU {cpu_s:.3f} s; "
+        f"NumPy ({'rotation recurrence' if args.recurrence else 'sin and cos per value'}): "
+        f"setup (Σ, X⁺, bin index) {setup_s:.3f} s, scan {scan_s:.3f} s (CPU {cpu_s:.3f} s; "
         f"best of {len(runs)}); Rust scan {rust_scan:.3f} s on {rust['threads']} thread(s) "
         f"({rust['bins']} bins, {rust['samples']} samples)"
     )

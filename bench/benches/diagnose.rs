@@ -7,7 +7,8 @@
 //!   diagnosed as `bench diagnose --no-report` does: `read_and_diagnose` (reading the MCAP,
 //!   loading the arrays, the diagnosis with the re-simulation), `diagnose` (without reading),
 //!   and `residual_scan` (the scan alone: every candidate's regressors over its grid tested
-//!   against the refitted nominal design, the part `scripts/diagnose_numpy.py` does in NumPy);
+//!   against the refitted nominal design, the part `scripts/diagnose_numpy.py` does in NumPy,
+//!   with `--recurrence` by the same rotation of the sinusoids as Rust);
 //! - `diagnose_thermal_short_7h`: `scenarios/thermal-short.toml` (7.4 h of bench time at
 //!   20 Hz, 532 k gyro samples) simulated once into memory, then `diagnose` and
 //!   `read_and_diagnose` as above.

@@ -360,6 +360,24 @@ impl Prepared {
     fn sinusoid(&self, kind: columns::Kind, p: f64) -> Vec<Vec<f64>> {
         self.memo.get(&self.native, &self.bins, self.axis, kind, p)
     }
+
+    /// The sinusoidal regressors among the candidates' grid values `items` computed together,
+    /// whole grids by rotation and in parallel ([`columns::ColumnMemo::prefill`]).
+    fn prefill_sinusoids(&self, items: &[(EffectId, f64)]) {
+        let mut orders = Vec::new();
+        let mut periods = Vec::new();
+        for &(id, p) in items {
+            match id {
+                EffectId::OncePerRevolution => orders.push(1.0),
+                EffectId::AngleHarmonic | EffectId::RateRipple => orders.push(p),
+                EffectId::PeriodicBias => periods.push(p),
+                _ => {}
+            }
+        }
+        if !orders.is_empty() || !periods.is_empty() {
+            self.memo.prefill(&self.native, &self.bins, self.axis, &orders, &periods);
+        }
+    }
 }
 
 fn prepare(
@@ -1582,12 +1600,14 @@ fn search(
     let n_eff = noise.n_eff();
     let mut best: Option<(f64, Finding, Fitted)> = None;
     let mut tried: Vec<Finding> = Vec::new();
-    // Every candidate's grid columns not computed yet, computed together (in parallel).
+    // Every candidate's grid columns not computed yet, computed together (in parallel; the
+    // sinusoids' whole grids by rotation, [`columns`]).
     let missing: Vec<(EffectId, f64)> = candidates
         .iter()
         .filter(|id| !cache.contains_key(id))
         .flat_map(|&id| grid(ctx.prep, id).into_iter().map(move |p| (id, p)))
         .collect();
+    ctx.prep.prefill_sinusoids(&missing);
     let computed =
         columns::par_map(&missing, |&(id, p)| candidate_columns(ctx.prep, id, p, ctx.model));
     for (&(id, _), cols) in missing.iter().zip(computed) {
@@ -2136,6 +2156,7 @@ pub fn residual_scan(
     let started = std::time::Instant::now();
     let items: Vec<(EffectId, f64)> =
         ids.iter().flat_map(|&id| grid(&prep, id).into_iter().map(move |p| (id, p))).collect();
+    prep.prefill_sinusoids(&items);
     let best_of = |(id, p): &(EffectId, f64)| {
         let cols = candidate_columns(&prep, *id, *p, model);
         proj.test(&cols, &y, &noise).map(|t| (t.wald, t.delta_rss))
