@@ -21,7 +21,8 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PY = os.path.join(ROOT, "target/pyenv/bin/python3")
 WRITER = os.path.join(ROOT, "tests/fixtures/lab/labwriter.py")
-BENCH = os.path.join(ROOT, "target/release/bench")
+# BENCH_BIN: another build of bench (default: this checkout's release build).
+BENCH = os.environ.get("BENCH_BIN", os.path.join(ROOT, "target/release/bench"))
 
 # preset -> (the writer's effect key, the library effect that should be named, its k)
 HARMONIC = {"effect-1rev": ("once_per_rev", "once_per_revolution", 1),
@@ -40,7 +41,9 @@ LIBRARY = {"effect-step": ("bias_step", [("step", "step_rad_s"), ("time_s", "tim
            "effect-sf-temperature": ("scale_factor_temperature",
                                      [("coeff_per_c", "coeff_per_c")]),
            "effect-hysteresis": ("thermal_hysteresis", [("half_width", "half_width_rad_s")]),
-           "effect-rate-squared": ("rate_squared", [("coeff", "coeff_s_per_rad")])}
+           "effect-rate-squared": ("rate_squared", [("coeff", "coeff_s_per_rad")]),
+           "effect-ripple": ("rate_ripple", [("relative_amplitude", "relative_amplitude"),
+                                             ("phase", "phase_rad")])}
 
 
 def within(p, value):
