@@ -12,7 +12,7 @@
 //! command, and the wire's resolution):
 //! - same steps, same labels, both completed;
 //! - fixed-length steps (waits, record windows) last the same within 1.5 s (2 s for a ramp's
-//!   record), command steps within 5 s (a loaded host's round trips × 60);
+//!   record), command steps within 30 s (0.5 s of a loaded host's round trips, × 60);
 //! - soaks (waits for a temperature) last the same within 5 s: the 0.1 °C process value crosses
 //!   its band edge at a time the jitter moves;
 //! - table rate commands equal within 1e-6 relative (the wire carries °/s in decimal text);
@@ -137,11 +137,14 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
         let (da, db) = ((a1 - a0) as f64 * 1e-9, (b1 - b0) as f64 * 1e-9);
         report += &format!("{k:<40} {da:9.2} s {db:9.2} s");
         let soak = k.contains("soak") || k.contains("settle 40C");
-        // Command steps (no duration in virtual time) last a few wire round trips: at 60× real
-        // time 5 s of bench time is 83 ms of wall time, what a loaded 2-core machine may add
-        // to a Modbus write (4.1 s seen with two builds running); waits and records end on
-        // the clock, 1.5 s (2 s across a ramp's start).
-        let tol = if soak || da < 1.0 {
+        // Command steps (no duration in virtual time) last a few wire round trips, × 60 in
+        // bench time: up to 0.5 s of wall time, what a loaded 2-core machine may add to a
+        // Modbus write (4.1 s of bench time seen with two builds running, 9.1 s with the whole
+        // suite beside a study); soaks 5 s; waits and records end on the clock, 1.5 s (2 s
+        // across a ramp's start).
+        let tol = if da < 1.0 {
+            0.5 * SCALE
+        } else if soak {
             5.0
         } else if k.contains("ramp") {
             2.0
