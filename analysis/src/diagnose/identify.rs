@@ -237,23 +237,13 @@ pub(super) fn collinear_pairs(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::series::Bin;
+    use crate::diagnose::series::test_bins;
     use crate::joint_fit::NoiseSpec;
 
     const N: usize = 400;
 
     fn noise() -> BinNoise {
-        let bins: Vec<Bin> = (0..N)
-            .map(|i| Bin {
-                first: i,
-                end: i + 1,
-                start_s: i as f64 * 10.0,
-                end_s: (i + 1) as f64 * 10.0,
-                table_rate_rad_s: 0.0,
-                table_accel_rad_s2: 0.0,
-                transition: false,
-            })
-            .collect();
+        let bins = test_bins(N);
         BinNoise::new(&bins, NoiseSpec { arw: 1.0, flicker_floor: 0.0, rrw: 0.0 })
     }
 

@@ -116,23 +116,9 @@ pub fn peak_wald_quantile(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::series::Bin;
+    use crate::diagnose::series::test_bins as bins;
     use crate::joint_fit::NoiseSpec;
     use bench_physics::allan::chi2_quantile;
-
-    fn bins(n: usize) -> Vec<Bin> {
-        (0..n)
-            .map(|i| Bin {
-                first: i,
-                end: i + 1,
-                start_s: i as f64 * 10.0,
-                end_s: (i + 1) as f64 * 10.0,
-                table_rate_rad_s: 0.0,
-                table_accel_rad_s2: 0.0,
-                transition: false,
-            })
-            .collect()
-    }
 
     #[test]
     fn one_distinct_column_gives_the_chi2_quantile() {

@@ -218,3 +218,19 @@ pub fn bin_mean(bins: &[Bin], dt: &[f64], mut x: impl FnMut(usize) -> f64) -> Ve
         })
         .collect()
 }
+
+/// `n` bins of 10 s with one sample each, the table at rest: the tests' time base.
+#[cfg(test)]
+pub(crate) fn test_bins(n: usize) -> Vec<Bin> {
+    (0..n)
+        .map(|i| Bin {
+            first: i,
+            end: i + 1,
+            start_s: i as f64 * 10.0,
+            end_s: (i + 1) as f64 * 10.0,
+            table_rate_rad_s: 0.0,
+            table_accel_rad_s2: 0.0,
+            transition: false,
+        })
+        .collect()
+}
