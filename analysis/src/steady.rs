@@ -674,6 +674,8 @@ fn fit_ripple(
     };
     let n_lines = 2 * rotating.len();
     let mut chosen: Vec<u32> = Vec::new();
+    // `(sin kθ, cos kθ)` of every reading for each chosen harmonic, computed once.
+    let mut waves: Vec<Vec<(f64, f64)>> = Vec::new();
     let mut coef: Vec<f64> = Vec::new();
     let mut left = resid.clone();
     while chosen.len() < MAX_HARMONICS {
@@ -692,6 +694,7 @@ fn fit_ripple(
             break;
         }
         chosen.push(k);
+        waves.push(theta.iter().map(|th| (f64::from(k) * th).sin_cos()).collect());
         // Normal equations of [offset, slope per segment | sin, cos per harmonic]; a row has
         // two line entries (its segment's) and every harmonic's.
         let m = n_lines + 2 * chosen.len();
@@ -704,8 +707,8 @@ fn fit_ripple(
             idx[1] = 2 * seg_of[i] + 1;
             val[0] = 1.0;
             val[1] = t_mid[i];
-            for (h, &kk) in chosen.iter().enumerate() {
-                let (s, c) = (f64::from(kk) * theta[i]).sin_cos();
+            for (h, wave) in waves.iter().enumerate() {
+                let (s, c) = wave[i];
                 idx[2 + 2 * h] = n_lines + 2 * h;
                 idx[3 + 2 * h] = n_lines + 2 * h + 1;
                 val[2 + 2 * h] = s;
@@ -718,15 +721,16 @@ fn fit_ripple(
                 }
             }
         }
-        let Some(sol) = ata.clone().cholesky().map(|c| c.solve(&atb)) else {
+        let Some(sol) = ata.cholesky().map(|c| c.solve(&atb)) else {
             chosen.pop();
+            waves.pop();
             break;
         };
         coef = sol.as_slice()[n_lines..].to_vec();
         for i in 0..n {
             let mut fit = sol[2 * seg_of[i]] + sol[2 * seg_of[i] + 1] * t_mid[i];
-            for (h, &kk) in chosen.iter().enumerate() {
-                let (s, c) = (f64::from(kk) * theta[i]).sin_cos();
+            for (h, wave) in waves.iter().enumerate() {
+                let (s, c) = wave[i];
                 fit += coef[2 * h] * s + coef[2 * h + 1] * c;
             }
             left[i] = resid[i] - fit;
