@@ -98,6 +98,20 @@ def noise_matrix(inp):
         sigma += comp
     if s["rrw"] > 0.0:
         sigma += s["rrw"] ** 2 * (np.minimum.outer(centre, centre) - centre[0])
+    if "ref_var_angle" in a and len(a["ref_var_angle"]) > 0:
+        # The table reference's error: each bin's reference is the step of the steady lines
+        # across it, so J (bins x 2 per segment) holds its sensitivity to each line's angle at
+        # its mid time and to its rate; D their variances.
+        m = len(a["ref_var_angle"])
+        jac = np.zeros((len(span), 2 * m))
+        rows = np.arange(len(span))
+        for end in ("0", "1"):
+            seg = a["ref_seg" + end].astype(np.int64)
+            np.add.at(jac, (rows, 2 * seg), a["ref_angle" + end])
+            np.add.at(jac, (rows, 2 * seg + 1), a["ref_rate" + end])
+        d = np.empty(2 * m)
+        d[0::2], d[1::2] = a["ref_var_angle"], a["ref_var_rate"]
+        sigma += (jac * d) @ jac.T
     return sigma
 
 

@@ -351,6 +351,8 @@ struct Prepared {
     short_adev: Vec<AdevPoint>,
     /// σ of a time offset from the table's angle readout ([`readout_offset_sigma_s`]), s.
     readout_offset_sigma_s: f64,
+    /// The table reference's error in the bins, for the noise model ([`noise::ReferenceLines`]).
+    reference: noise::ReferenceLines,
     /// The sinusoidal regressors computed so far ([`columns`]).
     memo: columns::ColumnMemo,
 }
@@ -447,7 +449,9 @@ fn prepare(
         .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
         .collect();
     let short_adev = native_adev(&native, &motion, axis, &thermal);
-    let readout_offset_sigma_s = readout_offset_sigma_s(&motion, &bins);
+    let readout_offset_sigma_s =
+        readout_offset_sigma_s(&motion, &run.table_time_s, &run.table_angle_rad);
+    let reference = noise::ReferenceLines::new(&motion, &bins);
     Ok(Prepared {
         native,
         bins,
@@ -462,6 +466,7 @@ fn prepare(
         base,
         short_adev,
         readout_offset_sigma_s,
+        reference,
         memo: columns::ColumnMemo::default(),
     })
 }
@@ -473,33 +478,71 @@ fn prepare(
 /// steps) puts one offset of up to ±q/2 on the whole segment, the same for every segment of
 /// that rate and phase: at each reversal `(e_after − e_before)/Δω`, the same at every reversal,
 /// so it does not average down. With the two offsets uniform in ±q/2: `σ = q/√6/|Δω|` (1″ at
-/// ±10 °/min: 0.34 ms). 0 without a grid or where the rounding's phase runs through the steps.
-fn readout_offset_sigma_s(motion: &TableMotion, bins: &[Bin]) -> f64 {
+/// ±10 °/min: 0.34 ms), Δω the largest step between consecutive segments' rates. 0 without a
+/// grid or where the rounding's phase runs through the steps ([`rounding_in_phase`]).
+fn readout_offset_sigma_s(motion: &TableMotion, time_s: &[f64], angle_rad: &[f64]) -> f64 {
     let q = motion.quantum_rad;
     if q <= 0.0 {
         return 0.0;
     }
-    // The rounding's phase moves by less than one step over the segment.
-    let in_phase = |s: &TableSegment| {
-        if s.readings < 2 {
-            return false;
-        }
-        let per_reading = s.rate_rad_s.abs() * s.duration_s() / (s.readings - 1) as f64 / q;
-        (per_reading - per_reading.round()).abs() * (s.readings as f64) < 1.0
-    };
-    if !motion.segments.iter().filter(|s| s.command_rad_s != 0.0).any(in_phase) {
+    let in_phase = motion
+        .segments
+        .iter()
+        .filter(|s| s.command_rad_s != 0.0)
+        .any(|s| rounding_in_phase(s, time_s, angle_rad, q));
+    if !in_phase {
         return 0.0;
     }
-    let step = bins
-        .iter()
-        .filter(|b| b.transition)
-        .map(|b| (b.table_accel_rad_s2 * b.span_s()).abs())
+    let step = motion
+        .segments
+        .windows(2)
+        .map(|w| (w[1].rate_rad_s - w[0].rate_rad_s).abs())
         .fold(0.0, f64::max);
     if step > 0.0 {
         q / 6f64.sqrt() / step
     } else {
         0.0
     }
+}
+
+/// Whether segment `s`'s readings keep one rounding phase: read off the angles themselves, not
+/// their stamps (a host's jitter moves the stamps, not the values). Each step between
+/// consecutive readings, in readout steps, is a whole number of the segment's usual step `m`
+/// (one reading interval, more after a lost reading) plus a slip where the rounding's phase
+/// crossed a step; the phase stays put while the slips add up to less than one step over the
+/// segment and nine steps in ten are whole intervals (readings taken at jittered instants
+/// scatter the steps and dither the rounding). Steps that are not 1–4 intervals (a wrap, a
+/// glitch) are left out.
+fn rounding_in_phase(s: &TableSegment, time_s: &[f64], angle_rad: &[f64], q: f64) -> bool {
+    let lo = time_s.partition_point(|&t| t < s.start_s);
+    let hi = time_s.partition_point(|&t| t <= s.end_s).min(angle_rad.len());
+    if hi < lo + 3 {
+        return false;
+    }
+    let steps: Vec<i64> =
+        angle_rad[lo..hi].windows(2).map(|w| ((w[1] - w[0]) / q).round() as i64).collect();
+    // The usual step: the most frequent one.
+    let mut sorted = steps.clone();
+    sorted.sort_unstable();
+    let mut m = 0;
+    let mut best = 0;
+    for run in sorted.chunk_by(|a, b| a == b) {
+        if run.len() > best {
+            (best, m) = (run.len(), run[0]);
+        }
+    }
+    if m == 0 {
+        return false;
+    }
+    let slips: Vec<i64> = steps
+        .iter()
+        .filter_map(|&d| {
+            let intervals = (d as f64 / m as f64).round() as i64;
+            (1..=4).contains(&intervals).then_some(d - m * intervals)
+        })
+        .collect();
+    let whole = slips.iter().filter(|&&x| x == 0).count();
+    slips.iter().sum::<i64>() == 0 && whole * 10 >= slips.len() * 9
 }
 
 struct HysteresisStateSeries(Vec<f64>);
@@ -1018,7 +1061,7 @@ pub fn diagnose(
     let base_proj = Projector::new(&prep.base, &all)?;
     let r_base = base_proj.residual(&y, n);
     let (noise_before, adev_segments) = noise_model(&prep)?;
-    let noise0 = BinNoise::new(&prep.bins, noise_before);
+    let noise0 = BinNoise::new(&prep.bins, noise_before).with_reference(prep.reference.clone());
     let beta0 = base_proj.beta(&y);
     let cov0 = base_proj.covariance(&noise0);
     let p0 = beta0.len();
@@ -2150,7 +2193,7 @@ pub fn residual_scan(
     let y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
     let proj = Projector::new(&prep.base, &all)?;
     let (spec, _) = noise_model(&prep)?;
-    let noise = BinNoise::new(&prep.bins, spec);
+    let noise = BinNoise::new(&prep.bins, spec).with_reference(prep.reference.clone());
     let prepare_s = started.elapsed().as_secs_f64();
     let ids = residual_scan_effects(effects);
     let started = std::time::Instant::now();
@@ -2207,6 +2250,7 @@ pub fn residual_scan(
     };
     arrays.push(("noise_t", comps.iter().map(|c| c.0).collect()));
     arrays.push(("noise_var", comps.iter().map(|c| c.1 * c.1).collect()));
+    arrays.extend(prep.reference.arrays());
     let inputs = ScanInputs {
         arrays,
         scalars: vec![
@@ -2220,4 +2264,57 @@ pub fn residual_scan(
         grids: ids.iter().map(|&id| (id, grid(&prep, id))).collect(),
     };
     Ok(ResidualScan { best, bins: n, samples: nat.t.len(), prepare_s, scan_s, inputs })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 7200 readings at 10 Hz of a table turning `steps_per_reading` readout steps of 1″ per
+    /// reading, read at instants jittered by `sample_jitter_s`, stamped with `stamp_jitter_s`
+    /// more (deterministic pseudo-noise), reading 500 lost.
+    fn readings(
+        steps_per_reading: f64,
+        sample_jitter_s: f64,
+        stamp_jitter_s: f64,
+    ) -> (TableSegment, Vec<f64>, Vec<f64>) {
+        let q = bench_physics::units::ARCSEC;
+        let rate = steps_per_reading * q / 0.1;
+        let noise = |k: usize, salt: f64| ((k as f64 * 12.9898 + salt).sin() * 43758.5453).fract();
+        let (mut t, mut a) = (Vec::new(), Vec::new());
+        for k in (0..7200).filter(|&k| k != 500) {
+            let ts = 0.1 * k as f64 + sample_jitter_s * (noise(k, 1.0) - 0.5) * 3.46;
+            a.push(((0.3 * q + rate * ts) / q).round() * q);
+            t.push(0.1 * k as f64 + stamp_jitter_s * (noise(k, 7.0) - 0.5) * 3.46);
+        }
+        let seg = TableSegment {
+            start_s: t[0],
+            end_s: t[t.len() - 1],
+            angle0_rad: a[0],
+            rate_rad_s: rate,
+            command_rad_s: rate,
+            scatter_rad: q,
+            readings: t.len(),
+            rate_sigma_rad_s: 0.0,
+        };
+        (seg, t, a)
+    }
+
+    #[test]
+    fn the_rounding_phase_is_read_off_the_angles_not_their_stamps() {
+        let q = bench_physics::units::ARCSEC;
+        // 60 steps a reading, stamps jittered by 10 ms (the angle's duration over the stamps
+        // would be off by several steps): in phase, a lost reading notwithstanding.
+        let (s, t, a) = readings(60.0, 0.0, 0.010);
+        assert!(rounding_in_phase(&s, &t, &a, q));
+        // 60.001 steps a reading: the phase crosses 7 steps over the segment.
+        let (s, t, a) = readings(60.001, 0.0, 0.0);
+        assert!(!rounding_in_phase(&s, &t, &a, q));
+        // 60.00001: a tenth of a step over the segment, in phase.
+        let (s, t, a) = readings(60.00001, 0.0, 0.0);
+        assert!(rounding_in_phase(&s, &t, &a, q));
+        // Read at instants jittered by 2 ms (±1.2 steps): the rounding is dithered.
+        let (s, t, a) = readings(60.0, 0.002, 0.0);
+        assert!(!rounding_in_phase(&s, &t, &a, q));
+    }
 }

@@ -8,8 +8,17 @@
 //!   between bins `a ≠ b` exactly `σ²·g_a·g_b·e^{−|c_a − c_b|/T}` with `g = (2T/S)·sinh(S/2T)`
 //!   and centres `c`; within a bin `2σ²(T/S)·(1 − (T/S)(1 − e^{−S/T}))`;
 //! - rate random walk `K`: `K²·(min(c_a, c_b) − c_0)`, bin centres standing for the bins.
+//!
+//! The residual is the gyro minus the model driven by the table's reference rate, so the
+//! reference's error is in it too ([`ReferenceLines`]): a bin's reference is the step of the
+//! fitted steady lines across it, `(L₁(end) − L₀(start))/S`, and each line is known only to
+//! within its readings' scatter. Inside one segment only the line's rate error is left, common
+//! to all its bins; across a rate change the two lines' angle errors at the bin's edges do not
+//! cancel. A lab's table read at 10 Hz with jittered stamps leaves a line's end uncertain by
+//! ~2e-7 rad, 2e-8 rad/s over a 10 s bin: several times a quiet FOG's own noise there.
 
 use crate::joint_fit::NoiseSpec;
+use crate::steady::TableMotion;
 
 use super::series::Bin;
 
@@ -41,6 +50,103 @@ pub struct BinNoise {
     diag: Vec<f64>,
     rrw2: f64,
     spec: NoiseSpec,
+    reference: ReferenceLines,
+}
+
+/// The table reference's error in the bins (module docs): per steady segment, the fitted line's
+/// angle at its mid time and its rate, independent (least squares about the mean time), each
+/// with the σ its readings' scatter allows.
+#[derive(Debug, Clone, Default)]
+pub struct ReferenceLines {
+    /// Per segment: variance of the line's angle at its mid time (rad²) and of its rate
+    /// ((rad/s)²).
+    var: Vec<[f64; 2]>,
+    /// Per bin, the two ends: (segment, ∂reference/∂angle error, ∂reference/∂rate error).
+    rows: Vec<[(usize, f64, f64); 2]>,
+}
+
+impl ReferenceLines {
+    /// The error of `bins`' reference rates from `motion`'s segment lines. A segment's rate σ
+    /// is its [`crate::steady::TableSegment::rate_sigma_rad_s`] (the larger of the white and
+    /// the block estimate); its mid angle's σ is the larger of `scatter/√n` and the same
+    /// estimate carried over from the rate's (`σ_rate·T/√12`, equal for white scatter). Bins
+    /// with an end outside every segment get no reference error.
+    pub fn new(motion: &TableMotion, bins: &[Bin]) -> Self {
+        let var = motion
+            .segments
+            .iter()
+            .map(|s| {
+                let white = s.scatter_rad / (s.readings.max(1) as f64).sqrt();
+                let mid = white.max(s.rate_sigma_rad_s * s.duration_s() / 12f64.sqrt());
+                [mid * mid, s.rate_sigma_rad_s * s.rate_sigma_rad_s]
+            })
+            .collect();
+        let index = |t: f64| {
+            let k = motion.segments.partition_point(|s| s.start_s <= t);
+            let i = k.checked_sub(1)?;
+            (t <= motion.segments[i].end_s).then_some(i)
+        };
+        let mid = |i: usize| {
+            let s = &motion.segments[i];
+            0.5 * (s.start_s + s.end_s)
+        };
+        let rows = bins
+            .iter()
+            .map(|b| match (index(b.start_s), index(b.end_s)) {
+                (Some(i0), Some(i1)) if b.span_s() > 0.0 => {
+                    let span = b.span_s();
+                    [
+                        (i0, -1.0 / span, -(b.start_s - mid(i0)) / span),
+                        (i1, 1.0 / span, (b.end_s - mid(i1)) / span),
+                    ]
+                }
+                _ => [(0, 0.0, 0.0); 2],
+            })
+            .collect();
+        Self { var, rows }
+    }
+
+    /// The term as arrays, for another implementation to rebuild `J·D·Jᵀ` (the residual
+    /// scan's inputs): per bin, `ref_seg0`, `ref_angle0`, `ref_rate0` (its start) and the same
+    /// with `1` (its end); per segment, `ref_var_angle` and `ref_var_rate`.
+    pub fn arrays(&self) -> Vec<(&'static str, Vec<f64>)> {
+        let col = |end: usize, f: &dyn Fn(&(usize, f64, f64)) -> f64| {
+            self.rows.iter().map(|r| f(&r[end])).collect::<Vec<f64>>()
+        };
+        vec![
+            ("ref_seg0", col(0, &|r| r.0 as f64)),
+            ("ref_angle0", col(0, &|r| r.1)),
+            ("ref_rate0", col(0, &|r| r.2)),
+            ("ref_seg1", col(1, &|r| r.0 as f64)),
+            ("ref_angle1", col(1, &|r| r.1)),
+            ("ref_rate1", col(1, &|r| r.2)),
+            ("ref_var_angle", self.var.iter().map(|v| v[0]).collect()),
+            ("ref_var_rate", self.var.iter().map(|v| v[1]).collect()),
+        ]
+    }
+
+    /// `Σ_ref·b` added to `out`: `J·D·Jᵀ·b`, J the bins' sensitivities to the lines' errors.
+    fn apply_into(&self, b: &[f64], out: &mut [f64]) {
+        if self.var.is_empty() || self.rows.len() != b.len() {
+            return;
+        }
+        let mut u = vec![[0.0; 2]; self.var.len()];
+        for (row, bi) in self.rows.iter().zip(b) {
+            for &(s, ca, cr) in row {
+                u[s][0] += ca * bi;
+                u[s][1] += cr * bi;
+            }
+        }
+        for (us, v) in u.iter_mut().zip(&self.var) {
+            us[0] *= v[0];
+            us[1] *= v[1];
+        }
+        for (row, o) in self.rows.iter().zip(out.iter_mut()) {
+            for &(s, ca, cr) in row {
+                *o += ca * u[s][0] + cr * u[s][1];
+            }
+        }
+    }
 }
 
 impl BinNoise {
@@ -79,7 +185,14 @@ impl BinNoise {
                 }
             }
         }
-        Self { centre, comps, diag, rrw2: spec.rrw * spec.rrw, spec }
+        let reference = ReferenceLines::default();
+        Self { centre, comps, diag, rrw2: spec.rrw * spec.rrw, spec, reference }
+    }
+
+    /// The same covariance with the table reference's error added ([`ReferenceLines`]).
+    pub fn with_reference(mut self, reference: ReferenceLines) -> Self {
+        self.reference = reference;
+        self
     }
 
     /// The noise model.
@@ -140,6 +253,7 @@ impl BinNoise {
                 out[i] += self.rrw2 * acc;
             }
         }
+        self.reference.apply_into(b, &mut out);
         out
     }
 
@@ -237,5 +351,100 @@ mod tests {
         assert!((got - want).abs() < 1e-9 * want.abs(), "{got:e} vs {want:e}");
         let applied: f64 = m.apply(&c).iter().zip(&a).map(|(x, y)| x * y).sum();
         assert!((applied - want).abs() < 1e-9 * want.abs(), "apply: {applied:e} vs {want:e}");
+    }
+
+    /// Two steady lines (a CW one 0..100 s, a CCW one 110..200 s) and 10 s bins between them:
+    /// nine inside the first line, one across the reversal, nine inside the second.
+    fn two_lines() -> (TableMotion, Vec<Bin>) {
+        let seg = |start_s: f64, end_s: f64, rate: f64, scatter_rad: f64, readings: usize| {
+            let t = end_s - start_s;
+            crate::steady::TableSegment {
+                start_s,
+                end_s,
+                angle0_rad: 0.0,
+                rate_rad_s: rate,
+                command_rad_s: rate,
+                scatter_rad,
+                readings,
+                rate_sigma_rad_s: scatter_rad * (12.0 / readings as f64).sqrt() / t,
+            }
+        };
+        let motion = TableMotion {
+            segments: vec![seg(0.0, 100.0, -3e-3, 6e-6, 1000), seg(110.0, 200.0, 3e-3, 4e-6, 900)],
+            ..TableMotion::default()
+        };
+        let b: Vec<Bin> = (0..19)
+            .map(|i| {
+                let start_s =
+                    if i < 9 { 5.0 + 10.0 * i as f64 } else { 95.0 + 10.0 * (i - 9) as f64 };
+                let end_s = if i == 9 { 115.0 } else { start_s + 10.0 };
+                Bin {
+                    first: i,
+                    end: i + 1,
+                    start_s,
+                    end_s,
+                    table_rate_rad_s: 0.0,
+                    table_accel_rad_s2: 0.0,
+                    transition: i == 9,
+                }
+            })
+            .collect();
+        (motion, b)
+    }
+
+    #[test]
+    fn a_bin_across_a_reversal_carries_both_lines_errors_and_a_steady_bin_only_its_rate() {
+        let (motion, b) = two_lines();
+        let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
+        let m = BinNoise::new(&b, spec).with_reference(ReferenceLines::new(&motion, &b));
+        let e = |i: usize| {
+            let mut v = vec![0.0; b.len()];
+            v[i] = 1.0;
+            v
+        };
+        // A line fitted to n evenly spread readings of scatter σ over T: the angle at the mid
+        // time σ/√n, the rate σ·√(12/n)/T, independent.
+        let (a0, r0) = (6e-6 / 1000f64.sqrt(), 6e-6 * (12.0f64 / 1000.0).sqrt() / 100.0);
+        let (a1, r1) = (4e-6 / 900f64.sqrt(), 4e-6 * (12.0f64 / 900.0).sqrt() / 90.0);
+        // Steady bins: the line's rate error, the same in every bin of the line.
+        assert!((m.quad(&e(2), &e(2)) / (r0 * r0) - 1.0).abs() < 1e-12);
+        assert!((m.quad(&e(2), &e(7)) / (r0 * r0) - 1.0).abs() < 1e-12);
+        assert!((m.quad(&e(12), &e(17)) / (r1 * r1) - 1.0).abs() < 1e-12);
+        assert_eq!(m.quad(&e(2), &e(12)), 0.0);
+        // The reversal's bin, 95..115 s: (L₁(115) − L₀(95))/20 with the lines' mid times at
+        // 50 and 155 s.
+        let want = (a0 * a0 + (45.0 * r0).powi(2) + a1 * a1 + (40.0 * r1).powi(2)) / 400.0;
+        assert!((m.quad(&e(9), &e(9)) / want - 1.0).abs() < 1e-12);
+        // It shares the first line's rate error with that line's bins: −(95 − 50)/20·r0²·1.
+        let cross = -(45.0 / 20.0) * r0 * r0;
+        assert!((m.quad(&e(9), &e(3)) / cross - 1.0).abs() < 1e-12);
+        // An order of magnitude above a steady bin's: the angle errors at its edges.
+        assert!(m.quad(&e(9), &e(9)) > 10.0 * m.quad(&e(2), &e(2)));
+    }
+
+    #[test]
+    fn the_reference_term_matches_its_dense_covariance() {
+        let (motion, b) = two_lines();
+        let r = ReferenceLines::new(&motion, &b);
+        let n = b.len();
+        // Dense J·D·Jᵀ from the rows.
+        let mut j = vec![vec![0.0; 4]; n];
+        for (i, row) in r.rows.iter().enumerate() {
+            for &(s, ca, cr) in row {
+                j[i][2 * s] += ca;
+                j[i][2 * s + 1] += cr;
+            }
+        }
+        let d = [r.var[0][0], r.var[0][1], r.var[1][0], r.var[1][1]];
+        let a: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).cos()).collect();
+        let c: Vec<f64> = (0..n).map(|i| 0.3 + (i as f64 * 0.2).sin()).collect();
+        let want: f64 = (0..n)
+            .flat_map(|i| (0..n).map(move |k| (i, k)))
+            .map(|(i, k)| a[i] * c[k] * (0..4).map(|q| j[i][q] * d[q] * j[k][q]).sum::<f64>())
+            .sum();
+        let m = BinNoise::new(&b, NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 })
+            .with_reference(r);
+        let got = m.quad(&a, &c);
+        assert!((got - want).abs() < 1e-12 * want.abs(), "{got:e} vs {want:e}");
     }
 }

@@ -41,6 +41,10 @@ pub struct MonteCarloArgs {
     /// parameters-only study.
     #[arg(long, requires = "diagnose")]
     pub model: Option<PathBuf>,
+    /// With `--diagnose`: write each seed's recording, as diagnosed (lab traits applied), to
+    /// this directory as `seed-N.mcap`.
+    #[arg(long, requires = "diagnose")]
+    pub keep: Option<PathBuf>,
 }
 
 /// Display unit (name, SI value of one unit) of a coefficient named by its key.
@@ -55,6 +59,9 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
     let started = std::time::Instant::now();
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let lab = args.lab.then(bench::study::lab::LabTraits::lab);
+    if let Some(dir) = &args.keep {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
     let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,
@@ -63,6 +70,7 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
         &bench_analysis::diagnose::DiagnoseOptions::default(),
         nominal,
         lab.as_ref(),
+        args.keep.as_deref(),
         |s| {
             eprintln!(
                 "seed {:>4}: {} found [{}]{} in {:.2} s",

@@ -9,6 +9,8 @@ use std::io::Cursor;
 use std::path::Path;
 use std::time::Instant;
 
+use anyhow::Context as _;
+
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::effects::{EffectId, Effects};
 use bench_physics::GyroModel;
@@ -118,7 +120,9 @@ impl DiagnoseStudy {
 /// Simulate `scenario` with seeds `first..first + count` on `jobs` threads and diagnose each
 /// recording in memory against `nominal`, or else its own `bench.gyro_model` (a nominal model
 /// that differs from the scenario's truth only in parameter values makes a parameters-only
-/// study). With `lab`, each recording first gets a lab's traits ([`super::lab`]).
+/// study). With `lab`, each recording first gets a lab's traits ([`super::lab`]). With `keep`,
+/// each recording as analysed is written there as `seed-N.mcap`, for a failing seed to be
+/// looked at with `bench diagnose`.
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     scenario: &Path,
@@ -128,6 +132,7 @@ pub fn run(
     opts: &DiagnoseOptions,
     nominal: Option<(GyroModel, Effects, String)>,
     lab: Option<&super::lab::LabTraits>,
+    keep: Option<&Path>,
     on_seed: impl FnMut(&SeedDiagnosis) + Send,
 ) -> anyhow::Result<DiagnoseStudy> {
     let plan = crate::scenario::load(scenario, &capabilities())?;
@@ -165,10 +170,16 @@ pub fn run(
                 SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
             let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
             anyhow::ensure!(report.completed(), "run {}", report.outcome);
-            let mut rec = Recording::from_bytes(cursor.get_ref())?;
+            let mut bytes = cursor.into_inner();
             if let Some(traits) = lab {
-                rec = super::lab::apply(&rec, traits, seed)?;
+                bytes = super::lab::apply_to_bytes(&Recording::from_bytes(&bytes)?, traits, seed)?;
             }
+            if let Some(dir) = keep {
+                let path = dir.join(format!("seed-{seed}.mcap"));
+                std::fs::write(&path, &bytes)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+            }
+            let rec = Recording::from_bytes(&bytes)?;
             let started = Instant::now();
             let out = bench_report::diagnose::diagnose_recording(&rec, nominal.clone(), opts)?;
             let seconds = started.elapsed().as_secs_f64();

@@ -97,6 +97,11 @@ fn decimate<T>(msgs: &[bench_recording::Stamped<T>], hz: Option<f64>) -> Vec<usi
 
 /// `rec` with `traits` applied, drawn from `seed` (module docs).
 pub fn apply(rec: &Recording, traits: &LabTraits, seed: u64) -> anyhow::Result<Recording> {
+    Ok(Recording::from_bytes(&apply_to_bytes(rec, traits, seed)?)?)
+}
+
+/// [`apply`], the result as the MCAP file's bytes.
+pub fn apply_to_bytes(rec: &Recording, traits: &LabTraits, seed: u64) -> anyhow::Result<Vec<u8>> {
     let zero = rec.time_zero_ns().context("the recording has no messages")?;
     // Bench time zero one second before the first message: jitter may stamp earlier.
     let epoch = zero.saturating_sub(1_000_000_000);
@@ -193,8 +198,7 @@ pub fn apply(rec: &Recording, traits: &LabTraits, seed: u64) -> anyhow::Result<R
         r.step(t, s.index, &s.name, s.event, &s.label)?;
     }
     let outcome = rec.outcome().unwrap_or(Outcome::Completed);
-    let bytes = r.finish(&outcome)?.into_inner();
-    Ok(Recording::from_bytes(&bytes)?)
+    Ok(r.finish(&outcome)?.into_inner())
 }
 
 /// Record steps' start events moved back to the last command change before them, and their
