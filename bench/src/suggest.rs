@@ -77,7 +77,15 @@ fn is_angle(id: EffectId) -> bool {
 /// A scenario that separates the diagnosis's confounded pairs (module docs), or `None` when
 /// the diagnosis found none.
 pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<Suggestion>> {
-    let pairs = d.identifiability();
+    suggest_for(d.identifiability(), &d.model, facts)
+}
+
+/// [`suggest`] for the confounded `pairs` of a recording diagnosed to `model`.
+fn suggest_for(
+    pairs: Vec<Collinearity>,
+    model: &GyroModel,
+    facts: &RecordingFacts,
+) -> anyhow::Result<Option<Suggestion>> {
     if pairs.is_empty() {
         return Ok(None);
     }
@@ -87,7 +95,7 @@ pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<S
     // At least 20 °C of range, within the gyro's −40..60 °C.
     let lo = lo.floor().clamp(-40.0, 40.0);
     let hi = hi.ceil().clamp(lo + 20.0, 60.0);
-    let t0 = d.model.reference_temperature;
+    let t0 = model.reference_temperature;
     let mut why = Vec::new();
     let mut steps = String::new();
     let mut step = |label: &str, body: &str| {
@@ -158,17 +166,17 @@ pub fn suggest(d: &Diagnosis, facts: &RecordingFacts) -> anyhow::Result<Option<S
         .iter()
         .map(|c| format!("{} vs {} (ρ = {:.3})", c.effect.key(), c.with, c.rho))
         .collect();
-    let mut model = String::new();
-    for (k, v) in d.model.to_metadata() {
+    let mut model_toml = String::new();
+    for (k, v) in model.to_metadata() {
         let value = if k == "earth_rate" { (v == "1" || v == "true").to_string() } else { v };
-        let _ = writeln!(model, "{k} = {value}");
+        let _ = writeln!(model_toml, "{k} = {value}");
     }
     let text = format!(
         "# Suggested by `bench diagnose {name} --suggest-scenario`: a run that separates what \
          that recording\n# could not ({pairs}).\n{why}\n\n[scenario]\nname = \"separate-{slug}\"\n\
          description = \"Separates {pairs} (bench diagnose of {name}).\"\n\n[site]\n\
          latitude_deg = {lat}\naxis = \"up\"\n\n[gyro]\nsample_rate = \"20 Hz\"\n\n\
-         # The diagnosed model of {name}.\n[gyro.model]\n{model}\n[simulation]\n\
+         # The diagnosed model of {name}.\n[gyro.model]\n{model_toml}\n[simulation]\n\
          initial_temp = \"{t0} °C\"\n\n[safe]\ndecel = \"10 °/s²\"\ntemperature = \"{t0} °C\"\n\n\
          {steps}",
         name = facts.name,
@@ -214,4 +222,68 @@ pub fn predict(s: &mut Suggestion, seed: u64) -> anyhow::Result<()> {
             .cloned();
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(effect: EffectId, with: &str) -> Collinearity {
+        Collinearity {
+            effect,
+            effect_accepted: false,
+            grid_value: f64::NAN,
+            with: with.into(),
+            rho: 0.97,
+            sigma_inflation: 4.1,
+            sigma: 1e-3,
+            bound: 3e-3,
+            parameter: "coeff_s_per_rad",
+            unit: "s/rad",
+        }
+    }
+
+    fn facts() -> RecordingFacts {
+        RecordingFacts { name: "r.mcap".into(), latitude_deg: 43.6, temp_range_c: (-5.0, 45.0) }
+    }
+
+    /// Steps of the suggested scenario that spin at `rate` °/min, and that ramp the chamber.
+    fn counts(text: &str, rate: &str) -> (usize, usize) {
+        let spins = text.matches(&format!("spin = \"{rate} °/min\"")).count();
+        let ramps = text.matches("ramp = \"").count();
+        (spins, ramps)
+    }
+
+    #[test]
+    fn a_rate_squared_term_gets_two_rates_and_no_thermal_ramps() {
+        let model = GyroModel::default();
+        let s = suggest_for(vec![pair(EffectId::RateSquared, "bias")], &model, &facts())
+            .expect("validates")
+            .expect("a suggestion");
+        // Full turns each way at 10 and at 30 °/min, at constant temperature.
+        assert_eq!(counts(&s.text, "30"), (2, 0), "{}", s.text);
+        assert_eq!(counts(&s.text, "10").0, 2, "{}", s.text);
+        assert!(s.why.iter().any(|w| w.contains("rate² term from the bias")), "{:?}", s.why);
+        assert_eq!(s.targets.len(), 1);
+    }
+
+    #[test]
+    fn a_thermal_term_gets_ramps_at_two_rates_and_no_second_table_rate() {
+        let model = GyroModel::default();
+        let s = suggest_for(vec![pair(EffectId::ThermalLag, "temp_rate_coeff")], &model, &facts())
+            .expect("validates")
+            .expect("a suggestion");
+        let (spins30, ramps) = counts(&s.text, "30");
+        assert_eq!(spins30, 0, "{}", s.text);
+        // Up and down at 0.5 and 2 °C/min, in each direction of rotation.
+        assert_eq!(ramps, 4, "{}", s.text);
+        assert!(s.text.contains("ramp = \"0.5 °C/min\"") && s.text.contains("ramp = \"2 °C/min\""));
+        // Over the recording's range (−5..45 °C).
+        assert!(s.text.contains("chamber = \"-5 °C\"") && s.text.contains("chamber = \"45 °C\""));
+    }
+
+    #[test]
+    fn nothing_confounded_suggests_nothing() {
+        assert!(suggest_for(Vec::new(), &GyroModel::default(), &facts()).expect("ok").is_none());
+    }
 }
