@@ -164,7 +164,7 @@ fn suggest_for(
     }
     let pairs_text: Vec<String> = pairs
         .iter()
-        .map(|c| format!("{} vs {} (ρ = {:.3})", c.effect.key(), c.with, c.rho))
+        .map(|c| format!("{} vs {} (ρ = {:.3})", c.effect.key(), c.with_name(), c.rho))
         .collect();
     let mut model_toml = String::new();
     for (k, v) in model.to_metadata() {
@@ -233,7 +233,7 @@ mod tests {
             effect,
             effect_accepted: false,
             grid_value: f64::NAN,
-            with: with.into(),
+            with: vec![with.into()],
             rho: 0.97,
             sigma_inflation: 4.1,
             sigma: 1e-3,

@@ -278,7 +278,7 @@ fn a_term_collinear_with_a_parameter_is_stated_with_its_bound() {
     let pairs = d.identifiability();
     let c = pairs
         .iter()
-        .find(|c| c.effect == EffectId::ThermalLag && c.with == "temp_rate_coeff")
+        .find(|c| c.effect == EffectId::ThermalLag && c.with == ["temp_rate_coeff"])
         .unwrap_or_else(|| panic!("{:?}", d.identifiability()));
     assert!(c.rho >= 0.9 && c.rho < 1.0 && !c.effect_accepted, "{c:?}");
     assert!(c.bound > 0.0 && c.sigma_inflation > 2.0, "{c:?}");
@@ -314,7 +314,7 @@ fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
     let t = s
         .targets
         .iter()
-        .find(|t| t.before.effect == EffectId::ThermalLag && t.before.with == "temp_rate_coeff")
+        .find(|t| t.before.effect == EffectId::ThermalLag && t.before.with == ["temp_rate_coeff"])
         .expect("the lag is a target");
     let after = t.after.as_ref().expect("judged on the suggestion");
     assert!(after.rho < t.before.rho && after.sigma < t.before.sigma, "{t:?}");

@@ -29,8 +29,9 @@ pub struct Collinearity {
     pub effect_accepted: bool,
     /// The effect's grid value (time constant, period, cycles per revolution…; NaN for none).
     pub grid_value: f64,
-    /// The other term: a nominal parameter's key or an accepted effect's key.
-    pub with: String,
+    /// The other term: a nominal parameter's key or an accepted effect's key; or a set of them
+    /// that together hold the effect where no single one does ([`Self::with_name`]).
+    pub with: Vec<String>,
     /// ρ, 0..1 (module docs).
     pub rho: f64,
     /// The effect's σ with the other term in the model over its σ without (√VIF).
@@ -44,6 +45,13 @@ pub struct Collinearity {
     pub parameter: &'static str,
     /// Unit of `bound`.
     pub unit: &'static str,
+}
+
+impl Collinearity {
+    /// The other term's name, a set's as `a + b`.
+    pub fn with_name(&self) -> String {
+        self.with.join(" + ")
+    }
 }
 
 /// A term of the final model: its name and its columns' indices in the design.
@@ -99,7 +107,7 @@ const MAX_SET: usize = 3;
 ///   terms that do;
 /// - **a set of terms** that together hold an effect no single one does: when every pair stays
 ///   below [`COLLINEAR_RHO`], terms are added greedily (the one that raises `ρ` most) until the
-///   set reaches it, at most [`MAX_SET`] of them; the set is named `a + b`.
+///   set reaches it, at most [`MAX_SET`] of them ([`Collinearity::with`] lists them).
 ///
 /// `sets` asks for the collinearity of an effect with a given set of terms as well (a
 /// recording's set, measured again on a suggested run).
@@ -109,7 +117,7 @@ pub(super) fn collinear_pairs(
     effects: &[(EffectId, bool, f64, Vec<Vec<f64>>)],
     y: &[f64],
     noise: &BinNoise,
-    sets: &[(EffectId, String)],
+    sets: &[(EffectId, Vec<String>)],
 ) -> Vec<Collinearity> {
     let all: Vec<usize> = (0..noise.len()).collect();
     let mut out = Vec::new();
@@ -133,7 +141,7 @@ pub(super) fn collinear_pairs(
                 effect: *id,
                 effect_accepted: *accepted,
                 grid_value: *p,
-                with: with.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(" + "),
+                with: with.iter().map(|t| t.name.clone()).collect(),
                 rho,
                 sigma_inflation: inflation,
                 sigma,
@@ -184,7 +192,7 @@ pub(super) fn collinear_pairs(
             best_single = best_single.max(rho);
             out.push(entry(&[term], rho, inflation, vf.sqrt(), bound_full));
         }
-        let mut pushed: Vec<String> = Vec::new();
+        let mut pushed: Vec<Vec<String>> = Vec::new();
         // A set, when no single term holds the effect but the whole model might.
         if best_single < COLLINEAR_RHO
             && others.len() >= 2
@@ -217,11 +225,8 @@ pub(super) fn collinear_pairs(
         }
         // Sets asked for.
         for (_, names) in sets.iter().filter(|(e, n)| e == id && !pushed.contains(n)) {
-            let set: Vec<&Term> = others
-                .iter()
-                .copied()
-                .filter(|t| names.split(" + ").any(|n| n == t.name))
-                .collect();
+            let set: Vec<&Term> =
+                others.iter().copied().filter(|t| names.contains(&t.name)).collect();
             if set.len() < 2 {
                 continue;
             }
@@ -280,7 +285,7 @@ mod tests {
         );
         assert_eq!(pairs.len(), 1, "{pairs:?}");
         let c = &pairs[0];
-        assert_eq!((c.with.as_str(), c.rho), ("bias", 1.0), "{c:?}");
+        assert_eq!((c.with_name().as_str(), c.rho), ("bias", 1.0), "{c:?}");
         assert!(c.bound.is_infinite() && c.sigma.is_infinite(), "{c:?}");
     }
 
@@ -293,7 +298,7 @@ mod tests {
         let x2 = add(&u, &b, 0.05);
         let e = add(&u, &w, 0.1);
         let y = wave(5.0);
-        let run = |sets: &[(EffectId, String)]| {
+        let run = |sets: &[(EffectId, Vec<String>)]| {
             collinear_pairs(
                 &[vec![1.0; N], x1.clone(), x2.clone()],
                 &[term("bias", 0), term("temp_coeff", 1), term("temp_rate_coeff", 2)],
@@ -304,17 +309,19 @@ mod tests {
             )
         };
         let pairs = run(&[]);
-        let single = |name: &str| pairs.iter().find(|c| c.with == name).expect(name).rho;
+        let single = |name: &str| pairs.iter().find(|c| c.with == [name]).expect(name).rho;
         assert!(single("temp_coeff") < 0.7 && single("temp_rate_coeff") < 0.7, "{pairs:?}");
-        let set = pairs.iter().find(|c| c.with.contains(" + ")).expect("a set");
-        let mut names: Vec<&str> = set.with.split(" + ").collect();
+        let set = pairs.iter().find(|c| c.with.len() > 1).expect("a set");
+        assert_eq!(set.with_name(), set.with.join(" + "));
+        let mut names: Vec<&str> = set.with.iter().map(String::as_str).collect();
         names.sort_unstable();
         assert_eq!(names, ["temp_coeff", "temp_rate_coeff"], "{set:?}");
         // ‖e‖² = 1.01 over what the design leaves of it (≈ 0.01): ρ ≈ 0.995.
         assert!(set.rho > 0.99 && set.rho < 1.0, "{set:?}");
         // A set asked for is measured even when below the threshold: here the set with the bias.
-        let asked = run(&[(EffectId::ThermalLag, "bias + temp_coeff".into())]);
-        let c = asked.iter().find(|c| c.with == "bias + temp_coeff").expect("the set asked for");
+        let asked = run(&[(EffectId::ThermalLag, vec!["bias".into(), "temp_coeff".into()])]);
+        let c =
+            asked.iter().find(|c| c.with_name() == "bias + temp_coeff").expect("the set asked for");
         assert!(c.rho < COLLINEAR_RHO, "{c:?}");
     }
 }

@@ -72,9 +72,9 @@ pub struct DiagnoseOptions {
     /// Grid values at which the identifiability of these effects is judged, instead of their
     /// best fit (e.g. a recording's, to predict a new run's separation of the same term).
     pub identify_at: Vec<(EffectId, f64)>,
-    /// Sets of terms (`a + b`, as a [`Collinearity::with`] names them) whose collinearity with
-    /// these effects is measured as well (a recording's set, measured again on another run).
-    pub identify_with: Vec<(EffectId, String)>,
+    /// Sets of terms (as a [`Collinearity::with`] lists them) whose collinearity with these
+    /// effects is measured as well (a recording's set, measured again on another run).
+    pub identify_with: Vec<(EffectId, Vec<String>)>,
 }
 
 impl Default for DiagnoseOptions {

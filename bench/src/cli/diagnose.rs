@@ -96,7 +96,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
         println!(
             "  {} and {} are nearly collinear on this recording (ρ = {:.3}, σ ×{:.1})",
             c.effect.key(),
-            c.with,
+            c.with_name(),
             c.rho,
             c.sigma_inflation
         );
@@ -147,7 +147,7 @@ fn suggest_scenario(
         println!(
             "  {} vs {}: {} on this recording → {} on the suggested run{}",
             t.before.effect.key(),
-            t.before.with,
+            t.before.with_name(),
             sigma(&t.before),
             t.after.as_ref().map_or("not testable".into(), sigma),
             if worse { " (not separated by it)" } else { "" }

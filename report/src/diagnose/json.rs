@@ -102,7 +102,8 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
         "identifiability": d.identifiability().iter().map(|c| json!({
             "effect": c.effect.key(),
             "effect_in_model": c.effect_accepted,
-            "with": c.with,
+            "with": c.with_name(),
+            "with_terms": c.with,
             "rho": num(c.rho),
             "sigma_inflation": num(c.sigma_inflation),
             "bound": {"parameter": c.parameter, "value": num(c.bound), "unit": c.unit,

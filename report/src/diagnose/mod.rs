@@ -112,7 +112,7 @@ pub fn verdict_caveats(d: &bench_analysis::diagnose::Diagnosis) -> Vec<String> {
                 "{} cannot be told apart from {} on this recording (ρ = {:.3}): a {} {} {size} \
                  is not ruled out (95 %)",
                 c.effect.key(),
-                c.with,
+                c.with_name(),
                 c.rho,
                 c.effect.key(),
                 crate::display::parameter_name(c.parameter),
