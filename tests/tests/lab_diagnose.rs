@@ -93,6 +93,29 @@ fn a_table_stamped_by_its_host_leaves_only_the_stamping_offset() {
     }
 }
 
+/// The writer's null seed 17: one gyro frame lost in the 10 s bin that holds the reversal at
+/// 7319 s (199 samples). The bin's gyro mean is over the covered 9.95 s; its reference was the
+/// lines' increment over all 10 s, a whitened residual of 41σ there, and the time offset's
+/// family check took it for a bias at every rate change (`|dΩ/dt|`, Wald 124 > 13: seed 45
+/// alike, 139): the offset reported unexplained, the 2 seeds in 50 the writer's null study
+/// missed. The reference now takes the hole's increment out (`series::make_bins`).
+#[test]
+fn a_lost_frame_in_a_reversal_bin_is_not_a_bias_at_the_rate_changes() {
+    let path = lab_fixture("lab-null", 17, &[]);
+    let delta_s = stamping_offset_s(&truth_of(&path));
+    let rec = Recording::load(&path).expect("reads");
+    let out = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses");
+    let d = &out.diagnosis;
+    assert_eq!(accepted(d), [EffectId::TimeOffset], "{:?}", d.findings);
+    assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
+    let f = d.findings.iter().find(|f| f.accepted).expect("the finding");
+    let (offset, sigma) = param(f, "offset_s");
+    assert!((offset - delta_s).abs() < 3.0 * sigma, "offset {offset} ± {sigma} vs {delta_s}");
+    let family = f.family.as_ref().expect("a family check");
+    let strongest = family.strongest.as_ref().expect("members");
+    assert!(strongest.wald < strongest.threshold, "{family:?}");
+}
+
 /// The writer's truth of a fixture.
 /// The writer's realised stamping offset of the gyro against the table, s (δ > 0 when the
 /// gyro is late), checked to be its 9 ms trait.

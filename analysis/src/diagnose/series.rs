@@ -10,7 +10,12 @@
 //! **Bins.** Samples are averaged over bins of about `bin_s` seconds (10 s by default): the
 //! gyro's mean rate is its angle increment over the bin divided by the bin's span, and every
 //! regressor of the linear model is averaged the same way, so the linear model holds exactly
-//! for bin means. Bins end at data gaps. Averaging removes the table's rate ripple (16 cycles
+//! for bin means. Bins end at data gaps. Lost samples leave holes that no sample covers: a
+//! bin's gyro mean is over the covered time, and so is its reference — the holes' increments
+//! of the steady line they lie on are taken out. Across a rate change that matters: one lost
+//! 50 ms in a 10 s bin that holds a 10 °/min reversal moves the mean rate over the whole span
+//! by up to 1.4e-5 rad/s against the covered one. A hole inside the change itself, where no
+//! line holds, leaves the bin out. Averaging removes the table's rate ripple (16 cycles
 //! per revolution, a 2.25 s period at 10 °/min) and keeps everything slower than a bin.
 
 use bench_physics::effects::{lag_temperature, HysteresisState};
@@ -43,6 +48,12 @@ pub struct Native {
     /// Table rate where settled (the segment's slope), else from the readings, rad/s.
     pub table_rate_rad_s: Vec<f64>,
 }
+
+/// A step between samples beyond this many median intervals is a gap: bins end there.
+pub const GAP: f64 = 2.5;
+/// A step beyond this many median intervals has lost samples: the next one covers only its own
+/// interval.
+pub const LOST: f64 = 1.5;
 
 /// Window of the temperature-rate filter, s.
 pub const TEMP_RATE_WINDOW_S: f64 = 60.0;
@@ -88,9 +99,11 @@ impl Native {
             if step <= 0.0 {
                 return Err(AnalysisError::TimeNotIncreasing { label: "gyro".into(), index: k });
             }
-            let gap = step > 2.5 * nominal_dt;
+            let gap = step > GAP * nominal_dt;
             gap_before.push(gap);
-            dt.push(if gap { nominal_dt } else { step });
+            // A sample is the mean over its own interval: after lost samples (or a gap) it
+            // covers one nominal interval, and the lost ones' stay uncovered ([`make_bins`]).
+            dt.push(if step > LOST * nominal_dt { nominal_dt } else { step });
         }
         let air_c: Vec<f64> =
             t.iter().map(|&x| interp(&run.chamber_time_s, &run.chamber_temp_c, x)).collect();
@@ -141,9 +154,10 @@ pub struct Bin {
     pub start_s: f64,
     /// End edge (end of the last sample), s.
     pub end_s: f64,
-    /// Table input over the bin from the fitted angle, rad/s (table frame, not axis-signed).
+    /// Table input over the bin's covered time from the fitted angle, rad/s (table frame, not
+    /// axis-signed).
     pub table_rate_rad_s: f64,
-    /// Change of the fitted table rate across the bin divided by its span, rad/s²: the
+    /// Change of the fitted table rate across the bin divided by its covered time, rad/s²: the
     /// regressor of a time-tag offset (−δ times it is the error).
     pub table_accel_rad_s2: f64,
     /// Whether the table accelerates inside the bin.
@@ -188,15 +202,43 @@ pub fn make_bins(native: &Native, motion: &TableMotion, bin_s: f64) -> Vec<Bin> 
         if let (Some(a0), Some(a1)) = (motion.angle(start), motion.angle(t_end)) {
             let s0 = motion.segment_at(start).copied();
             let s1 = motion.segment_at(t_end).copied();
-            let span = t_end - start;
+            // Intervals no sample covers (samples lost before one of the bin's): the gyro's mean
+            // is over the covered time, so the reference must be too. A hole inside one steady
+            // segment takes that line's increment out; a hole where no line holds (inside a
+            // rate change) leaves the covered increment unknown, and the bin out.
+            let mut hole_angle = 0.0;
+            let mut hole_s = 0.0;
+            let mut known = true;
+            for j in first + 1..end {
+                let (h0, h1) = (native.t[j - 1], native.t[j] - native.dt[j]);
+                if h1 <= h0 + 1e-9 {
+                    continue;
+                }
+                let same = matches!(
+                    (motion.segment_at(h0), motion.segment_at(h1)),
+                    (Some(x), Some(y)) if x == y
+                );
+                match (same, motion.angle(h0), motion.angle(h1)) {
+                    (true, Some(b0), Some(b1)) => {
+                        hole_angle += b1 - b0;
+                        hole_s += h1 - h0;
+                    }
+                    _ => known = false,
+                }
+            }
+            let covered = t_end - start - hole_s;
+            if !known || covered <= 0.0 {
+                k = end;
+                continue;
+            }
             let (r0, r1) = (motion.rate(start).unwrap_or(0.0), motion.rate(t_end).unwrap_or(0.0));
             bins.push(Bin {
                 first,
                 end,
                 start_s: start,
                 end_s: t_end,
-                table_rate_rad_s: (a1 - a0) / span,
-                table_accel_rad_s2: (r1 - r0) / span,
+                table_rate_rad_s: (a1 - a0 - hole_angle) / covered,
+                table_accel_rad_s2: (r1 - r0) / covered,
                 transition: s0 != s1,
             });
         }
@@ -233,4 +275,97 @@ pub(crate) fn test_bins(n: usize) -> Vec<Bin> {
             transition: false,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::steady::TableSegment;
+
+    const W: f64 = 2.908_882_086_657_216e-3; // 10 °/min, rad/s
+
+    /// CW at 10 °/min until 99.5 s, a reversal, CCW from 100.5 s; the gyro at 20 Hz from 0 to
+    /// 200 s without the samples ending at `lost`.
+    fn reversal(lost: &[f64]) -> (Native, TableMotion) {
+        let seg = |start_s: f64, end_s: f64, angle0_rad: f64, rate: f64| TableSegment {
+            start_s,
+            end_s,
+            angle0_rad,
+            rate_rad_s: rate,
+            command_rad_s: rate,
+            scatter_rad: 0.0,
+            readings: 1000,
+            rate_sigma_rad_s: 0.0,
+        };
+        let motion = TableMotion {
+            segments: vec![seg(0.0, 99.5, 0.0, -W), seg(100.5, 200.0, -99.5 * W, W)],
+            ..TableMotion::default()
+        };
+        let t: Vec<f64> = (1..=4000)
+            .map(|i| f64::from(i) * 0.05)
+            .filter(|t| !lost.iter().any(|l| (t - l).abs() < 1e-6))
+            .collect();
+        let n = t.len();
+        let mut dt = vec![0.05; n];
+        let mut gap_before = vec![false; n];
+        gap_before[0] = true;
+        for k in 1..n {
+            // As Native::build: a step over LOST intervals covers one nominal interval.
+            if t[k] - t[k - 1] > LOST * 0.05 {
+                dt[k] = 0.05;
+            }
+            gap_before[k] = t[k] - t[k - 1] > GAP * 0.05;
+        }
+        let z = vec![0.0; n];
+        let native = Native {
+            t,
+            dt,
+            gap_before,
+            v: z.clone(),
+            temp_c: z.clone(),
+            temp_rate_c_s: z.clone(),
+            air_c: z.clone(),
+            angle_mid_rad: z.clone(),
+            table_rate_rad_s: z,
+        };
+        (native, motion)
+    }
+
+    fn reversal_bin(bins: &[Bin]) -> Option<&Bin> {
+        bins.iter().find(|b| b.transition)
+    }
+
+    #[test]
+    fn a_bin_across_a_reversal_takes_its_reference_over_the_covered_time() {
+        // Whole: the bin 90..100.5 s, its increment from the two lines.
+        let (native, motion) = reversal(&[]);
+        let bins = make_bins(&native, &motion, 10.0);
+        let b = reversal_bin(&bins).expect("the reversal's bin");
+        assert!((b.start_s - 90.0).abs() < 1e-9 && (b.end_s - 100.5).abs() < 1e-9, "{b:?}");
+        let (a0, a1) = (-90.0 * W, -99.5 * W);
+        assert!((b.table_rate_rad_s - (a1 - a0) / 10.5).abs() < 1e-15, "{b:?}");
+        assert!((b.table_accel_rad_s2 - 2.0 * W / 10.5).abs() < 1e-15, "{b:?}");
+
+        // The sample ending at 95 s lost (CW at −W over 94.95..95): the gyro covers 10.45 s,
+        // and its mean over them is (a1 − a0 + W·0.05)/10.45, not (a1 − a0)/10.5.
+        let (native, motion) = reversal(&[95.0]);
+        let bins = make_bins(&native, &motion, 10.0);
+        let b = reversal_bin(&bins).expect("the reversal's bin");
+        let want = (a1 - a0 + W * 0.05) / 10.45;
+        assert!((b.table_rate_rad_s - want).abs() < 1e-15, "{} vs {want}", b.table_rate_rad_s);
+        // The whole span's mean is off by 1.3e-6 rad/s (up to W·h/S = 1.4e-5 in a bin centred
+        // on the reversal): the error bins used to make, 100 times a quiet FOG's bin noise.
+        assert!(((a1 - a0) / 10.5 - want).abs() > 1.2e-6);
+        assert!((b.table_accel_rad_s2 - 2.0 * W / 10.45).abs() < 1e-15, "{b:?}");
+
+        // Lost inside the reversal (no line holds there): the bin is left out.
+        let (native, motion) = reversal(&[100.0]);
+        let bins = make_bins(&native, &motion, 10.0);
+        assert!(reversal_bin(&bins).is_none(), "{bins:?}");
+        // In a steady bin a hole changes nothing: the covered mean is the line's rate.
+        let (native, motion) = reversal(&[45.0]);
+        let bins = make_bins(&native, &motion, 10.0);
+        let b = bins.iter().find(|b| b.start_s < 45.0 && b.end_s > 45.0).expect("bin");
+        assert!((b.table_rate_rad_s + W).abs() < 1e-15, "{b:?}");
+    }
 }
