@@ -245,9 +245,14 @@ impl TableMotion {
 
     /// The segment steady at `t`, if any.
     pub fn segment_at(&self, t: f64) -> Option<&TableSegment> {
+        self.segment_index_at(t).map(|i| &self.segments[i])
+    }
+
+    /// The index in [`Self::segments`] of the segment steady at `t`, if any.
+    pub fn segment_index_at(&self, t: f64) -> Option<usize> {
         let k = self.segments.partition_point(|s| s.start_s <= t);
-        let s = self.segments.get(k.checked_sub(1)?)?;
-        (t <= s.end_s).then_some(s)
+        let i = k.checked_sub(1)?;
+        (t <= self.segments.get(i)?.end_s).then_some(i)
     }
 
     /// Fitted angle at `t` (rad), where the table is steady: the line plus the ripple.
