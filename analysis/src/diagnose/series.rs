@@ -215,7 +215,7 @@ pub fn make_bins(native: &Native, motion: &TableMotion, bin_s: f64) -> Vec<Bin> 
                     continue;
                 }
                 let same = matches!(
-                    (motion.segment_at(h0), motion.segment_at(h1)),
+                    (motion.segment_index_at(h0), motion.segment_index_at(h1)),
                     (Some(x), Some(y)) if x == y
                 );
                 match (same, motion.angle(h0), motion.angle(h1)) {
