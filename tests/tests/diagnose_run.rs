@@ -95,3 +95,38 @@ fn the_demo_recordings_diagnose_as_documented() {
         assert_eq!(d.verdict, verdict, "{file}");
     }
 }
+
+/// A concealed warm-up (3e-7 rad/s, τ 600 s) and bias step (1e-7 rad/s at 3000 s), seed 1:
+/// the warm-up is named first with τ bent to 400 s, then rate² (Wald 19.8) and a scale factor
+/// vs T (14.9) took the step between them, each passing its own family check, and the step was
+/// left at Wald 7.9 < 14.7 — two wrong names. With both out and the step in (the warm-up's τ
+/// fitted again) the pair's joint Wald is 2.4: the pair leaves, and the search names the step.
+#[test]
+fn a_step_two_other_terms_took_between_them_is_named_and_they_are_not() {
+    let text = format!(
+        "{}\n[simulation.truth.effects]\nwarm_up = {{ amplitude_rad_s = 3e-7, time_constant_s = \
+         600 }}\nbias_step = {{ time_s = 3000, step_rad_s = 1e-7 }}\n",
+        scenario("diagnose-demo.toml")
+    );
+    let rec = simulate_text(&text, 1);
+    let out = diagnose_recording(&rec, None, &DiagnoseOptions::default()).expect("diagnoses");
+    let d = &out.diagnosis;
+    let mut found: Vec<&str> =
+        d.findings.iter().filter(|f| f.accepted).map(|f| f.effect.key()).collect();
+    found.sort_unstable();
+    assert_eq!(found, ["bias_step", "warm_up"], "{:?}", d.findings);
+    let step = d.findings.iter().find(|f| f.effect.key() == "bias_step").expect("the step");
+    let p = |name: &str| {
+        let q = step.parameters.iter().find(|q| q.name == name).expect("parameter");
+        (q.value, q.sigma)
+    };
+    let (size, s) = p("step_rad_s");
+    assert!((size - 1e-7).abs() < 3.0 * s, "step {size} ± {s}");
+    let (at, s) = p("time_s");
+    assert!((at - 3000.0).abs() < 3.0 * s.max(10.0), "at {at} ± {s}");
+    for key in ["rate_squared", "scale_factor_temperature"] {
+        let t = d.findings.iter().find(|f| f.effect.key() == key).expect(key);
+        let why = t.rejected_because.as_deref().unwrap_or_default();
+        assert!(why.starts_with("not told apart"), "{key}: {why}");
+    }
+}
