@@ -887,7 +887,7 @@ fn holdout_z(
     block_s: f64,
 ) -> f64 {
     let mag: Vec<f64> = (0..bins.len()).map(|i| g.iter().map(|c| c[i].abs()).sum()).collect();
-    let (on_clock, on_support) = holdout_partitions(bins, &mag, block_s);
+    let (block, on_support) = holdout_blocks(bins, &mag, block_s);
     // What each set knows of the term: the variance of its coefficients fitted on all bins
     // over that fitted on the set alone (noise model). A set holding less than
     // HOLDOUT_MIN_SHARE of the information is never the fitting set: its fit would be noise of
@@ -912,14 +912,20 @@ fn holdout_z(
             _ => 0.0,
         }
     };
-    let (mut a, mut b) = on_clock;
-    if share(&a).min(share(&b)) < HOLDOUT_MIN_SHARE {
-        let (a2, b2) = on_support;
-        if share(&a2).min(share(&b2)) > share(&a).min(share(&b)) {
-            (a, b) = (a2, b2);
+    // Each set's share, computed once per partition (a fit and its covariance each).
+    let shares = |(a, b): &(Vec<usize>, Vec<usize>)| (share(a), share(b));
+    let least = |s: (f64, f64)| s.0.min(s.1);
+    let on_clock: Vec<f64> = bins.iter().map(Bin::centre_s).collect();
+    let mut sets = holdout_sets(&on_clock, block);
+    let mut sets_share = shares(&sets);
+    if least(sets_share) < HOLDOUT_MIN_SHARE {
+        let other = holdout_sets(&on_support, block);
+        let other_share = shares(&other);
+        if least(other_share) > least(sets_share) {
+            (sets, sets_share) = (other, other_share);
         }
     }
-    if share(&a).min(share(&b)) < HOLDOUT_MIN_SHARE {
+    if least(sets_share) < HOLDOUT_MIN_SHARE {
         // The term's information may lie where its columns are small: a rate² term is a
         // constant the bias takes while the table turns, and is known only from the rests.
         // The support of what the design cannot take (the columns with the design projected
@@ -932,17 +938,20 @@ fn holdout_z(
                     info[i] += col[r].abs();
                 }
             }
-            let (_, (a3, b3)) = holdout_partitions(bins, &info, block_s);
-            if share(&a3).min(share(&b3)) > share(&a).min(share(&b)) {
-                (a, b) = (a3, b3);
+            let (block_info, on_info) = holdout_blocks(bins, &info, block_s);
+            let other = holdout_sets(&on_info, block_info);
+            let other_share = shares(&other);
+            if least(other_share) > least(sets_share) {
+                (sets, sets_share) = (other, other_share);
             }
         }
     }
+    let (a, b) = sets;
     let mut num = 0.0;
     let mut den = 0.0;
     let mut folds = 0;
-    for (fit_rows, test_rows) in [(&a, &b), (&b, &a)] {
-        if fit_rows.len() < 10 || test_rows.len() < 10 || share(fit_rows) < HOLDOUT_MIN_SHARE {
+    for (fit_rows, fit_share, test_rows) in [(&a, sets_share.0, &b), (&b, sets_share.1, &a)] {
+        if fit_rows.len() < 10 || test_rows.len() < 10 || fit_share < HOLDOUT_MIN_SHARE {
             continue;
         }
         folds += 1;
@@ -977,29 +986,17 @@ fn holdout_z(
     }
 }
 
-/// The hold-out's two partitions of the bins for a term of magnitude `mag` per bin: by blocks
-/// on the clock, and by blocks on the term's support time ([`holdout_z`]). Blocks are short
-/// enough that both sets see the term: a quarter of the time it is above a tenth of its peak
-/// (a warm-up lives in the first few τ), at most `block_s`, at least six bins.
-#[allow(clippy::type_complexity)]
-fn holdout_partitions(
-    bins: &[Bin],
-    mag: &[f64],
-    block_s: f64,
-) -> ((Vec<usize>, Vec<usize>), (Vec<usize>, Vec<usize>)) {
+/// The hold-out's blocks for a term of magnitude `mag` per bin ([`holdout_z`]): their length,
+/// short enough that both sets see the term — a quarter of the time it is above a tenth of its
+/// peak (a warm-up lives in the first few τ), at most `block_s`, at least six bins — and each
+/// bin's time on the term's support (its centre less the span of the bins off the support
+/// before it).
+fn holdout_blocks(bins: &[Bin], mag: &[f64], block_s: f64) -> (f64, Vec<f64>) {
     let peak = mag.iter().fold(0.0f64, |m, v| m.max(*v));
     let support: f64 =
         bins.iter().zip(mag).filter(|(_, m)| **m > 0.1 * peak).map(|(b, _)| b.span_s()).sum();
     let bin_s = bins.first().map_or(1.0, Bin::span_s);
     let block_s = (0.25 * support).min(block_s).max(6.0 * bin_s);
-    let parity = |x: f64| ((x / block_s).floor() as i64).rem_euclid(2);
-    // The sets of a partition given each bin's time on it.
-    let sets = |clock: &[f64]| -> (Vec<usize>, Vec<usize>) {
-        (0..bins.len()).partition(|&i| parity(clock[i]) == 0)
-    };
-    let on_clock: Vec<f64> = bins.iter().map(Bin::centre_s).collect();
-    // Support time: a bin on the support at its centre less the span of the bins off the
-    // support before it.
     let mut off_s = 0.0;
     let on_support: Vec<f64> = bins
         .iter()
@@ -1013,7 +1010,12 @@ fn holdout_partitions(
             }
         })
         .collect();
-    (sets(&on_clock), sets(&on_support))
+    (block_s, on_support)
+}
+
+/// The bins in even and in odd blocks of `block_s` of their time `clock`.
+fn holdout_sets(clock: &[f64], block_s: f64) -> (Vec<usize>, Vec<usize>) {
+    (0..clock.len()).partition(|&i| ((clock[i] / block_s).floor() as i64).rem_euclid(2) == 0)
 }
 
 /// Mean of `r` over bins `idx` and its σ under the noise model.
@@ -1661,10 +1663,9 @@ fn library_rivals(
     // Pairs only: one effect against one rival is the stepwise search's own question (a
     // single-effect version of this check took a true warm-up for a step near the start and
     // named nothing in 15 of 20 simulated warm-up + step runs).
-    let subsets: Vec<Vec<usize>> =
-        (0..m).flat_map(|i| (i + 1..m).map(move |j| vec![i, j])).collect();
-    for subset in subsets {
-        let rest: Vec<usize> = (0..m).filter(|k| !subset.contains(k)).collect();
+    let pairs: Vec<[usize; 2]> = (0..m).flat_map(|i| (i + 1..m).map(move |j| [i, j])).collect();
+    for pair in pairs {
+        let rest: Vec<usize> = (0..m).filter(|k| !pair.contains(k)).collect();
         let others: Vec<Vec<f64>> =
             base_design.iter().chain(rest.iter().flat_map(|&k| &accepted[k].2)).cloned().collect();
         let Ok(po) = Projector::new(&others, &all) else { continue };
@@ -1672,7 +1673,7 @@ fn library_rivals(
         let (best, _) = search(ctx, &rivals, &po, &others, y, &r_o, noise, cache, thresholds);
         let Some((_, rival, fitted)) = best else { continue };
         // The remaining effects' grid values fitted again with the rival in (a warm-up's τ
-        // that the subset's terms had bent).
+        // that the pair's terms had bent).
         let mut rest_cols: Vec<Vec<Vec<f64>>> =
             rest.iter().map(|&k| accepted[k].2.clone()).collect();
         for (q, &k) in rest.iter().enumerate() {
@@ -1693,7 +1694,7 @@ fn library_rivals(
             .chain(fitted.cols.iter())
             .cloned()
             .collect();
-        let cols: Vec<Vec<f64>> = subset.iter().flat_map(|&k| accepted[k].2.clone()).collect();
+        let cols: Vec<Vec<f64>> = pair.iter().flat_map(|&k| accepted[k].2.clone()).collect();
         let Some(t) = Projector::new(&with, &all).ok().and_then(|p| p.test(&cols, y, noise)) else {
             continue;
         };
@@ -1706,17 +1707,17 @@ fn library_rivals(
         } else {
             String::new()
         };
-        let ids: Vec<EffectId> = subset.iter().map(|&k| accepted[k].0).collect();
-        let names: Vec<&str> = ids.iter().map(|id| id.key()).collect();
-        for id in &ids {
-            accepted.retain(|x| x.0 != *id);
-            if let Some(pos) = findings.iter().position(|f| f.effect == *id) {
+        let ids = pair.map(|k| accepted[k].0);
+        for id in ids {
+            accepted.retain(|x| x.0 != id);
+            if let Some(pos) = findings.iter().position(|f| f.effect == id) {
                 let mut f = findings.remove(pos);
                 f.accepted = false;
                 f.rejected_because = Some(format!(
-                    "not told apart: {} {} a {}{at} (with it in, the Wald is {:.1} ≤ {thr:.1})",
-                    names.join(" + "),
-                    if ids.len() > 1 { "together are" } else { "is" },
+                    "not told apart: {} + {} together are a {}{at} (with it in, the Wald is \
+                     {:.1} ≤ {thr:.1})",
+                    ids[0].key(),
+                    ids[1].key(),
                     rival.effect.key(),
                     t.wald
                 ));

@@ -200,8 +200,8 @@ pub fn make_bins(native: &Native, motion: &TableMotion, bin_s: f64) -> Vec<Bin> 
         }
         let t_end = native.t[end - 1];
         if let (Some(a0), Some(a1)) = (motion.angle(start), motion.angle(t_end)) {
-            let s0 = motion.segment_at(start).copied();
-            let s1 = motion.segment_at(t_end).copied();
+            let s0 = motion.segment_index_at(start);
+            let s1 = motion.segment_index_at(t_end);
             // Intervals no sample covers (samples lost before one of the bin's): the gyro's mean
             // is over the covered time, so the reference must be too. A hole inside one steady
             // segment takes that line's increment out; a hole where no line holds (inside a
