@@ -30,20 +30,28 @@ HARMONIC = {"effect-1rev": ("once_per_rev", "once_per_revolution", 1),
             "effect-3rev": ("three_per_rev", "angle_harmonic", 3)}
 
 
-# preset -> (the library effect that should be named, [(the writer's parameter, bench's)]);
-# a bias step's time is the writer's fraction of the run.
-LIBRARY = {"effect-step": ("bias_step", [("step", "step_rad_s"), ("time_s", "time_s")]),
-           "effect-warmup": ("warm_up", [("amplitude", "amplitude_rad_s"),
-                                         ("time_constant_s", "time_constant_s")]),
-           "effect-periodic": ("periodic_bias", [("amplitude", "amplitude_rad_s"),
-                                                 ("period_s", "period_s")]),
-           "effect-quadratic": ("temperature_quadratic", [("coeff", "coeff_rad_s_per_c2")]),
-           "effect-sf-temperature": ("scale_factor_temperature",
-                                     [("coeff_per_c", "coeff_per_c")]),
-           "effect-hysteresis": ("thermal_hysteresis", [("half_width", "half_width_rad_s")]),
-           "effect-rate-squared": ("rate_squared", [("coeff", "coeff_s_per_rad")]),
-           "effect-ripple": ("rate_ripple", [("relative_amplitude", "relative_amplitude"),
-                                             ("phase", "phase_rad")])}
+# preset -> [(the writer's effect key, the library effect that should be named,
+#             [(the writer's parameter, bench's)])]; a bias step's time is the writer's fraction
+# of the run.
+STEP = ("bias_step", "bias_step", [("step", "step_rad_s"), ("time_s", "time_s")])
+WARM = ("warm_up", "warm_up", [("amplitude", "amplitude_rad_s"),
+                               ("time_constant_s", "time_constant_s")])
+LIBRARY = {"effect-step": [STEP],
+           "effect-warmup": [WARM],
+           "effect-warmup-step": [WARM, STEP],
+           "effect-periodic": [("periodic_bias", "periodic_bias",
+                                [("amplitude", "amplitude_rad_s"), ("period_s", "period_s")])],
+           "effect-quadratic": [("temperature_quadratic", "temperature_quadratic",
+                                 [("coeff", "coeff_rad_s_per_c2")])],
+           "effect-sf-temperature": [("sf_temperature", "scale_factor_temperature",
+                                      [("coeff_per_c", "coeff_per_c")])],
+           "effect-hysteresis": [("hysteresis", "thermal_hysteresis",
+                                  [("half_width", "half_width_rad_s")])],
+           "effect-rate-squared": [("rate_squared", "rate_squared",
+                                    [("coeff", "coeff_s_per_rad")])],
+           "effect-ripple": [("rate_ripple", "rate_ripple",
+                              [("relative_amplitude", "relative_amplitude"),
+                               ("phase", "phase_rad")])]}
 
 
 def within(p, value):
@@ -71,15 +79,19 @@ def judge(preset, d, truth):
             ok = ok and abs(dphi) <= 3 * ph["sigma"]
         return (found, named, ok, any(e != effect for e in others), bool(unexpl))
     if preset in LIBRARY:
-        effect, params = LIBRARY[preset]
-        (t,) = [v["parameters"] for v in truth["effects"].values() if v.get("enabled")]
-        if t.get("time_s", 0) is None:
-            t["time_s"] = t["time_fraction"] * truth["duration_s"]
-        f = next((f for f in d["findings"] if f["effect"] == effect), None)
-        found = f is not None
-        ok = found and all(within(f["parameters"][b], t[a]) for a, b in params)
-        return (found, found and others == [effect] and not unexpl, ok if found else None,
-                any(e != effect for e in others), bool(unexpl))
+        want = [e for _, e, _ in LIBRARY[preset]]
+        found, ok = True, True
+        for key, effect, params in LIBRARY[preset]:
+            t = dict(truth["effects"][key]["parameters"])
+            if t.get("time_s", 0) is None:
+                t["time_s"] = t["time_fraction"] * truth["duration_s"]
+            f = next((f for f in d["findings"] if f["effect"] == effect), None)
+            found = found and f is not None
+            ok = ok and f is not None and all(within(f["parameters"][b], t[a])
+                                              for a, b in params)
+        named = found and sorted(others) == sorted(want) and not unexpl
+        return (found, named, ok if found else None, any(e not in want for e in others),
+                bool(unexpl))
     if preset == "effect-time-offset":
         # The gyro's tags late by 5 ms beyond the lab's stamping: the offset named is the
         # realised one of gyro against table (about -4 ms instead of the null's -9 ms).
@@ -120,6 +132,12 @@ def one(preset, seed, tmp, sets=()):
     for f in (mcap, mcap[:-5] + ".truth.json"):
         os.remove(f)
     verdict = judge(preset, d, truth)
+    rivals = [f["effect"] for f in d.get("tested", [])
+              if "together are" in (f.get("rejected_because") or "")]
+    if rivals:
+        # The pair check across families fired (docs/diagnose.md, step 5).
+        print(f"{preset} seed {seed}: pair check: {rivals} not told apart",
+              file=sys.stderr, flush=True)
     if not verdict[1]:
         # Which seed missed, and how: for the note and for a rerun with the writer.
         found = [f["effect"] for f in d["findings"]]

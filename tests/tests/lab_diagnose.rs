@@ -267,6 +267,37 @@ fn a_rate_squared_term_known_only_from_the_rests_is_named() {
     assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
 }
 
+/// The writer's warm-up (3e-7 rad/s, τ 900 s) with a bias step (1e-7 rad/s) three time
+/// constants in, at 2748 s, seed 1. The previous build named the warm-up and missed the step:
+/// judged at the warm-up's grid value the step stayed under its threshold. Fitted with the
+/// warm-up's τ fitted again beside it, and judged by what it adds to the model as it stands,
+/// it is named; both effects' parameters within 3σ of the writer's.
+#[test]
+fn a_bias_step_after_a_warm_up_is_named_with_the_warm_up_fitted_again() {
+    let (d, truth) = diagnose("effect-warmup-step");
+    let mut got = accepted(&d);
+    got.sort();
+    assert_eq!(
+        got,
+        [EffectId::TimeOffset, EffectId::WarmUp, EffectId::BiasStep],
+        "{:?}",
+        d.findings
+    );
+    assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
+    let fx = &truth["effects"];
+    let num = |v: &Value| v.as_f64().expect("a number");
+    for (id, name, want) in [
+        (EffectId::WarmUp, "amplitude_rad_s", num(&fx["warm_up"]["parameters"]["amplitude"])),
+        (EffectId::WarmUp, "time_constant_s", num(&fx["warm_up"]["parameters"]["time_constant_s"])),
+        (EffectId::BiasStep, "step_rad_s", num(&fx["bias_step"]["parameters"]["step"])),
+        (EffectId::BiasStep, "time_s", num(&fx["bias_step"]["time_s"])),
+    ] {
+        let f = d.findings.iter().find(|f| f.effect == id).expect("found");
+        let (v, s) = param(f, name);
+        assert!((v - want).abs() <= 3.0 * s, "{}.{name}: {v} ± {s} vs {want}", id.key());
+    }
+}
+
 /// Issue 14, item 3: the writer's temperature-gradient term `c·(T_air − T_gyro)` is exactly
 /// `c·τ·dT/dt` for a first-order coil: the refit of `temp_rate_coeff` takes it (to the writer's
 /// effective coefficient within 3σ), and the diagnosis says that a thermal lag — the library's
