@@ -132,12 +132,6 @@ def one(preset, seed, tmp, sets=()):
     for f in (mcap, mcap[:-5] + ".truth.json"):
         os.remove(f)
     verdict = judge(preset, d, truth)
-    rivals = [f["effect"] for f in d.get("tested", [])
-              if "together are" in (f.get("rejected_because") or "")]
-    if rivals:
-        # The pair check across families fired (docs/diagnose.md, step 5).
-        print(f"{preset} seed {seed}: pair check: {rivals} not told apart",
-              file=sys.stderr, flush=True)
     if not verdict[1]:
         # Which seed missed, and how: for the note and for a rerun with the writer.
         found = [f["effect"] for f in d["findings"]]

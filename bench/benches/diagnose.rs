@@ -9,6 +9,9 @@
 //!   and `residual_scan` (the scan alone: every candidate's regressors over its grid tested
 //!   against the refitted nominal design, the part `scripts/diagnose_numpy.py` does in NumPy,
 //!   with `--recurrence` by the same rotation of the sinusoids as Rust);
+//! - `diagnose_lab_warmup_step_5h`: the writer's `effect-warmup-step`, seed 1 (a warm-up and
+//!   a bias step three time constants in: the candidates fitted again from each of the
+//!   warm-up's grid values), `read_and_diagnose`;
 //! - `diagnose_thermal_short_7h`: `scenarios/thermal-short.toml` (7.4 h of bench time at
 //!   20 Hz, 532 k gyro samples) simulated once into memory, then `diagnose` and
 //!   `read_and_diagnose` as above.
@@ -79,5 +82,22 @@ fn thermal_short_7h(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, lab_null_5h, thermal_short_7h);
+/// A 5 h file where the search works hardest: a warm-up and a bias step that bends its time
+/// constant, so every candidate is fitted again from each of the warm-up's grid values.
+fn lab_warmup_step_5h(c: &mut Criterion) {
+    let path = bench_tests::lab_fixture("effect-warmup-step", 1, &[]);
+    let bytes = std::fs::read(&path).expect("the lab writer's file");
+    let opts = DiagnoseOptions::default();
+    let mut g = c.benchmark_group("diagnose_lab_warmup_step_5h");
+    g.sample_size(10).measurement_time(Duration::from_secs(60));
+    g.bench_function("read_and_diagnose", |b| {
+        b.iter(|| {
+            let rec = Recording::from_bytes(black_box(&bytes)).expect("reads");
+            diagnose_recording(&rec, None, &opts).expect("diagnoses")
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, lab_null_5h, thermal_short_7h, lab_warmup_step_5h);
 criterion_main!(benches);

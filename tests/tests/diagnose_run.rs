@@ -102,7 +102,7 @@ fn the_demo_recordings_diagnose_as_documented() {
 /// left at Wald 7.9 < 14.7 judged at the bent τ. Judged with the warm-up's τ fitted again
 /// beside it, the step passes (Wald 17.6 > 14.7) and joins, and the two wrong terms hold
 /// nothing once it is in (Wald 0.9 and 1.7): they leave, "explained by bias_step". (The build
-/// before this check took the pair out through the pair check across families instead.)
+/// before took the pair out by checking pairs of accepted effects against the library.)
 #[test]
 fn a_step_two_other_terms_took_between_them_is_named_and_they_are_not() {
     let text = format!(

@@ -1456,20 +1456,6 @@ pub fn diagnose(
                 level,
             );
         }
-        if !changed {
-            changed = library_rivals(
-                &ctx,
-                &tested_ids,
-                &mut accepted_cols,
-                &base_design,
-                &mut findings,
-                &mut rejected,
-                &y,
-                &noise,
-                &mut column_cache,
-                &mut thresholds,
-            );
-        }
         design = base_design.clone();
         for a in &accepted_cols {
             design.extend(a.2.iter().cloned());
@@ -1893,104 +1879,6 @@ fn check_families(
     changed
 }
 
-/// Two accepted effects that one other effect of the library explains together: with both
-/// out of the model the best other candidate ([`search`]'s rules) is significant, and with it
-/// in (the remaining effects' grid values fitted again) the two add nothing (their joint Wald
-/// at most χ²'s quantile at the effects' level). A bias step that rate² and a scale factor vs
-/// T took between them, each passing its own family check, is one. The pair leaves the
-/// findings ("not told apart …") and the search runs again without it; the one term then
-/// faces every check on its own. Returns whether a pair left.
-#[allow(clippy::too_many_arguments)]
-fn library_rivals(
-    ctx: &SearchCtx<'_>,
-    library: &[EffectId],
-    accepted: &mut Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)>,
-    base_design: &[Vec<f64>],
-    findings: &mut Vec<Finding>,
-    rejected: &mut Vec<Finding>,
-    y: &[f64],
-    noise: &BinNoise,
-    cache: &mut std::collections::BTreeMap<EffectId, Vec<Vec<Vec<f64>>>>,
-    thresholds: &mut std::collections::BTreeMap<EffectId, f64>,
-) -> bool {
-    let n = ctx.prep.bins.len();
-    let all: Vec<usize> = (0..n).collect();
-    let level = ctx.opts.alpha / ctx.m_candidates;
-    let rivals: Vec<EffectId> = library
-        .iter()
-        .copied()
-        .filter(|&c| c != EffectId::EarthRate && !accepted.iter().any(|a| a.0 == c))
-        .collect();
-    let m = accepted.len();
-    // Pairs only: one effect against one rival is the stepwise search's own question (a
-    // single-effect version of this check took a true warm-up for a step near the start and
-    // named nothing in 15 of 20 simulated warm-up + step runs).
-    let pairs: Vec<[usize; 2]> = (0..m).flat_map(|i| (i + 1..m).map(move |j| [i, j])).collect();
-    for pair in pairs {
-        let rest: Vec<usize> = (0..m).filter(|k| !pair.contains(k)).collect();
-        let others: Vec<Vec<f64>> =
-            base_design.iter().chain(rest.iter().flat_map(|&k| &accepted[k].2)).cloned().collect();
-        let Ok(po) = Projector::new(&others, &all) else { continue };
-        let r_o = po.residual(y, n);
-        let (best, _) = search(ctx, &rivals, &po, &others, y, &r_o, noise, cache, thresholds);
-        let Some((_, rival, fitted)) = best else { continue };
-        // The remaining effects' grid values fitted again with the rival in (a warm-up's τ
-        // that the pair's terms had bent).
-        let mut rest_cols: Vec<Vec<Vec<f64>>> =
-            rest.iter().map(|&k| accepted[k].2.clone()).collect();
-        for (q, &k) in rest.iter().enumerate() {
-            let d: Vec<Vec<f64>> = base_design
-                .iter()
-                .chain(fitted.cols.iter())
-                .chain(rest_cols.iter().enumerate().filter(|(o, _)| *o != q).flat_map(|(_, c)| c))
-                .cloned()
-                .collect();
-            let Ok(pd) = Projector::new(&d, &all) else { continue };
-            if let Some(g) = refit_grid(ctx.prep, accepted[k].0, &pd, y, noise, ctx.model, cache) {
-                rest_cols[q] = g.cols;
-            }
-        }
-        let with: Vec<Vec<f64>> = base_design
-            .iter()
-            .chain(rest_cols.iter().flatten())
-            .chain(fitted.cols.iter())
-            .cloned()
-            .collect();
-        let cols: Vec<Vec<f64>> = pair.iter().flat_map(|&k| accepted[k].2.clone()).collect();
-        let Some(t) = Projector::new(&with, &all).ok().and_then(|p| p.test(&cols, y, noise)) else {
-            continue;
-        };
-        let thr = chi2_quantile(1.0 - level, cols.len() as f64);
-        if t.wald > thr {
-            continue;
-        }
-        let at = if fitted.p.is_finite() {
-            format!(" at {}", display_grid_value(rival.effect, fitted.p))
-        } else {
-            String::new()
-        };
-        let ids = pair.map(|k| accepted[k].0);
-        for id in ids {
-            accepted.retain(|x| x.0 != id);
-            if let Some(pos) = findings.iter().position(|f| f.effect == id) {
-                let mut f = findings.remove(pos);
-                f.accepted = false;
-                f.rejected_because = Some(format!(
-                    "not told apart: {} + {} together are a {}{at} (with it in, the Wald is \
-                     {:.1} ≤ {thr:.1})",
-                    ids[0].key(),
-                    ids[1].key(),
-                    rival.effect.key(),
-                    t.wald
-                ));
-                rejected.push(f);
-            }
-        }
-        return true;
-    }
-    false
-}
-
 /// The starts of [`refit_search`] that move accepted time constant `i`: each of its grid values
 /// against the rest of the model, as the unit vector its column adds to the rest. A
 /// candidate's residual sum of squares at each start then comes from inner products with the
@@ -2213,17 +2101,6 @@ fn refit_search(
         best = Some(((dbic, f, Fitted { p, cols, test: t }), acc));
     }
     best
-}
-
-/// A grid value in words, for a message: "3002 s", "τ 600 s", "2 cycles/rev".
-fn display_grid_value(id: EffectId, p: f64) -> String {
-    match id {
-        EffectId::BiasStep => format!("{p:.0} s"),
-        EffectId::WarmUp | EffectId::ThermalLag => format!("τ {p:.0} s"),
-        EffectId::PeriodicBias => format!("period {p:.0} s"),
-        EffectId::AngleHarmonic | EffectId::RateRipple => format!("{p} cycles/rev"),
-        _ => format!("{p}"),
-    }
 }
 
 /// What a candidate search needs that does not change between rounds.
