@@ -89,7 +89,7 @@ fn lab_warmup_step_5h(c: &mut Criterion) {
     let bytes = std::fs::read(&path).expect("the lab writer's file");
     let opts = DiagnoseOptions::default();
     let mut g = c.benchmark_group("diagnose_lab_warmup_step_5h");
-    g.sample_size(10).measurement_time(Duration::from_secs(60));
+    g.sample_size(10).measurement_time(Duration::from_secs(100));
     g.bench_function("read_and_diagnose", |b| {
         b.iter(|| {
             let rec = Recording::from_bytes(black_box(&bytes)).expect("reads");

@@ -706,34 +706,52 @@ fn regressor_columns(prep: &Prepared, id: EffectId, p: f64, model: &GyroModel) -
     }
 }
 
-/// A periodic bias's period refined between its best grid period's neighbours (evenly in
-/// frequency), the best fit kept, the Wald profile extended.
-fn refine_period(
+/// A continuous grid parameter refined between its best grid value's neighbours, placed by
+/// `spacing`, the best fit kept, the Wald profile extended. A periodic bias's period evenly in frequency; a time
+/// constant evenly in its logarithm.
+#[allow(clippy::too_many_arguments)]
+fn refine_between(
     prep: &Prepared,
+    id: EffectId,
     proj: &Projector,
     y: &[f64],
     noise: &BinNoise,
     model: &GyroModel,
     fitted: &mut Fitted,
     profile: &mut Vec<(f64, f64)>,
+    spacing: Spacing,
 ) {
-    let g = grid(prep, EffectId::PeriodicBias);
+    let Spacing { count, warp, unwarp } = spacing;
+    let g = grid(prep, id);
     let Some(k) = g.iter().position(|&v| v == fitted.p) else { return };
-    let f0 = 1.0 / fitted.p;
-    let mut freqs = Vec::new();
+    let w0 = warp(fitted.p);
+    let mut values = Vec::new();
     for nb in [k.checked_sub(1), Some(k + 1)].into_iter().flatten() {
         let Some(&pn) = g.get(nb) else { continue };
-        let f1 = 1.0 / pn;
-        freqs.extend(
-            (1..=PERIOD_REFINE).map(|j| f0 + (f1 - f0) * j as f64 / (PERIOD_REFINE + 1) as f64),
-        );
+        let w1 = warp(pn);
+        values.extend((1..=count).map(|j| unwarp(w0 + (w1 - w0) * j as f64 / (count + 1) as f64)));
     }
-    let tries = columns::par_map(&freqs, |&f| {
-        let p = 1.0 / f;
-        (p, candidate_columns(prep, EffectId::PeriodicBias, p, model))
-    });
+    let tries = columns::par_map(&values, |&p| (p, candidate_columns(prep, id, p, model)));
     keep_best(proj, y, noise, tries.into_iter(), fitted, profile);
 }
+
+/// How [`refine_between`] places its values: `count` on each side, evenly in `warp` of the
+/// parameter (`unwarp` its inverse).
+#[derive(Clone, Copy)]
+struct Spacing {
+    count: usize,
+    warp: fn(f64) -> f64,
+    unwarp: fn(f64) -> f64,
+}
+
+/// [`refine_between`] evenly in frequency.
+const BY_FREQUENCY: Spacing =
+    Spacing { count: PERIOD_REFINE, warp: |p| 1.0 / p, unwarp: |f| 1.0 / f };
+
+/// [`refine_between`] evenly in the logarithm: the time constants, in the final fit only (the
+/// grid's steps, a factor 1.5, are wider than a time constant's σ on a long run; in the search
+/// a lag's τ refined by least squares moves to where its Wald is lower under correlated noise).
+const BY_LOGARITHM: Spacing = Spacing { count: TAU_REFINE, warp: f64::ln, unwarp: f64::exp };
 
 /// Test each `(value, columns)` of `tries`: its Wald statistic joins the profile, and the best
 /// fit (least squares) replaces `fitted`.
@@ -773,39 +791,11 @@ fn refine(
 ) {
     match id {
         EffectId::BiasStep => refine_step(prep, proj, y, noise, fitted, profile),
-        EffectId::PeriodicBias => refine_period(prep, proj, y, noise, model, fitted, profile),
+        EffectId::PeriodicBias => {
+            refine_between(prep, id, proj, y, noise, model, fitted, profile, BY_FREQUENCY);
+        }
         _ => {}
     }
-}
-
-/// A time constant (warm-up, thermal lag) refined between its best grid value's neighbours
-/// (evenly in its logarithm), the best fit kept, the Wald profile extended: the grid's steps
-/// (a factor 1.5) are wider than the time constant's σ on a long run. For the final fit only
-/// (see there).
-#[allow(clippy::too_many_arguments)]
-fn refine_time_constant(
-    prep: &Prepared,
-    id: EffectId,
-    proj: &Projector,
-    y: &[f64],
-    noise: &BinNoise,
-    model: &GyroModel,
-    fitted: &mut Fitted,
-    profile: &mut Vec<(f64, f64)>,
-) {
-    let g = grid(prep, id);
-    let Some(k) = g.iter().position(|&v| v == fitted.p) else { return };
-    let l0 = fitted.p.ln();
-    let mut taus = Vec::new();
-    for nb in [k.checked_sub(1), Some(k + 1)].into_iter().flatten() {
-        let Some(&pn) = g.get(nb) else { continue };
-        let l1 = pn.ln();
-        taus.extend(
-            (1..=TAU_REFINE).map(|j| (l0 + (l1 - l0) * j as f64 / (TAU_REFINE + 1) as f64).exp()),
-        );
-    }
-    let tries = columns::par_map(&taus, |&tau| (tau, candidate_columns(prep, id, tau, model)));
-    keep_best(proj, y, noise, tries.into_iter(), fitted, profile);
 }
 
 /// A bias step's instant refined from its grid position to the bin: every bin start between
@@ -1494,7 +1484,8 @@ pub fn diagnose(
         let (p, cols) = (accepted_cols[i].1, accepted_cols[i].2.clone());
         let Some(test) = po.test(&cols, &y, &noise) else { continue };
         let mut fitted = Fitted { p, cols, test };
-        refine_time_constant(&prep, id, &po, &y, &noise, model, &mut fitted, &mut Vec::new());
+        let mut profile = Vec::new();
+        refine_between(&prep, id, &po, &y, &noise, model, &mut fitted, &mut profile, BY_LOGARITHM);
         accepted_cols[i].1 = fitted.p;
         accepted_cols[i].2 = fitted.cols;
     }
