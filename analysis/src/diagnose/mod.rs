@@ -1552,8 +1552,9 @@ pub fn diagnose(
                 .chain(accepted_cols.iter().filter(|a| a.0 != *id).flat_map(|a| &a.2))
                 .cloned()
                 .collect();
-            let fresh = Projector::new(&others, &all).ok().and_then(|po| {
-                refit_grid_profile(&prep, *id, &po, &y, &noise, model, &column_cache)
+            let po = Projector::new(&others, &all).ok();
+            let fresh = po.as_ref().and_then(|po| {
+                refit_grid_profile(&prep, *id, po, &y, &noise, model, &column_cache)
             });
             let keep_profile_sigma =
                 f.parameters.iter().find(|q| is_grid_parameter(q.name)).map(|q| q.sigma);
@@ -1561,8 +1562,8 @@ pub fn diagnose(
                 Some((_, profile)) => {
                     f.parameters = effect_parameters(*id, *p, &t, &profile, &prep);
                     let theta: Vec<f64> = th.iter().map(|x| x.0).collect();
-                    let linear = Projector::new(&others, &all).ok().and_then(|po| {
-                        grid_sigma_linearised(&prep, *id, *p, cols, &theta, &po, &y, &noise, model)
+                    let linear = po.as_ref().and_then(|po| {
+                        grid_sigma_linearised(&prep, *id, *p, cols, &theta, po, &y, &noise, model)
                     });
                     if let (Some(s), Some(q)) =
                         (linear, f.parameters.iter_mut().find(|q| is_grid_parameter(q.name)))
@@ -1696,7 +1697,6 @@ struct Downgraded {
 /// quantile at the effects' level (a lower bar than any search threshold, so a block leaves
 /// only when nothing of it is left) goes. `prefix` is the number of base columns before the
 /// blocks. Returns whether any left.
-#[allow(clippy::too_many_arguments)]
 fn recheck_downgraded(
     prefix: usize,
     base_design: &mut Vec<Vec<f64>>,
