@@ -334,6 +334,15 @@ struct Fitted {
     test: fit::TermTest,
 }
 
+/// An effect in the model: its id, grid value, columns and its last test.
+type Accepted = (EffectId, f64, Vec<Vec<f64>>, fit::TermTest);
+
+/// The model's design: the base columns, then each accepted effect's but `skip`'s, in order.
+fn model_design(base: &[Vec<f64>], accepted: &[Accepted], skip: Option<usize>) -> Vec<Vec<f64>> {
+    let kept = accepted.iter().enumerate().filter(|(j, _)| Some(*j) != skip);
+    base.iter().chain(kept.flat_map(|(_, a)| &a.2)).cloned().collect()
+}
+
 /// Time-constant regressors by effect and τ's bits ([`candidate_columns`]).
 type DecayMemo = std::sync::Mutex<std::collections::BTreeMap<(EffectId, u64), Vec<Vec<f64>>>>;
 
@@ -1189,7 +1198,7 @@ pub fn diagnose(
     let m_candidates = candidates.len().max(1) as f64;
     let tested_ids = candidates.clone();
     let mut design = prep.base.clone();
-    let mut accepted_cols: Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)> = Vec::new();
+    let mut accepted_cols: Vec<Accepted> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let noise = noise0.clone();
     let mut proj = base_proj.clone();
@@ -1245,10 +1254,7 @@ pub fn diagnose(
                         a.1 = p;
                         a.2 = cols;
                     }
-                    design = base_design.clone();
-                    for a in &accepted_cols {
-                        design.extend(a.2.iter().cloned());
-                    }
+                    design = model_design(&base_design, &accepted_cols, None);
                     proj = Projector::new(&design, &all)?;
                     r = proj.residual(&y, n);
                     on_hold.retain(|&c| c != found.1.effect);
@@ -1377,17 +1383,7 @@ pub fn diagnose(
             if accepted_cols.len() >= 2 || (earth_found && !accepted_cols.is_empty()) {
                 let mut i = 0;
                 while i < accepted_cols.len() {
-                    let others: Vec<Vec<f64>> = base_design
-                        .iter()
-                        .cloned()
-                        .chain(
-                            accepted_cols
-                                .iter()
-                                .enumerate()
-                                .filter(|(j, _)| *j != i)
-                                .flat_map(|(_, a)| a.2.iter().cloned()),
-                        )
-                        .collect();
+                    let others = model_design(&base_design, &accepted_cols, Some(i));
                     let proj_o = Projector::new(&others, &all)?;
                     let id = accepted_cols[i].0;
                     if let Some(fitted) =
@@ -1418,10 +1414,7 @@ pub fn diagnose(
                     }
                 }
             }
-            design = base_design.clone();
-            for a in &accepted_cols {
-                design.extend(a.2.iter().cloned());
-            }
+            design = model_design(&base_design, &accepted_cols, None);
             proj = Projector::new(&design, &all)?;
             r = proj.residual(&y, n);
         }
@@ -1446,10 +1439,7 @@ pub fn diagnose(
                 level,
             );
         }
-        design = base_design.clone();
-        for a in &accepted_cols {
-            design.extend(a.2.iter().cloned());
-        }
+        design = model_design(&base_design, &accepted_cols, None);
         proj = Projector::new(&design, &all)?;
         r = proj.residual(&y, n);
         if !changed {
@@ -1473,13 +1463,7 @@ pub fn diagnose(
         if !matches!(id, EffectId::WarmUp | EffectId::ThermalLag) {
             continue;
         }
-        let others: Vec<Vec<f64>> = base_design
-            .iter()
-            .chain(
-                accepted_cols.iter().enumerate().filter(|(j, _)| *j != i).flat_map(|(_, a)| &a.2),
-            )
-            .cloned()
-            .collect();
+        let others = model_design(&base_design, &accepted_cols, Some(i));
         let Ok(po) = Projector::new(&others, &all) else { continue };
         let (p, cols) = (accepted_cols[i].1, accepted_cols[i].2.clone());
         let Some(test) = po.test(&cols, &y, &noise) else { continue };
@@ -1489,10 +1473,7 @@ pub fn diagnose(
         accepted_cols[i].1 = fitted.p;
         accepted_cols[i].2 = fitted.cols;
     }
-    design = base_design.clone();
-    for a in &accepted_cols {
-        design.extend(a.2.iter().cloned());
-    }
+    design = model_design(&base_design, &accepted_cols, None);
     proj = Projector::new(&design, &all)?;
     r = proj.residual(&y, n);
 
@@ -1519,7 +1500,7 @@ pub fn diagnose(
     new_effects.earth_rate |= earth_found;
     let mut col = base_design.len();
     let mut contributions = Vec::new();
-    for (id, p, cols, _) in &accepted_cols {
+    for (i, (id, p, cols, _)) in accepted_cols.iter().enumerate() {
         let k = cols.len();
         let th: Vec<(f64, f64)> = (0..k).map(|a| coef(col + a)).collect();
         col += k;
@@ -1545,41 +1526,31 @@ pub fn diagnose(
                 wald: f.wald,
                 delta_rss: 0.0,
             };
-            // The grid value's σ from its profile against the final model (the search's
-            // profile was taken against the model of its round, where the value may differ).
-            let others: Vec<Vec<f64>> = base_design
-                .iter()
-                .chain(accepted_cols.iter().filter(|a| a.0 != *id).flat_map(|a| &a.2))
-                .cloned()
-                .collect();
+            // The grid value's σ against the final model: a continuous one's by linearisation,
+            // a discrete one's from its profile (the search's profile was taken against the
+            // model of its round, where the value may differ), else the search's.
+            let others = model_design(&base_design, &accepted_cols, Some(i));
             let po = Projector::new(&others, &all).ok();
-            let fresh = po.as_ref().and_then(|po| {
-                refit_grid_profile(&prep, *id, po, &y, &noise, model, &column_cache)
+            let theta: Vec<f64> = th.iter().map(|x| x.0).collect();
+            let linear = po.as_ref().and_then(|po| {
+                grid_sigma_linearised(&prep, *id, *p, cols, &theta, po, &y, &noise, model)
             });
-            let keep_profile_sigma =
-                f.parameters.iter().find(|q| is_grid_parameter(q.name)).map(|q| q.sigma);
-            match fresh {
-                Some((_, profile)) => {
-                    f.parameters = effect_parameters(*id, *p, &t, &profile, &prep);
-                    let theta: Vec<f64> = th.iter().map(|x| x.0).collect();
-                    let linear = po.as_ref().and_then(|po| {
-                        grid_sigma_linearised(&prep, *id, *p, cols, &theta, po, &y, &noise, model)
-                    });
-                    if let (Some(s), Some(q)) =
-                        (linear, f.parameters.iter_mut().find(|q| is_grid_parameter(q.name)))
-                    {
-                        q.sigma = s;
-                    }
+            let fresh = match (linear, &po) {
+                (None, Some(po)) => {
+                    refit_grid_profile(&prep, *id, po, &y, &noise, model, &column_cache)
+                        .map(|(_, profile)| profile)
                 }
-                None => {
-                    f.parameters = effect_parameters(*id, *p, &t, &[(*p, f.wald)], &prep);
-                    if let (Some(s), Some(q)) = (
-                        keep_profile_sigma,
-                        f.parameters.iter_mut().find(|q| is_grid_parameter(q.name)),
-                    ) {
-                        q.sigma = s;
-                    }
-                }
+                _ => None,
+            };
+            let searched = f.parameters.iter().find(|q| is_grid_parameter(q.name)).map(|q| q.sigma);
+            let at_value = [(*p, f.wald)];
+            f.parameters =
+                effect_parameters(*id, *p, &t, fresh.as_deref().unwrap_or(&at_value), &prep);
+            let sigma = linear.or(if fresh.is_none() { searched } else { None });
+            if let (Some(s), Some(q)) =
+                (sigma, f.parameters.iter_mut().find(|q| is_grid_parameter(q.name)))
+            {
+                q.sigma = s;
             }
         }
         apply_effect(&mut new_effects, *id, *p, &th, model);
@@ -1701,7 +1672,7 @@ fn recheck_downgraded(
     prefix: usize,
     base_design: &mut Vec<Vec<f64>>,
     downgraded: &mut Vec<Downgraded>,
-    accepted: &[(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)],
+    accepted: &[Accepted],
     y: &[f64],
     noise: &BinNoise,
     level: f64,
@@ -1737,7 +1708,7 @@ fn recheck_downgraded(
 
 /// What [`check_families`] updates.
 struct FamilyState<'a> {
-    accepted: &'a mut Vec<(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)>,
+    accepted: &'a mut Vec<Accepted>,
     base_design: &'a mut Vec<Vec<f64>>,
     findings: &'a mut Vec<Finding>,
     rejected: &'a mut Vec<Finding>,
@@ -1763,18 +1734,7 @@ fn check_families(
     let mut changed = false;
     for &id in ids {
         let Some(i) = st.accepted.iter().position(|a| a.0 == id) else { continue };
-        let others: Vec<Vec<f64>> = st
-            .base_design
-            .iter()
-            .cloned()
-            .chain(
-                st.accepted
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, _)| *j != i)
-                    .flat_map(|(_, a)| a.2.iter().cloned()),
-            )
-            .collect();
+        let others = model_design(st.base_design, st.accepted, Some(i));
         let (p, cols) = (st.accepted[i].1, st.accepted[i].2.clone());
         // Structure found to be unexplained since may hold this effect's part too.
         let thr = st.thresholds.get(&id).copied().unwrap_or(0.0);
@@ -1980,7 +1940,7 @@ type Refitted = ((f64, Finding, Fitted), Vec<(f64, Vec<Vec<f64>>)>);
 fn refit_search(
     ctx: &SearchCtx<'_>,
     candidates: &[EffectId],
-    accepted: &[(EffectId, f64, Vec<Vec<f64>>, fit::TermTest)],
+    accepted: &[Accepted],
     base_design: &[Vec<f64>],
     y: &[f64],
     noise: &BinNoise,
