@@ -41,6 +41,7 @@ pub mod joint_fit;
 pub mod nominal;
 pub mod run;
 pub mod seed_method;
+pub mod stats;
 pub mod steady;
 pub mod temperature_rate;
 pub mod timebase;

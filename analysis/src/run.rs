@@ -30,13 +30,6 @@ pub struct StepSpan {
     pub ended: StepEnd,
 }
 
-impl StepSpan {
-    /// Whether the step is a calibration window (label starting with `record`).
-    pub fn is_record(&self) -> bool {
-        self.label.starts_with("record")
-    }
-}
-
 /// Everything the analyses read from a recording, as arrays (times in s from the recording's
 /// time zero).
 #[derive(Debug, Clone, PartialEq, Default)]

@@ -378,18 +378,8 @@ fn angle_quantum(y: &[f64]) -> f64 {
 
 /// Least-squares line `a + b·(t − t0)` over `t`, `y`: (a at t0, b).
 fn line(t: &[f64], y: &[f64]) -> (f64, f64) {
-    let n = t.len() as f64;
     let t0 = t[0];
-    let tm = t.iter().map(|v| v - t0).sum::<f64>() / n;
-    let ym = y.iter().sum::<f64>() / n;
-    let (mut sxx, mut sxy) = (0.0, 0.0);
-    for (a, b) in t.iter().zip(y) {
-        let dx = a - t0 - tm;
-        sxx += dx * dx;
-        sxy += dx * (b - ym);
-    }
-    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-    (ym - slope * tm, slope)
+    crate::stats::line(t.iter().map(|v| v - t0).zip(y.iter().copied())).intercept_slope(0.0)
 }
 
 /// σ of a line's slope over `span_s` from its residuals `r` (in time order): the white

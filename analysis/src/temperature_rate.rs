@@ -172,17 +172,8 @@ impl WindowSums {
 /// Least-squares slope of `y` on `x` and the line's value at `at` (two-pass, centred for
 /// precision).
 fn slope_value(x: &[f64], y: &[f64], at: f64) -> (f64, f64) {
-    let n = x.len() as f64;
-    let xm = x.iter().sum::<f64>() / n;
-    let ym = y.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (&xi, &yi) in x.iter().zip(y) {
-        let dx = xi - xm;
-        sxy += dx * (yi - ym);
-        sxx += dx * dx;
-    }
-    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-    (b, ym + b * (at - xm))
+    let l = crate::stats::line(x.iter().copied().zip(y.iter().copied()));
+    (l.slope.unwrap_or(0.0), l.at(at, 0.0))
 }
 
 #[cfg(test)]

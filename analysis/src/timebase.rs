@@ -34,17 +34,9 @@ impl ClockFit {
 }
 
 /// Least-squares line through `(x, y)` over the indices `idx`: (intercept at x = 0, slope).
+/// A clock without spread in its device times runs at the host's rate (1).
 fn line(x: &[f64], y: &[f64], idx: &[usize]) -> (f64, f64) {
-    let n = idx.len() as f64;
-    let xm = idx.iter().map(|&i| x[i]).sum::<f64>() / n;
-    let ym = idx.iter().map(|&i| y[i]).sum::<f64>() / n;
-    let (mut sxx, mut sxy) = (0.0, 0.0);
-    for &i in idx {
-        sxx += (x[i] - xm) * (x[i] - xm);
-        sxy += (x[i] - xm) * (y[i] - ym);
-    }
-    let b = if sxx > 0.0 { sxy / sxx } else { 1.0 };
-    (ym - b * xm, b)
+    crate::stats::line(idx.iter().map(|&i| (x[i], y[i]))).intercept_slope(1.0)
 }
 
 /// 1.4826 × the median absolute value.

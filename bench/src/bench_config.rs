@@ -402,18 +402,12 @@ impl BenchConfig {
                 });
             }
         }
-        if let Some(site) = &cfg.site {
-            if !(-90.0..=90.0).contains(&site.latitude_deg) {
-                bad(
-                    &["site", "latitude_deg"],
-                    format!("[site] latitude_deg {} is outside -90..90", site.latitude_deg),
-                );
+        if let (Some(site), Some(s)) = (&cfg.site, cfg.site()) {
+            for (key, problem) in s.problems() {
+                bad(&["site", key], format!("[site] {problem}"));
             }
-            if site.axis != "up" && site.axis != "down" {
-                bad(
-                    &["site", "axis"],
-                    format!("[site] axis must be \"up\" or \"down\", got \"{}\"", site.axis),
-                );
+            if let Err(problem) = Axis::parse(&site.axis) {
+                bad(&["site", "axis"], format!("[site] {problem}"));
             }
         }
         for (key, v) in &cfg.acceptance {

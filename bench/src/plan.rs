@@ -106,15 +106,8 @@ pub struct RunPlan {
 pub const STATION_KEYS: &[&str] = &["unit_serial", "operator", "station"];
 
 /// Keys of `[acceptance]` / `bench.acceptance`: the coefficients a calibration reports, SI,
-/// units in the names (those of the model file).
-pub const ACCEPTANCE_KEYS: &[&str] = &[
-    "bias_rad_s",
-    "scale_factor_error",
-    "temp_coeff_rad_s_per_c",
-    "temp_rate_coeff_rad_s_per_c_s",
-    "arw_rad_per_sqrt_s",
-    "bias_instability_rad_s",
-];
+/// units in the names (those of the model file; [`bench_physics::ModelKey::LIMITED`]).
+pub const ACCEPTANCE_KEYS: &[&str] = &bench_physics::gyro_model::ACCEPTANCE_KEYS;
 
 /// Test-station metadata of a run: what a test record says about the unit and its test.
 #[derive(Debug, Clone, Default, PartialEq)]

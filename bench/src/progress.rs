@@ -218,11 +218,8 @@ impl Drop for Working {
     }
 }
 
-/// Seconds as `h:mm:ss`.
-pub fn hms(s: f64) -> String {
-    let s = if s.is_finite() && s > 0.0 { s as u64 } else { 0 };
-    format!("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60)
-}
+/// Seconds as `h:mm:ss` (the one formatter, rounded to the nearest second).
+pub use bench_report::display::hms;
 
 #[cfg(test)]
 mod tests {

@@ -62,7 +62,7 @@ fuzz_target!(|data: &[u8]| {
             let (glo, ghi) = caps.gyro.capabilities.operating_temp_c;
             for (i, s) in plan.steps.iter().enumerate() {
                 assert_eq!(s.index, i);
-                assert_eq!(s.label.starts_with("record"), s.name == "record");
+                assert_eq!(bench_recording::message::is_record_label(&s.label), s.name == "record");
                 match s.action {
                     Action::Chamber { target_c, ramp_c_s } => {
                         assert!((glo..=ghi).contains(&target_c));

@@ -121,18 +121,94 @@ impl ModelKey {
     pub fn non_negative(self) -> bool {
         matches!(self, ModelKey::Arw | ModelKey::BiasInstability | ModelKey::ThermalTimeConstant)
     }
+
+    /// The keys a calibration may hold (not determined by the procedure, so not written as
+    /// measured): the coefficients it fits, [`ModelKey::CALIBRATED`].
+    pub const HOLDABLE: [ModelKey; 4] = ModelKey::CALIBRATED;
+
+    /// The keys an acceptance limit may name (`[acceptance]`, `bench.acceptance`): the
+    /// calibrated coefficients and the two noise terms.
+    pub const LIMITED: [ModelKey; 6] = [
+        ModelKey::Bias,
+        ModelKey::ScaleFactorError,
+        ModelKey::TempCoeff,
+        ModelKey::TempRateCoeff,
+        ModelKey::Arw,
+        ModelKey::BiasInstability,
+    ];
+
+    /// The name in files whose keys carry their SI unit: the calibration file's `[gyro_model]`
+    /// and `[uncertainty]`, `[acceptance]` and `bench.acceptance` (`bias_rad_s`, …).
+    pub const fn file_key(self) -> &'static str {
+        match self {
+            ModelKey::Bias => "bias_rad_s",
+            ModelKey::ScaleFactorError => "scale_factor_error",
+            ModelKey::ReferenceTemperature => "reference_temperature_c",
+            ModelKey::TempCoeff => "temp_coeff_rad_s_per_c",
+            ModelKey::TempRateCoeff => "temp_rate_coeff_rad_s_per_c_s",
+            ModelKey::Arw => "arw_rad_per_sqrt_s",
+            ModelKey::BiasInstability => "bias_instability_rad_s",
+            ModelKey::EarthRate => "earth_rate",
+            ModelKey::ThermalTimeConstant => "thermal_time_constant_s",
+        }
+    }
+
+    /// The key whose [`ModelKey::file_key`] is `name`.
+    pub fn from_file_key(name: &str) -> Option<ModelKey> {
+        ModelKey::ALL.into_iter().find(|k| k.file_key() == name)
+    }
+
+    /// The one range check of a value of this key, wherever a model comes from (model file,
+    /// scenario, simulator config): every value finite, the scale factor `1 + error` positive,
+    /// the noise terms and the lag not negative (`earth_rate` is a flag: any value). `Err`
+    /// says what is required.
+    pub fn check(self, value: f64) -> Result<(), &'static str> {
+        match self {
+            ModelKey::EarthRate => Ok(()),
+            _ if !value.is_finite() => Err(self.requirement()),
+            ModelKey::ScaleFactorError if value <= -1.0 => Err(self.requirement()),
+            k if k.non_negative() && value < 0.0 => Err(self.requirement()),
+            _ => Ok(()),
+        }
+    }
+
+    /// What [`ModelKey::check`] requires, in words.
+    pub fn requirement(self) -> &'static str {
+        match self {
+            ModelKey::EarthRate => "must be true or false",
+            ModelKey::ScaleFactorError => "must be finite and above -1",
+            k if k.non_negative() => "must be finite and not negative",
+            _ => "must be finite",
+        }
+    }
 }
 
-/// Names of `bench.gyro_model`'s keys, in contract order.
-pub const GYRO_MODEL_KEYS: [&str; 9] = {
-    let mut out = [""; 9];
+/// [`ModelKey::file_key`] (`file`) or [`ModelKey::key`] of each of `keys`.
+const fn names<const N: usize>(keys: [ModelKey; N], file: bool) -> [&'static str; N] {
+    let mut out = [""; N];
     let mut i = 0;
-    while i < 9 {
-        out[i] = ModelKey::ALL[i].key();
+    while i < N {
+        out[i] = if file { keys[i].file_key() } else { keys[i].key() };
         i += 1;
     }
     out
-};
+}
+
+const fn file_keys<const N: usize>(keys: [ModelKey; N]) -> [&'static str; N] {
+    names(keys, true)
+}
+
+/// File keys of every key, in contract order (the calibration file's `[gyro_model]`).
+pub const MODEL_FILE_KEYS: [&str; 9] = file_keys(ModelKey::ALL);
+
+/// Keys of `[acceptance]` / `bench.acceptance` ([`ModelKey::LIMITED`]): SI, units in the names.
+pub const ACCEPTANCE_KEYS: [&str; 6] = file_keys(ModelKey::LIMITED);
+
+/// File keys of the coefficients a calibration may hold ([`ModelKey::HOLDABLE`]).
+pub const HOLDABLE_KEYS: [&str; 4] = file_keys(ModelKey::HOLDABLE);
+
+/// Names of `bench.gyro_model`'s keys, in contract order.
+pub const GYRO_MODEL_KEYS: [&str; 9] = names(ModelKey::ALL, false);
 
 impl Default for GyroModel {
     /// The seed's gyro (`docs/seed-method.md`), made concrete:
@@ -172,6 +248,12 @@ pub struct ModelKeyError {
 }
 
 impl GyroModel {
+    /// Every value checked ([`ModelKey::check`]), in contract order: the first key out of
+    /// range, with what it requires.
+    pub fn validate(&self) -> Result<(), (ModelKey, &'static str)> {
+        ModelKey::ALL.into_iter().try_for_each(|k| k.check(self.get(k)).map_err(|why| (k, why)))
+    }
+
     /// The model with every term zero (what a metadata record with no keys means).
     pub fn zero() -> Self {
         Self {
@@ -305,6 +387,41 @@ mod tests {
             assert_eq!(changed, [k], "{}", k.key());
         }
         assert_eq!(ModelKey::from_key("g_sensitivity"), None);
+    }
+
+    #[test]
+    fn file_keys_name_every_key_once_and_the_lists_derive_from_the_table() {
+        for k in ModelKey::ALL {
+            assert_eq!(ModelKey::from_file_key(k.file_key()), Some(k));
+            assert!(k.file_key().starts_with(k.key()), "{}", k.file_key());
+        }
+        assert_eq!(ACCEPTANCE_KEYS[0], "bias_rad_s");
+        assert_eq!(ACCEPTANCE_KEYS[5], "bias_instability_rad_s");
+        assert_eq!(HOLDABLE_KEYS, ModelKey::CALIBRATED.map(ModelKey::file_key));
+        assert_eq!(ModelKey::from_file_key("bias"), None);
+    }
+
+    #[test]
+    fn one_validation_for_every_source_of_a_model() {
+        assert_eq!(GyroModel::default().validate(), Ok(()));
+        assert_eq!(GyroModel::zero().validate(), Ok(()));
+        let bad = |key: ModelKey, v: f64| {
+            let mut m = GyroModel::default();
+            m.set(key, v);
+            m.validate().map_err(|(k, _)| k)
+        };
+        assert_eq!(bad(ModelKey::ScaleFactorError, -1.0), Err(ModelKey::ScaleFactorError));
+        assert_eq!(bad(ModelKey::ScaleFactorError, -0.999), Ok(()));
+        assert_eq!(bad(ModelKey::Bias, -1.0), Ok(()));
+        assert_eq!(bad(ModelKey::Bias, f64::NAN), Err(ModelKey::Bias));
+        assert_eq!(bad(ModelKey::Arw, -1e-9), Err(ModelKey::Arw));
+        assert_eq!(bad(ModelKey::ThermalTimeConstant, f64::INFINITY), Err(ModelKey::ThermalTimeConstant));
+        assert_eq!(bad(ModelKey::TempRateCoeff, -3.0), Ok(()));
+        assert_eq!(
+            ModelKey::ScaleFactorError.check(-2.0),
+            Err("must be finite and above -1")
+        );
+        assert_eq!(ModelKey::BiasInstability.check(-1.0), Err("must be finite and not negative"));
     }
 
     #[test]

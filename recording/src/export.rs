@@ -30,6 +30,7 @@ use std::sync::Arc;
 
 use serde_json::Value;
 
+use crate::message::{StepEvent, StepMsg};
 use crate::reader::{End, Item, RecordingError, RecordingReader};
 
 /// Output format.
@@ -481,27 +482,28 @@ impl Channel {
 }
 
 /// The record windows of `/bench/step`: (start, end, label) in log time, ns, for each step
-/// whose label begins with `record`; a window with no `end`/`abort` runs to the end of time.
+/// whose label begins with `record`, paired as everywhere ([`crate::steps`]); a window with no
+/// `end`/`abort` runs to the end of time.
 fn record_windows(steps: Option<&Channel>) -> Vec<(i64, i64, String)> {
     let Some(st) = steps.filter(|c| c.encoding == "json") else { return Vec::new() };
-    let mut open: HashMap<i64, (i64, String)> = HashMap::new();
-    let mut out = Vec::new();
-    for r in by_time(st) {
-        let index = st.field(r, "index").and_then(Value::as_i64).unwrap_or(-1);
-        let label = st.field(r, "label").and_then(Value::as_str).unwrap_or("");
-        match st.field(r, "event").and_then(Value::as_str) {
-            Some("start") if label.starts_with("record") => {
-                open.insert(index, (st.log[r], label.to_owned()));
-            }
-            Some("end" | "abort") => {
-                if let Some((a, l)) = open.remove(&index) {
-                    out.push((a, st.log[r], l));
-                }
-            }
-            _ => {}
-        }
-    }
-    out.extend(open.into_values().map(|(a, l)| (a, i64::MAX, l)));
+    let events: Vec<(i64, StepMsg)> = (0..st.rows.len())
+        .filter_map(|r| {
+            let event = match st.field(r, "event").and_then(Value::as_str)? {
+                "start" => StepEvent::Start,
+                "end" => StepEvent::End,
+                "abort" => StepEvent::Abort,
+                _ => return None,
+            };
+            let index = st.field(r, "index").and_then(Value::as_u64).unwrap_or(u64::MAX);
+            let label = st.field(r, "label").and_then(Value::as_str).unwrap_or("").to_owned();
+            Some((st.log[r], StepMsg { index, name: String::new(), event, label }))
+        })
+        .collect();
+    let mut out: Vec<(i64, i64, String)> = crate::steps::pair(events.iter().map(|(t, m)| (*t, m)))
+        .into_iter()
+        .filter(|s| s.is_record())
+        .filter_map(|s| Some((s.start?, s.end.map_or(i64::MAX, |e| e.0), s.label.to_owned())))
+        .collect();
     out.sort_by_key(|w| w.0);
     out
 }

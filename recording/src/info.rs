@@ -127,9 +127,8 @@ pub fn info_from_reader<R: Read>(
     let mut times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
     // Device time stamps (publish_time) per topic, and whether any differs from log_time.
     let mut device: BTreeMap<String, (Vec<u64>, bool)> = BTreeMap::new();
-    // (index, name, label, start, end, abort) in ns.
-    type StepNs = (u64, String, String, Option<u64>, Option<u64>, Option<u64>);
-    let mut steps: Vec<StepNs> = Vec::new();
+    // Step events (log time, message), paired at the end (`crate::steps`).
+    let mut step_events: Vec<(u64, crate::message::StepMsg)> = Vec::new();
     let mut metadata = Vec::new();
     let mut attachments = Vec::new();
     for item in reader.by_ref() {
@@ -148,24 +147,7 @@ pub fn info_from_reader<R: Read>(
             }
             Item::Step(m) => {
                 let t = m.log_time_ns;
-                let s = m.msg;
-                let open = steps
-                    .iter_mut()
-                    .rev()
-                    .find(|x| x.0 == s.index && x.1 == s.name && x.4.is_none() && x.5.is_none());
-                match (s.event, open) {
-                    (StepEvent::Start, _) | (_, None) => {
-                        let mut new = (s.index, s.name, s.label, None, None, None);
-                        match s.event {
-                            StepEvent::Start => new.3 = Some(t),
-                            StepEvent::End => new.4 = Some(t),
-                            StepEvent::Abort => new.5 = Some(t),
-                        }
-                        steps.push(new);
-                    }
-                    (StepEvent::End, Some(x)) => x.4 = Some(t),
-                    (StepEvent::Abort, Some(x)) => x.5 = Some(t),
-                }
+                step_events.push((t, m.msg));
                 (TOPIC_STEP, t)
             }
             Item::Other(m) => {
@@ -236,15 +218,18 @@ pub fn info_from_reader<R: Read>(
             _ => 0.0,
         },
         channels,
-        steps: steps
+        steps: crate::steps::pair(step_events.iter().map(|(t, m)| (*t, m)))
             .into_iter()
-            .map(|(index, name, label, s, e, a)| StepReport {
-                index,
-                name,
-                label,
-                start_s: s.map(rel),
-                end_s: e.map(rel),
-                abort_s: a.map(rel),
+            .map(|s| {
+                let at = |event: StepEvent| s.end.filter(|e| e.1 == event).map(|e| rel(e.0));
+                StepReport {
+                    index: s.index,
+                    name: s.name.to_owned(),
+                    label: s.label.to_owned(),
+                    start_s: s.start.map(rel),
+                    end_s: at(StepEvent::End),
+                    abort_s: at(StepEvent::Abort),
+                }
             })
             .collect(),
         metadata,

@@ -52,6 +52,7 @@ pub mod recover;
 pub mod schema;
 pub mod site;
 pub mod status;
+pub mod steps;
 pub mod toml_doc;
 pub mod writer;
 
@@ -66,5 +67,5 @@ pub use reader::{
     read_summary, summary_counts, AttachmentRecord, ChannelInfo, End, Item, MetadataRecord,
     OtherMessage, Recording, RecordingError, RecordingReader, Stamped,
 };
-pub use site::{Axis, MetadataError, Site};
+pub use site::{Axis, MetadataError, Site, SiteNumber};
 pub use writer::{RecordError, Recorder, RecorderOptions, RunInfo, TomlAttachment};

@@ -68,12 +68,17 @@ pub struct StepMsg {
 impl StepMsg {
     /// Whether the step's label marks a calibration window (starts with `record`).
     pub fn is_record(&self) -> bool {
-        self.label.starts_with(RECORD_LABEL_PREFIX)
+        is_record_label(&self.label)
     }
 }
 
 /// A step whose label starts with this marks data a calibration uses.
 pub const RECORD_LABEL_PREFIX: &str = "record";
+
+/// Whether a step's `label` marks a calibration window (starts with [`RECORD_LABEL_PREFIX`]).
+pub fn is_record_label(label: &str) -> bool {
+    label.starts_with(RECORD_LABEL_PREFIX)
+}
 
 /// A step event (`bench.Step` `event`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

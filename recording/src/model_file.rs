@@ -35,64 +35,94 @@
 use std::path::Path;
 
 use bench_physics::effects::Effects;
-use bench_physics::GyroModel;
+use bench_physics::gyro_model::MODEL_FILE_KEYS;
+use bench_physics::{GyroModel, ModelKey};
 use serde::{Deserialize, Serialize};
 
 use crate::toml_doc::line_col;
 
-/// `[gyro_model]`: a [`GyroModel`] with units in the key names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ModelKeys {
-    /// Bias at T0, rad/s.
-    pub bias_rad_s: f64,
-    /// k_sf − 1.
-    pub scale_factor_error: f64,
-    /// T0, °C.
-    pub reference_temperature_c: f64,
-    /// rad/s per °C.
-    pub temp_coeff_rad_s_per_c: f64,
-    /// rad/s per °C/s.
-    pub temp_rate_coeff_rad_s_per_c_s: f64,
-    /// Angle random walk, rad/√s.
-    pub arw_rad_per_sqrt_s: f64,
-    /// Flicker floor of the Allan deviation, rad/s.
-    pub bias_instability_rad_s: f64,
-    /// Earth's rotation in the model.
-    pub earth_rate: bool,
-    /// Air-to-gyro thermal lag, s.
-    pub thermal_time_constant_s: f64,
-}
+/// `[gyro_model]`: a [`GyroModel`] with units in the key names ([`ModelKey::file_key`], every
+/// key of [`ModelKey::ALL`] in that order; `earth_rate` a boolean). Read and written through
+/// the key table, so a key the model gains is a key of the file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelKeys(pub GyroModel);
 
 impl From<&GyroModel> for ModelKeys {
     fn from(m: &GyroModel) -> Self {
-        Self {
-            bias_rad_s: m.bias,
-            scale_factor_error: m.scale_factor_error,
-            reference_temperature_c: m.reference_temperature,
-            temp_coeff_rad_s_per_c: m.temp_coeff,
-            temp_rate_coeff_rad_s_per_c_s: m.temp_rate_coeff,
-            arw_rad_per_sqrt_s: m.arw,
-            bias_instability_rad_s: m.bias_instability,
-            earth_rate: m.earth_rate,
-            thermal_time_constant_s: m.thermal_time_constant,
-        }
+        Self(m.clone())
     }
 }
 
 impl From<&ModelKeys> for GyroModel {
     fn from(k: &ModelKeys) -> Self {
-        Self {
-            bias: k.bias_rad_s,
-            scale_factor_error: k.scale_factor_error,
-            reference_temperature: k.reference_temperature_c,
-            temp_coeff: k.temp_coeff_rad_s_per_c,
-            temp_rate_coeff: k.temp_rate_coeff_rad_s_per_c_s,
-            arw: k.arw_rad_per_sqrt_s,
-            bias_instability: k.bias_instability_rad_s,
-            earth_rate: k.earth_rate,
-            thermal_time_constant: k.thermal_time_constant_s,
+        k.0.clone()
+    }
+}
+
+impl Serialize for ModelKeys {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct as _;
+        let mut st = s.serialize_struct("ModelKeys", ModelKey::ALL.len())?;
+        for k in ModelKey::ALL {
+            match k {
+                ModelKey::EarthRate => st.serialize_field(k.file_key(), &self.0.earth_rate)?,
+                _ => st.serialize_field(k.file_key(), &self.0.get(k))?,
+            }
         }
+        st.end()
+    }
+}
+
+/// A `[gyro_model]` key, read as serde reads a struct's field names: an unknown one is an
+/// error located at the key, listing the known ones.
+struct FileKey(ModelKey);
+
+impl<'de> Deserialize<'de> for FileKey {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = FileKey;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a [gyro_model] key")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<FileKey, E> {
+                ModelKey::from_file_key(v)
+                    .map(FileKey)
+                    .ok_or_else(|| E::unknown_field(v, &MODEL_FILE_KEYS))
+            }
+        }
+        d.deserialize_identifier(V)
+    }
+}
+
+impl<'de> Deserialize<'de> for ModelKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = ModelKeys;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("the [gyro_model] table")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<ModelKeys, A::Error> {
+                let mut model = GyroModel::zero();
+                let mut seen = Vec::with_capacity(ModelKey::ALL.len());
+                while let Some(FileKey(k)) = map.next_key()? {
+                    if seen.contains(&k) {
+                        return Err(serde::de::Error::duplicate_field(k.file_key()));
+                    }
+                    match k {
+                        ModelKey::EarthRate => model.earth_rate = map.next_value()?,
+                        _ => model.set(k, map.next_value()?),
+                    }
+                    seen.push(k);
+                }
+                match ModelKey::ALL.into_iter().find(|k| !seen.contains(k)) {
+                    Some(k) => Err(serde::de::Error::missing_field(k.file_key())),
+                    None => Ok(ModelKeys(model)),
+                }
+            }
+        }
+        d.deserialize_struct("ModelKeys", &MODEL_FILE_KEYS, V)
     }
 }
 
@@ -238,67 +268,18 @@ impl CalibrationFile {
                 message: e.message().to_owned(),
             }
         })?;
-        let g = &file.gyro_model;
-        let checks: [(&'static str, f64, bool, &'static str); 9] = [
-            ("bias_rad_s", g.bias_rad_s, g.bias_rad_s.is_finite(), "must be finite"),
-            (
-                "scale_factor_error",
-                g.scale_factor_error,
-                g.scale_factor_error.is_finite() && g.scale_factor_error > -1.0,
-                "must be finite and above -1",
-            ),
-            (
-                "reference_temperature_c",
-                g.reference_temperature_c,
-                g.reference_temperature_c.is_finite(),
-                "must be finite",
-            ),
-            (
-                "temp_coeff_rad_s_per_c",
-                g.temp_coeff_rad_s_per_c,
-                g.temp_coeff_rad_s_per_c.is_finite(),
-                "must be finite",
-            ),
-            (
-                "temp_rate_coeff_rad_s_per_c_s",
-                g.temp_rate_coeff_rad_s_per_c_s,
-                g.temp_rate_coeff_rad_s_per_c_s.is_finite(),
-                "must be finite",
-            ),
-            (
-                "arw_rad_per_sqrt_s",
-                g.arw_rad_per_sqrt_s,
-                g.arw_rad_per_sqrt_s.is_finite() && g.arw_rad_per_sqrt_s >= 0.0,
-                "must be finite and not negative",
-            ),
-            (
-                "bias_instability_rad_s",
-                g.bias_instability_rad_s,
-                g.bias_instability_rad_s.is_finite() && g.bias_instability_rad_s >= 0.0,
-                "must be finite and not negative",
-            ),
-            (
-                "thermal_time_constant_s",
-                g.thermal_time_constant_s,
-                g.thermal_time_constant_s.is_finite() && g.thermal_time_constant_s >= 0.0,
-                "must be finite and not negative",
-            ),
-            ("earth_rate", 0.0, true, ""),
-        ];
-        for (key, value, ok, why) in checks {
-            if !ok {
-                let span = crate::toml_doc::value_span(text, &["gyro_model", key])
-                    .or_else(|| crate::toml_doc::value_span(text, &["gyro_model"]));
-                let (line, column) = span.map_or((1, 1), |s| line_col(text, s.start));
-                return Err(ModelFileError::Invalid {
-                    path: path.to_owned(),
-                    line,
-                    column,
-                    key,
-                    value,
-                    why,
-                });
-            }
+        if let Err((key, why)) = file.gyro_model.0.validate() {
+            let span = crate::toml_doc::value_span(text, &["gyro_model", key.file_key()])
+                .or_else(|| crate::toml_doc::value_span(text, &["gyro_model"]));
+            let (line, column) = span.map_or((1, 1), |s| line_col(text, s.start));
+            return Err(ModelFileError::Invalid {
+                path: path.to_owned(),
+                line,
+                column,
+                key: key.file_key(),
+                value: file.gyro_model.0.get(key),
+                why,
+            });
         }
         crate::effects_toml::check_located(&file.effects, text, &["effects"]).map_err(
             |(line, column, message)| ModelFileError::Parse {
@@ -416,6 +397,42 @@ mod tests {
                  and not negative"
             )
         );
+    }
+
+    #[test]
+    fn the_file_keys_are_the_model_key_tables() {
+        // [gyro_model] holds every key of the table, in its order; [uncertainty] only its keys.
+        let f = CalibrationFile::new(
+            &GyroModel::default(),
+            &Effects::default(),
+            Source::default(),
+            Uncertainty {
+                bias_rad_s: Some(1.0),
+                scale_factor_error: Some(1.0),
+                temp_coeff_rad_s_per_c: Some(1.0),
+                temp_rate_coeff_rad_s_per_c_s: Some(1.0),
+            },
+        );
+        let doc: toml::Table = toml::from_str(&f.to_toml()).expect("TOML");
+        let keys = |section: &str| -> Vec<String> {
+            let mut k: Vec<String> = doc[section].as_table().expect("table").keys().cloned().collect();
+            k.sort();
+            k
+        };
+        let mut expected: Vec<String> = MODEL_FILE_KEYS.iter().map(|k| k.to_string()).collect();
+        expected.sort();
+        assert_eq!(keys("gyro_model"), expected);
+        let text = f.to_toml();
+        let order: Vec<usize> =
+            MODEL_FILE_KEYS.iter().map(|k| text.find(&format!("\n{k} = ")).expect(k)).collect();
+        assert!(order.windows(2).all(|w| w[0] < w[1]), "contract order");
+        for k in keys("uncertainty") {
+            assert!(ModelKey::from_file_key(&k).is_some(), "{k}");
+        }
+        // A scale factor of zero or less is refused, as everywhere a model is read.
+        let text = text.replace("scale_factor_error = 0.0", "scale_factor_error = -1.0");
+        let e = CalibrationFile::parse(&text, "m.toml").expect_err("k_sf = 0");
+        assert!(e.to_string().contains("scale_factor_error = -1: must be finite and above -1"), "{e}");
     }
 
     #[test]

@@ -22,6 +22,65 @@ impl Axis {
             Axis::Down => "down",
         }
     }
+
+    /// From the contract's text (`up` or `down`, nothing else); `Err` says what is wrong.
+    pub fn parse(text: &str) -> Result<Axis, String> {
+        match text {
+            "up" => Ok(Axis::Up),
+            "down" => Ok(Axis::Down),
+            other => Err(format!("axis must be \"up\" or \"down\", got \"{other}\"")),
+        }
+    }
+}
+
+/// A number of `bench.site` — and of a scenario's or a bench config's `[site]` — with its
+/// range: the one check of each, wherever a site comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SiteNumber {
+    /// Its key.
+    pub key: &'static str,
+    /// Lowest value allowed.
+    pub low: f64,
+    /// Highest value allowed.
+    pub high: f64,
+    /// What the contract allows, in words.
+    pub expected: &'static str,
+}
+
+impl SiteNumber {
+    /// `latitude_deg`: geodetic latitude, −90…90°.
+    pub const LATITUDE_DEG: SiteNumber = SiteNumber {
+        key: "latitude_deg",
+        low: -90.0,
+        high: 90.0,
+        expected: "degrees north, -90 to 90",
+    };
+    /// `longitude_deg`: −180…360° east.
+    pub const LONGITUDE_DEG: SiteNumber = SiteNumber {
+        key: "longitude_deg",
+        low: -180.0,
+        high: 360.0,
+        expected: "degrees east, -180 to 360",
+    };
+    /// `height_m`: any finite height.
+    pub const HEIGHT_M: SiteNumber = SiteNumber {
+        key: "height_m",
+        low: f64::NEG_INFINITY,
+        high: f64::INFINITY,
+        expected: "a finite number of metres",
+    };
+
+    /// `x` if it is finite and in range; else what is wrong (`latitude_deg 95 is outside
+    /// -90..90`).
+    pub fn check(self, x: f64) -> Result<f64, String> {
+        if x.is_finite() && (self.low..=self.high).contains(&x) {
+            Ok(x)
+        } else if self.low.is_finite() {
+            Err(format!("{} {x} is outside {}..{}", self.key, self.low, self.high))
+        } else {
+            Err(format!("{} {x} is not a finite number", self.key))
+        }
+    }
 }
 
 /// Where the bench stands (`bench.site`).
@@ -55,6 +114,19 @@ impl Site {
     /// A site known only by its latitude.
     pub fn at_latitude(latitude_deg: f64) -> Self {
         Self { latitude_deg, longitude_deg: None, height_m: None, axis: None }
+    }
+
+    /// Every number out of its range ([`SiteNumber`]): (key, what is wrong).
+    pub fn problems(&self) -> Vec<(&'static str, String)> {
+        let numbers = [
+            (SiteNumber::LATITUDE_DEG, Some(self.latitude_deg)),
+            (SiteNumber::LONGITUDE_DEG, self.longitude_deg),
+            (SiteNumber::HEIGHT_M, self.height_m),
+        ];
+        numbers
+            .into_iter()
+            .filter_map(|(n, v)| n.check(v?).err().map(|e| (n.key, e)))
+            .collect()
     }
 
     /// Whether the sensing axis points up (`axis` absent or `up`).
@@ -96,38 +168,33 @@ impl Site {
     /// within ±90°, axis `up` or `down`. `Ok(None)` when the record has no latitude (nothing
     /// to place Earth's rotation with). Unknown keys are ignored.
     pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<Site>, MetadataError> {
-        let num = |key: &'static str, range: (f64, f64), expected: &'static str| {
-            meta.get(key)
+        let num = |n: SiteNumber| {
+            meta.get(n.key)
                 .map(|v| {
                     v.trim()
                         .parse::<f64>()
                         .ok()
-                        .filter(|x| x.is_finite() && (range.0..=range.1).contains(x))
+                        .and_then(|x| n.check(x).ok())
                         .ok_or_else(|| MetadataError {
                             record: META_SITE,
-                            key,
+                            key: n.key,
                             value: v.clone(),
-                            expected,
+                            expected: n.expected,
                         })
                 })
                 .transpose()
         };
-        let any = (f64::NEG_INFINITY, f64::INFINITY);
-        let latitude = num("latitude_deg", (-90.0, 90.0), "degrees north, -90 to 90")?;
-        let longitude_deg = num("longitude_deg", (-180.0, 360.0), "degrees east, -180 to 360")?;
-        let height_m = num("height_m", any, "a finite number of metres")?;
+        let latitude = num(SiteNumber::LATITUDE_DEG)?;
+        let longitude_deg = num(SiteNumber::LONGITUDE_DEG)?;
+        let height_m = num(SiteNumber::HEIGHT_M)?;
         let axis = match meta.get("axis").map(|a| a.trim()) {
             None => None,
-            Some("up") => Some(Axis::Up),
-            Some("down") => Some(Axis::Down),
-            Some(other) => {
-                return Err(MetadataError {
-                    record: META_SITE,
-                    key: "axis",
-                    value: other.to_owned(),
-                    expected: "`up` or `down`",
-                })
-            }
+            Some(text) => Some(Axis::parse(text).map_err(|_| MetadataError {
+                record: META_SITE,
+                key: "axis",
+                value: text.to_owned(),
+                expected: "`up` or `down`",
+            })?),
         };
         Ok(latitude.map(|latitude_deg| Site { latitude_deg, longitude_deg, height_m, axis }))
     }
@@ -164,5 +231,32 @@ mod tests {
         assert_eq!(Site::from_metadata(&BTreeMap::new()), Ok(None));
         let nan = Site::at_latitude(f64::NAN).to_metadata().expect_err("NaN");
         assert_eq!(nan.key, "latitude_deg");
+    }
+
+    #[test]
+    fn one_check_per_number_whatever_the_source() {
+        assert_eq!(
+            SiteNumber::LATITUDE_DEG.check(95.0),
+            Err("latitude_deg 95 is outside -90..90".to_string())
+        );
+        assert_eq!(SiteNumber::LATITUDE_DEG.check(-90.0), Ok(-90.0));
+        assert!(SiteNumber::LONGITUDE_DEG.check(f64::NAN).is_err());
+        assert_eq!(
+            SiteNumber::HEIGHT_M.check(f64::INFINITY),
+            Err("height_m inf is not a finite number".to_string())
+        );
+        let s = Site {
+            latitude_deg: 91.0,
+            longitude_deg: Some(400.0),
+            height_m: Some(12.0),
+            axis: None,
+        };
+        let keys: Vec<&str> = s.problems().into_iter().map(|(k, _)| k).collect();
+        assert_eq!(keys, ["latitude_deg", "longitude_deg"]);
+        assert_eq!(Axis::parse("down"), Ok(Axis::Down));
+        assert_eq!(
+            Axis::parse("sideways"),
+            Err("axis must be \"up\" or \"down\", got \"sideways\"".to_string())
+        );
     }
 }

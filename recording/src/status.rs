@@ -10,6 +10,28 @@ pub mod gyro {
     pub const BIT_FAIL: u32 = 1 << 2;
     /// The sample was received after a corrupt frame was skipped.
     pub const AFTER_CORRUPT: u32 = 1 << 3;
+
+    /// Whether a sample with this `status` is data an analysis uses: status 0, or exactly
+    /// [`SEQ_GAP`] on a sample whose counter did skip (`seq_skipped`). That flag says samples
+    /// were lost *before* this one; the sample itself is good, and leaving it out would widen
+    /// the gap. Any other bit, or a [`SEQ_GAP`] the counter does not bear out, leaves it out.
+    pub fn usable(status: u32, seq_skipped: bool) -> bool {
+        status == 0 || (status == SEQ_GAP && seq_skipped)
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn a_gap_flag_marks_the_gap_before_a_good_sample() {
+            assert!(usable(0, false) && usable(0, true));
+            assert!(usable(SEQ_GAP, true));
+            assert!(!usable(SEQ_GAP, false), "a gap the counter does not show");
+            assert!(!usable(SEQ_GAP | AFTER_CORRUPT, true));
+            assert!(!usable(INVALID, false) && !usable(BIT_FAIL, true));
+        }
+    }
 }
 
 /// Rate-table status bits (`/table/state` `status`).

@@ -11,6 +11,7 @@
 
 use std::collections::BTreeMap;
 
+use bench_physics::ModelKey;
 use serde::Serialize;
 
 use crate::calibrate::CalibrationOutcome;
@@ -46,15 +47,7 @@ impl Judgement {
 
 /// The display unit of a limit's key (`bias_rad_s` → °/h, …); a pure number for an unknown key.
 pub fn limit_unit(key: &str) -> crate::display::Unit {
-    use crate::display;
-    match key {
-        "bias_rad_s" | "bias_instability_rad_s" => display::RATE,
-        "scale_factor_error" => display::PPM,
-        "temp_coeff_rad_s_per_c" => display::TEMP_COEFF,
-        "temp_rate_coeff_rad_s_per_c_s" => display::TEMP_RATE_COEFF,
-        "arw_rad_per_sqrt_s" => display::ARW,
-        _ => display::ONE,
-    }
+    ModelKey::from_file_key(key).map_or(crate::display::ONE, crate::display::model_key_unit)
 }
 
 /// One coefficient against its limit.
@@ -117,16 +110,11 @@ pub fn judge_calibration(out: &CalibrationOutcome) -> Option<Acceptance> {
     let cal = &out.calibration;
     let mut checks = Vec::new();
     for (key, &limit) in &run.acceptance {
-        let joint = cal.joint.as_ref().ok().and_then(|j| match key.as_str() {
-            "bias_rad_s" => Some(j.bias),
-            "scale_factor_error" => Some(j.scale_factor_error),
-            "temp_coeff_rad_s_per_c" => Some(j.temp_coeff),
-            "temp_rate_coeff_rad_s_per_c_s" => Some(j.temp_rate_coeff),
-            _ => None,
-        });
-        let noise = cal.allan.as_ref().ok().and_then(|a| match key.as_str() {
-            "arw_rad_per_sqrt_s" => Some(a.fit.arw),
-            "bias_instability_rad_s" => Some(a.fit.flicker_floor()),
+        let model_key = ModelKey::from_file_key(key);
+        let joint = cal.joint.as_ref().ok().zip(model_key).and_then(|(j, k)| j.estimate(k));
+        let noise = cal.allan.as_ref().ok().zip(model_key).and_then(|(a, k)| match k {
+            ModelKey::Arw => Some(a.fit.arw),
+            ModelKey::BiasInstability => Some(a.fit.flicker_floor()),
             _ => None,
         });
         let check = match (joint, noise) {

@@ -36,8 +36,20 @@ pub const ARW: Unit = Unit { name: "°/√h", per_si: 1.0 / DEG_PER_SQRT_H };
 pub const DEGREES: Unit = Unit { name: "°", per_si: 1.0 / DEG };
 /// Small angle: arc seconds.
 pub const ARC_SECONDS: Unit = Unit { name: "″", per_si: 1.0 / ARCSEC };
+/// Angular rate of the table: °/min.
+pub const TABLE_RATE: Unit = Unit { name: "°/min", per_si: 60.0 / DEG };
+/// Angular rate in degrees per second.
+pub const DEG_PER_S: Unit = Unit { name: "°/s", per_si: 1.0 / DEG };
+/// Temperature rate: °C/min.
+pub const TEMP_RATE: Unit = Unit { name: "°C/min", per_si: 60.0 };
 /// Time: s.
 pub const SECONDS: Unit = Unit { name: "s", per_si: 1.0 };
+/// Short time: ms.
+pub const MILLISECONDS: Unit = Unit { name: "ms", per_si: 1e3 };
+/// Time: minutes.
+pub const MINUTES: Unit = Unit { name: "min", per_si: 1.0 / 60.0 };
+/// Time: hours (time axes of the figures).
+pub const HOURS: Unit = Unit { name: "h", per_si: 1.0 / 3600.0 };
 /// Temperature: °C.
 pub const CELSIUS: Unit = Unit { name: "°C", per_si: 1.0 };
 /// A pure number shown as it is (a count, a gain, a flag).
@@ -150,6 +162,14 @@ pub fn si_value(unit: Unit, value_si: f64, digits: usize) -> String {
     with_unit(sig(unit.of(value_si), digits), unit.name)
 }
 
+/// Seconds as `h:mm:ss`, rounded to the nearest second (59.6 s is `0:01:00`: a time shown to
+/// the second is the second nearest to it); a negative or non-finite time is `0:00:00`. The
+/// one time formatter of the terminal and the reports.
+pub fn hms(t_s: f64) -> String {
+    let s = if t_s.is_finite() && t_s > 0.0 { t_s.round() as u64 } else { 0 };
+    format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+}
+
 fn with_unit(body: String, unit: &str) -> String {
     if unit.is_empty() {
         body
@@ -173,6 +193,19 @@ mod tests {
             assert!(coefficient_unit(k).is_some(), "{}", k.key());
         }
         assert_eq!(coefficient_unit(ModelKey::Arw), None);
+    }
+
+    #[test]
+    fn hms_rounds_to_the_nearest_second() {
+        assert_eq!(hms(0.0), "0:00:00");
+        assert_eq!(hms(0.49), "0:00:00");
+        assert_eq!(hms(59.5), "0:01:00");
+        assert_eq!(hms(3599.6), "1:00:00");
+        assert_eq!(hms(4699.75), "1:18:20");
+        assert_eq!(hms(36_000.0 + 61.2), "10:01:01");
+        assert_eq!(hms(-3.0), "0:00:00");
+        assert_eq!(hms(f64::NAN), "0:00:00");
+        assert_eq!(hms(f64::INFINITY), "0:00:00");
     }
 
     #[test]

@@ -2,9 +2,9 @@
 //!
 //! - **Time zero**: [`Recording::time_zero_ns`] (the earliest message on the contract's four
 //!   channels); every time in [`RunSeries`] is in seconds from it.
-//! - **Gyro**: samples whose rate is finite and whose `status` is 0 — or exactly the
-//!   counter-gap bit (bench's `SEQ_GAP`) on a sample whose `seq` did skip: that sample is itself
-//!   valid — in time order; a repeated time stamp keeps its first sample. Samples left out are
+//! - **Gyro**: samples whose rate is finite and whose `status` is usable
+//!   ([`status::gyro::usable`]: 0, or exactly the counter-gap bit `SEQ_GAP` on a sample whose
+//!   `seq` did skip — the flag marks a gap *before* a good sample), in time order; a repeated time stamp keeps its first sample. Samples left out are
 //!   counted, with their times.
 //! - **Time from the device where it has one** ([`bench_analysis::timebase`]): a channel whose
 //!   `publish_time` differs from `log_time` carries device stamps; the gyro's `seq` is its
@@ -15,8 +15,8 @@
 //! - **Gyro temperature**: the gyro's own sensor where it reads on more than half of the kept
 //!   samples (gaps filled linearly); otherwise none, and the analyses use chamber air.
 //! - **Table and chamber**: every reading with finite values, in time order.
-//! - **Steps**: each `start` event paired with the same step's next `end` or `abort`; a step
-//!   the file does not end runs to the last gyro sample.
+//! - **Steps**: paired by [`bench_recording::steps`] (each `start` with the next `end` or
+//!   `abort` of its index); a step the file does not end runs to the last gyro sample.
 //! - **Site and model**: `bench.site` ([`bench_recording::Site::from_metadata`]) and
 //!   `bench.gyro_model` with its `effect.*` keys.
 //! - **Test station** (optional): `bench.station` as recorded, `bench.acceptance` limits as
@@ -139,7 +139,7 @@ impl RunData {
 
     /// The record steps (labels starting with `record`), in time order.
     pub fn record_steps(&self) -> impl Iterator<Item = &StepSpan> {
-        self.series.steps.iter().filter(|s| s.is_record())
+        self.series.steps.iter().filter(|s| bench_recording::message::is_record_label(&s.label))
     }
 }
 
@@ -197,7 +197,7 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
     let mut bad_gyro_time_s = Vec::new();
     for (k, (g, &t)) in rec.gyro.iter().zip(&gyro_times).enumerate() {
         let skipped = k > 0 && g.msg.seq != rec.gyro[k - 1].msg.seq.wrapping_add(1);
-        let valid = g.msg.status == 0 || (g.msg.status == status::gyro::SEQ_GAP && skipped);
+        let valid = status::gyro::usable(g.msg.status, skipped);
         if !valid || !g.msg.rate_rad_s.is_finite() {
             bad_gyro_time_s.push(t);
             continue;
@@ -248,32 +248,27 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
     need(TOPIC_TABLE, table_time_s.len())?;
     need(TOPIC_CHAMBER, chamber_time_s.len())?;
 
-    // Steps: each start paired with the same step's next end or abort.
-    let mut events = rec.steps.clone();
-    events.sort_by_key(|s| s.log_time_ns);
+    // Steps: paired as everywhere (`bench_recording::steps`); a step the file does not end
+    // runs to the last gyro sample, an end without a start is no span.
     let last_s = gyro_time_s.last().copied().unwrap_or(0.0);
-    let mut steps = Vec::new();
-    for (i, s) in events.iter().enumerate() {
-        if s.msg.event != StepEvent::Start {
-            continue;
-        }
-        let end = events[i + 1..]
-            .iter()
-            .find(|e| e.msg.index == s.msg.index && e.msg.event != StepEvent::Start);
-        let (end_s, ended) = match end {
-            Some(e) if e.msg.event == StepEvent::Abort => (secs(e.log_time_ns), StepEnd::Abort),
-            Some(e) => (secs(e.log_time_ns), StepEnd::End),
-            None => (last_s, StepEnd::Missing),
-        };
-        steps.push(StepSpan {
-            index: s.msg.index,
-            name: s.msg.name.clone(),
-            label: s.msg.label.clone(),
-            start_s: secs(s.log_time_ns),
-            end_s,
-            ended,
-        });
-    }
+    let steps = bench_recording::steps::pair(rec.steps.iter().map(|s| (s.log_time_ns, &s.msg)))
+        .into_iter()
+        .filter_map(|s| {
+            let (end_s, ended) = match s.end {
+                Some((t, StepEvent::Abort)) => (secs(t), StepEnd::Abort),
+                Some((t, _)) => (secs(t), StepEnd::End),
+                None => (last_s, StepEnd::Missing),
+            };
+            Some(StepSpan {
+                index: s.index,
+                name: s.name.to_owned(),
+                label: s.label.to_owned(),
+                start_s: secs(s.start?),
+                end_s,
+                ended,
+            })
+        })
+        .collect();
 
     let mut acceptance = BTreeMap::new();
     let mut acceptance_problems = Vec::new();

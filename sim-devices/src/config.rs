@@ -178,12 +178,9 @@ impl SimConfig {
                 format!("{} Hz is not one of the gyro's rates {rates:?}", self.gyro_sample_rate_hz),
             ));
         }
-        if !(self.latitude_deg.is_finite() && self.latitude_deg.abs() <= 90.0) {
-            return Err(err(
-                "latitude_deg",
-                format!("must be within ±90, got {}", self.latitude_deg),
-            ));
-        }
+        bench_recording::SiteNumber::LATITUDE_DEG
+            .check(self.latitude_deg)
+            .map_err(|e| err("latitude_deg", e))?;
         let c = &self.chamber;
         if !(c.min_temp_c.is_finite() && c.max_temp_c.is_finite() && c.min_temp_c < c.max_temp_c) {
             return Err(err("chamber.min_temp_c", "range must be finite with min < max"));
@@ -224,21 +221,10 @@ impl SimConfig {
         non_negative("table.ripple_rel", t.ripple_rel)?;
         non_negative("table.rate_noise_rad_s", t.rate_noise_rad_s)?;
         positive("gyro.max_rate_rad_s", self.gyro.max_rate_rad_s)?;
-        let m = &self.gyro_model;
-        for (name, v) in [
-            ("gyro_model.bias", m.bias),
-            ("gyro_model.scale_factor_error", m.scale_factor_error),
-            ("gyro_model.reference_temperature", m.reference_temperature),
-            ("gyro_model.temp_coeff", m.temp_coeff),
-            ("gyro_model.temp_rate_coeff", m.temp_rate_coeff),
-        ] {
-            if !v.is_finite() {
-                return Err(err(name, format!("must be finite, got {v}")));
-            }
-        }
-        non_negative("gyro_model.arw", m.arw)?;
-        non_negative("gyro_model.bias_instability", m.bias_instability)?;
-        non_negative("gyro_model.thermal_time_constant", m.thermal_time_constant)?;
+        // The one validation of a gyro model (`ModelKey::check`).
+        self.gyro_model.validate().map_err(|(key, why)| {
+            err("gyro_model", format!("`{}` {why}, got {}", key.key(), self.gyro_model.get(key)))
+        })?;
         Ok(())
     }
 

@@ -9,7 +9,9 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use bench_analysis::allan_fit::{allan_fit, NoiseTerm};
 use bench_physics::allan::adev_octaves;
-use bench_physics::units::{DEG_PER_H, DEG_PER_SQRT_H};
+use bench_physics::units::DEG_PER_H;
+use bench_recording::message::is_record_label;
+use bench_report::display;
 use serde_json::json;
 
 /// Arguments of `bench allan`.
@@ -70,7 +72,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         Some(label) => {
             let step = s.steps.iter().find(|w| &w.label == label).with_context(|| {
                 let labels: Vec<&str> =
-                    s.steps.iter().filter(|w| w.is_record()).map(|w| w.label.as_str()).collect();
+                    s.steps.iter().map(|w| w.label.as_str()).filter(|l| is_record_label(l)).collect();
                 format!(
                     "{}: no step labelled {label:?}; record windows: {}",
                     args.recording.display(),
@@ -120,7 +122,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         args.recording.display(),
         gr.len(),
         dt,
-        bench_report::display::sig(table_rate.to_degrees(), 6)
+        display::sig(display::DEG_PER_S.of(table_rate), 6)
     );
     println!("| τ | ADEV | terms |");
     println!("| --- | --- | --- |");
@@ -128,7 +130,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         println!(
             "| {} s | {} °/h | {} |",
             bench_report::display::sig(p.tau_s, 4),
-            bench_report::display::sig(p.adev / DEG_PER_H, 4),
+            display::sig(display::RATE.of(p.adev), 4),
             p.n_terms
         );
     }
@@ -136,12 +138,12 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
     println!(
         "N (ARW) = {}{:.3e} °/√h [{:.3e}, {:.3e}], B = {}{:.3e} °/h (floor {:.3e} °/h), K = {}{:.3e} °/h/√h (95 %)",
         bound(&fit.arw),
-        fit.arw.value / DEG_PER_SQRT_H,
-        fit.arw.low / DEG_PER_SQRT_H,
-        fit.arw.high / DEG_PER_SQRT_H,
+        display::ARW.of(fit.arw.value),
+        display::ARW.of(fit.arw.low),
+        display::ARW.of(fit.arw.high),
         bound(&fit.bias_instability),
-        fit.bias_instability.value / DEG_PER_H,
-        fit.flicker_floor().value / DEG_PER_H,
+        display::RATE.of(fit.bias_instability.value),
+        display::RATE.of(fit.flicker_floor().value),
         bound(&fit.rate_random_walk),
         fit.rate_random_walk_deg_per_h_per_sqrt_h().value,
     );

@@ -7,7 +7,6 @@ use super::exit::Exit;
 
 use anyhow::Context as _;
 use bench_analysis::joint_fit::Estimator;
-use bench_physics::units::DEG_PER_H;
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_report::calibrate::{calibrate_recording, json, report, CalibrateSettings};
@@ -81,7 +80,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             "noise: N = {} °/√h, B = {} °/h (floor {} °/h), K = {}{} °/h/√h",
             display::sig(a.fit.arw_deg_per_sqrt_h().value, 3),
             display::sig(a.fit.bias_instability_deg_per_h().value, 3),
-            display::sig(a.fit.flicker_floor().value / DEG_PER_H, 3),
+            display::sig(display::RATE.of(a.fit.flicker_floor().value), 3),
             if a.fit.rate_random_walk.upper_bound { "≤ " } else { "" },
             display::sig(a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value, 3),
         );

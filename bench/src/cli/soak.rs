@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use bench::soak::{FaultOutcome, SoakOptions, SoakReport};
+use bench_report::display;
 
 use super::exit::Exit;
 
@@ -109,7 +110,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<ExitCode> {
             eprintln!(
                 "segment {}: {:.2} h of bench time in {:.1} s — {}; faults: {}",
                 seg.index,
-                seg.bench_time_s / 3600.0,
+                display::HOURS.of(seg.bench_time_s),
                 seg.wall_time_s,
                 seg.outcome,
                 if kinds.is_empty() { "none".to_string() } else { kinds.join(", ") }
@@ -134,7 +135,7 @@ fn print_summary(r: &SoakReport) {
         "soak (seed {}): {:.2} h of bench time in {:.0} s wall ({:.0}× real time; asked {}×), {} \
          segment(s) of \"{}\"",
         r.seed,
-        r.bench_time_s / 3600.0,
+        display::HOURS.of(r.bench_time_s),
         r.wall_time_s,
         r.achieved_time_scale,
         r.time_scale,

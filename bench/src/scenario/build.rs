@@ -15,7 +15,8 @@ use crate::plan::{
     STATION_KEYS,
 };
 use bench_recording::toml_doc::{line_col, Entry, Node, Value};
-use bench_recording::{Axis, Site};
+use bench_recording::message::is_record_label;
+use bench_recording::{Axis, Site, SiteNumber};
 
 /// Largest number of steps a scenario may expand to.
 pub(crate) const MAX_STEPS: usize = 100_000;
@@ -746,26 +747,28 @@ impl<'a> Builder<'a> {
         if let Some((lat, span)) =
             self.required(got, t.span, "[site] needs `latitude_deg` (degrees, north positive)")
         {
-            if !(-90.0..=90.0).contains(&lat) {
-                self.err(&span, format!("latitude_deg {} is outside -90..90", fmt_num(lat)));
+            if let Err(problem) = SiteNumber::LATITUDE_DEG.check(lat) {
+                self.err(&span, problem);
             }
             site.latitude_deg = lat;
         }
         if let Ok(Some((lon, span))) = self.number(t, "longitude_deg") {
-            if !(-180.0..=360.0).contains(&lon) {
-                self.err(&span, format!("longitude_deg {} is outside -180..360", fmt_num(lon)));
+            if let Err(problem) = SiteNumber::LONGITUDE_DEG.check(lon) {
+                self.err(&span, problem);
             }
             site.longitude_deg = Some(lon);
         }
-        if let Ok(Some((h, _))) = self.number(t, "height_m") {
+        if let Ok(Some((h, span))) = self.number(t, "height_m") {
+            if let Err(problem) = SiteNumber::HEIGHT_M.check(h) {
+                self.err(&span, problem);
+            }
             site.height_m = Some(h);
         }
         if let Ok(Some((axis, span))) = self.string(t, "axis") {
-            match axis.as_str() {
-                "up" => site.axis = Some(Axis::Up),
-                "down" => site.axis = Some(Axis::Down),
-                other => {
-                    self.err(&span, format!("axis must be \"up\" or \"down\", got \"{other}\""));
+            match Axis::parse(&axis) {
+                Ok(a) => site.axis = Some(a),
+                Err(problem) => {
+                    self.err(&span, problem);
                 }
             }
         }
@@ -818,11 +821,8 @@ impl<'a> Builder<'a> {
                     continue;
                 }
             };
-            if key.non_negative() && x < 0.0 {
-                self.err(
-                    &e.node.span,
-                    format!("`{name}` must not be negative, got {}", fmt_num(x)),
-                );
+            if let Err(why) = key.check(x) {
+                self.err(&e.node.span, format!("`{name}` {why}, got {}", fmt_num(x)));
                 continue;
             }
             model.set(key, x);
@@ -998,7 +998,7 @@ impl<'a> Builder<'a> {
         };
         if action != "record" {
             if let Some((l, span)) = &label {
-                if l.starts_with("record") {
+                if is_record_label(l) {
                     self.err(
                         span,
                         format!(
@@ -1367,7 +1367,7 @@ impl<'a> Builder<'a> {
         );
         let label = match label {
             Some((l, span)) => {
-                if !l.starts_with("record") {
+                if !is_record_label(&l) {
                     self.err(
                         &span,
                         format!(

@@ -635,11 +635,21 @@ fn site_values_are_checked() {
 }
 
 #[test]
+fn a_model_is_checked_as_the_model_file_checks_it() {
+    // One validation (`ModelKey::check`): a scale factor 1 + error must stay positive, in the
+    // nominal model and in the simulator's truth alike.
+    for section in ["[gyro.model]", "[simulation.truth]"] {
+        let e = err1(&format!("{section}\nscale_factor_error = -1.5\n[[step]]\nwait = \"1 s\"\n"));
+        assert!(e.ends_with("`scale_factor_error` must be finite and above -1, got -1.5"), "{e}");
+    }
+}
+
+#[test]
 fn gyro_model_keys_are_the_contracts() {
     let e = errs(&with_head("[gyro.model]\nbias = \"1 °/h\"\narw = -1.0\ntemp_cof = 1\nearth_rate = 2\n[[step]]\nwait = \"1 s\"\n"));
     assert_eq!(e.len(), 4, "{e:#?}");
     assert_eq!(e[0], "t.toml:6:8: `bias` must be a finite number in the contract's SI unit");
-    assert_eq!(e[1], "t.toml:7:7: `arw` must not be negative, got -1");
+    assert_eq!(e[1], "t.toml:7:7: `arw` must be finite and not negative, got -1");
     assert!(
         e[2].starts_with(
             "t.toml:8:1: unknown key `temp_cof` in [gyro.model]; did you mean `temp_coeff`?"

@@ -226,19 +226,6 @@ fn one_seed(
     })
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
-}
-
 fn spread(mut v: Vec<f64>) -> (f64, f64, f64) {
     v.retain(|x| x.is_finite());
     if v.is_empty() {
@@ -272,8 +259,8 @@ pub fn summarise(scenario: String, lab: bool, seeds: Vec<SeedResult>) -> MonteCa
                     let n = with_sigma.len() as f64;
                     EstimatorSummary {
                         estimator: (*name).to_owned(),
-                        rms_error: rms(pairs.iter().map(|(v, _, t)| v - t)),
-                        rms_sigma: rms(pairs.iter().map(|(_, s, _)| *s).filter(|s| s.is_finite())),
+                        rms_error: bench_analysis::stats::rms(pairs.iter().map(|(v, _, t)| v - t)),
+                        rms_sigma: bench_analysis::stats::rms(pairs.iter().map(|(_, s, _)| *s).filter(|s| s.is_finite())),
                         coverage_95: with_sigma.iter().filter(|z| z.abs() <= 1.959_964).count()
                             as f64
                             / n,

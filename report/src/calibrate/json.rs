@@ -343,7 +343,7 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             .map(|b| TimeBaseJson {
                 topic: b.topic,
                 source: b.source.key(),
-                drift_ppm: b.fit.map(|f| (f.rate - 1.0) * 1e6),
+                drift_ppm: b.fit.map(|f| crate::display::PPM.of(f.rate - 1.0)),
                 jitter: b.fit.map(|f| f.jitter_s),
                 max_late: b.fit.map(|f| f.max_late_s),
                 late_outliers: b.fit.map(|f| f.outliers),

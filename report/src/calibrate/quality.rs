@@ -11,6 +11,7 @@ use bench_physics::ModelKey;
 use serde::Serialize;
 
 use super::CalibrationOutcome;
+use crate::display::hms;
 
 /// Family-wise false-alarm level of the block test on a sound fit.
 pub const BLOCK_ALPHA: f64 = 0.01;
@@ -85,8 +86,8 @@ impl FitQuality {
             out.push(format!(
                 "residual {:+.1}σ over {}–{} in `{}`: {}",
                 x.z,
-                clock(x.start_s),
-                clock(x.end_s),
+                hms(x.start_s),
+                hms(x.end_s),
                 x.window,
                 x.context
             ));
@@ -95,11 +96,6 @@ impl FitQuality {
     }
 }
 
-/// `h:mm:ss` of seconds since time zero.
-pub fn clock(t_s: f64) -> String {
-    let s = t_s.max(0.0).round() as u64;
-    format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
-}
 
 /// Judge `outcome`'s fits.
 pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
@@ -250,7 +246,7 @@ fn context(outcome: &CalibrationOutcome, w: usize, start_s: f64, end_s: f64) -> 
     let mid = 0.5 * (start_s + end_s);
     match data.motion.segment_at(mid) {
         Some(s) => {
-            parts.push(format!("table steady at {:+.2} °/min", s.rate_rad_s.to_degrees() * 60.0))
+            parts.push(format!("table steady at {:+.2} °/min", crate::display::TABLE_RATE.of(s.rate_rad_s)))
         }
         None => parts.push("table not steady".into()),
     }
@@ -263,8 +259,8 @@ fn context(outcome: &CalibrationOutcome, w: usize, start_s: f64, end_s: f64) -> 
         parts.push(format!(
             "next to a {} left out ({}–{})",
             x.why.key().replace('_', " "),
-            clock(x.start_s),
-            clock(x.end_s)
+            hms(x.start_s),
+            hms(x.end_s)
         ));
     }
     let series = &data.temperature;

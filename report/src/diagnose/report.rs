@@ -16,7 +16,6 @@ use std::path::Path;
 use bench_analysis::diagnose::Region;
 use bench_physics::allan::AdevPoint;
 use bench_physics::noise::bias_instability_adev;
-use bench_physics::units::DEG_PER_H;
 
 use super::DiagnoseOutcome;
 use crate::display;
@@ -26,7 +25,7 @@ use crate::render::{
 };
 
 fn deg_h(v: f64) -> f64 {
-    v / DEG_PER_H
+    display::RATE.of(v)
 }
 
 fn line(label: &str, c: plotters::style::RGBColor, points: Vec<(f64, f64)>) -> Item {
@@ -36,7 +35,7 @@ fn line(label: &str, c: plotters::style::RGBColor, points: Vec<(f64, f64)>) -> I
 fn residual_figure(o: &DiagnoseOutcome) -> Figure {
     let d = &o.diagnosis;
     let s = &d.series;
-    let h: Vec<f64> = s.time_s.iter().map(|t| t / 3600.0).collect();
+    let h: Vec<f64> = s.time_s.iter().map(|t| display::HOURS.of(*t)).collect();
     let pts = |v: &[f64]| h.iter().zip(v).map(|(t, x)| (*t, deg_h(*x))).collect::<Vec<_>>();
     let mut p = Plot::new("Residual, bin means", Axis::linear("time, h"), Axis::linear("°/h"));
     p.spans = o
@@ -44,10 +43,10 @@ fn residual_figure(o: &DiagnoseOutcome) -> Figure {
         .series
         .steps
         .iter()
-        .filter(|st| st.label.starts_with("record"))
+        .filter(|st| bench_recording::message::is_record_label(&st.label))
         .map(|st| Span {
-            x0: st.start_s / 3600.0,
-            x1: st.end_s / 3600.0,
+            x0: display::HOURS.of(st.start_s),
+            x1: display::HOURS.of(st.end_s),
             colour: colour::GREY,
             label: "record windows".into(),
         })
@@ -218,7 +217,7 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
          the parameter refit {} °/h, after the effects {} °/h{}.</li></ul>",
         d.n_bins,
         sig(o.options.bin_s, 3),
-        sig(d.noise_after.arw / bench_physics::units::DEG_PER_SQRT_H, 3),
+        sig(display::ARW.of(d.noise_after.arw), 3),
         sig(deg_h(d.noise_after.flicker_floor), 3),
         sig(d.n_eff, 3),
         sig(deg_h(d.rms.0), 3),

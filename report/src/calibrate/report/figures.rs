@@ -8,11 +8,11 @@ use bench_analysis::temperature_rate::local_linear_rate;
 use bench_analysis::Direction;
 use bench_physics::allan::{AdevPoint, NoiseType};
 use bench_physics::earth::vertical_rate_rad_s;
-use bench_physics::units::DEG_PER_H;
 use bench_physics::GyroModel;
 
 use super::series::{bins, decimate, rms};
 use crate::calibrate::CalibrationOutcome;
+use crate::display;
 use crate::render::plot::{colour, Axis, Item, Marker, MarkerPoint, Plot, Span};
 pub(super) use crate::render::Figure;
 
@@ -26,11 +26,11 @@ const ONE: (u32, u32) = (960, 540);
 const TWO: (u32, u32) = (1280, 540);
 
 fn deg_h(x: f64) -> f64 {
-    x / DEG_PER_H
+    display::RATE.of(x)
 }
 
 fn hours(t: f64) -> f64 {
-    t / 3600.0
+    display::HOURS.of(t)
 }
 
 /// Earth's rate along the sensing axis that the calibration removed, rad/s.
@@ -110,7 +110,7 @@ pub(super) fn figures(o: &CalibrationOutcome) -> Vec<Figure> {
 /// (Earth's rate only removed) and after (the angle-domain model and each stretch's offset
 /// removed), arcseconds against time.
 fn misclosure(o: &CalibrationOutcome) -> Figure {
-    const ARCSEC: f64 = std::f64::consts::PI / 180.0 / 3600.0;
+    let arcsec = |v: f64| display::ARC_SECONDS.of(v);
     let mut before = Plot::new(
         "Before calibration",
         Axis::linear("time, h"),
@@ -139,16 +139,16 @@ fn misclosure(o: &CalibrationOutcome) -> Figure {
                 before.items.push(line(
                     (k == 0).then_some("bin mean"),
                     colour::ORANGE,
-                    b.iter().map(|b| (hours(b.t), b.mean / ARCSEC)).collect(),
+                    b.iter().map(|b| (hours(b.t), arcsec(b.mean))).collect(),
                 ));
                 after.items.push(line(
                     (k == 0).then_some("bin mean"),
                     colour::BLUE,
-                    c.iter().map(|b| (hours(b.t), b.mean / ARCSEC)).collect(),
+                    c.iter().map(|b| (hours(b.t), arcsec(b.mean))).collect(),
                 ));
             }
             let (rb, ra) = a.misclosure_rms();
-            let r = |v: f64| crate::render::sig(v / ARCSEC, 3);
+            let r = |v: f64| crate::render::sig(arcsec(v), 3);
             before.note = Some(format!("RMS {} ″", r(rb)));
             after.note = Some(format!("RMS {} ″", r(ra)));
             caption.push_str(&format!(
@@ -303,7 +303,7 @@ fn temperature_rate(o: &CalibrationOutcome) -> Figure {
             p.items.push(line(
                 Some(&format!("{} dT/dt", temp_source(o))),
                 colour::BLUE,
-                b.iter().map(|b| (hours(b.t), b.mean * 60.0)).collect(),
+                b.iter().map(|b| (hours(b.t), display::TEMP_RATE.of(b.mean))).collect(),
             ));
         }
         Err(e) => p.note = Some(format!("no dT/dt: {e}")),
@@ -316,7 +316,7 @@ fn temperature_rate(o: &CalibrationOutcome) -> Figure {
                 p.items.push(line(
                     first.then_some("model temperature (lagged) dT/dt in windows"),
                     colour::GREEN,
-                    b.iter().map(|b| (hours(b.t), b.mean * 60.0)).collect(),
+                    b.iter().map(|b| (hours(b.t), display::TEMP_RATE.of(b.mean))).collect(),
                 ));
                 first = false;
             }
@@ -510,28 +510,28 @@ fn error_functions(o: &CalibrationOutcome) -> Figure {
                     .map(|&r| {
                         let v = k_dt(m, r);
                         let s = 2.0 * (r * j.temp_rate_coeff.std_err).abs();
-                        (r * 60.0, deg_h(v - s), deg_h(v + s))
+                        (display::TEMP_RATE.of(r), deg_h(v - s), deg_h(v + s))
                     })
                     .collect(),
             });
             kd.items.push(line(
                 Some("joint fit"),
                 colour::BLUE,
-                rs.iter().map(|&r| (r * 60.0, deg_h(k_dt(m, r)))).collect(),
+                rs.iter().map(|&r| (display::TEMP_RATE.of(r), deg_h(k_dt(m, r)))).collect(),
             ));
         }
         if let Some(m) = &o.seed_model {
             kd.items.push(dashed(
                 Some("seed method"),
                 colour::ORANGE,
-                rs.iter().map(|&r| (r * 60.0, deg_h(k_dt(m, r)))).collect(),
+                rs.iter().map(|&r| (display::TEMP_RATE.of(r), deg_h(k_dt(m, r)))).collect(),
             ));
         }
         if let Some(m) = truth {
             kd.items.push(line(
                 Some("truth"),
                 colour::BLACK,
-                rs.iter().map(|&r| (r * 60.0, deg_h(k_dt(m, r)))).collect(),
+                rs.iter().map(|&r| (display::TEMP_RATE.of(r), deg_h(k_dt(m, r)))).collect(),
             ));
         }
     } else {

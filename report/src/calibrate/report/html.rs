@@ -7,12 +7,14 @@ use std::fmt::Write as _;
 use bench_analysis::allan_fit::{NoiseTerm, FLICKER_FLOOR_FACTOR};
 use bench_analysis::calibrate::{thermal_bias, ThermalErrorRemoval, WindowKind};
 use bench_analysis::Direction;
-use bench_physics::units::{DEG_PER_H, DEG_PER_SQRT_H};
 use bench_physics::GyroModel;
 
 use super::figures::Figure;
 use crate::calibrate::{CalibrationOutcome, FunctionErrors};
-use crate::display::{Unit, PPM, RATE, TEMP_COEFF, TEMP_RATE_COEFF};
+use crate::display::{
+    Unit, ARW, HOURS, MILLISECONDS, MINUTES, PPM, RATE, TABLE_RATE, TEMP_COEFF, TEMP_RATE,
+    TEMP_RATE_COEFF,
+};
 use crate::render::{escape, figures_html, sig, STYLE};
 
 /// `value ± σ` (display units, the unit in its own column), digits set by σ.
@@ -123,8 +125,8 @@ fn function_error_row(name: &str, f: Option<&FunctionErrors>) -> String {
     match f {
         Some(f) => format!(
             "<tr><td class=l>{name}</td><td>{}</td><td>{}</td></tr>",
-            sig(f.delta_k_t_rad_s / DEG_PER_H, 3),
-            sig(f.delta_k_dt_rad_s / DEG_PER_H, 3)
+            sig(RATE.of(f.delta_k_t_rad_s), 3),
+            sig(RATE.of(f.delta_k_dt_rad_s), 3)
         ),
         None => format!("<tr><td class=l>{name}</td><td>—</td><td>—</td></tr>"),
     }
@@ -134,8 +136,8 @@ fn removal_row(name: &str, r: Option<&ThermalErrorRemoval>) -> String {
     match r {
         Some(r) => format!(
             "<tr><td class=l>{name}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            sig(r.rms_uncalibrated_rad_s / DEG_PER_H, 3),
-            sig(r.rms_calibrated_rad_s / DEG_PER_H, 3),
+            sig(RATE.of(r.rms_uncalibrated_rad_s), 3),
+            sig(RATE.of(r.rms_calibrated_rad_s), 3),
             format_args!("{:.1} %", 100.0 * r.removed())
         ),
         None => format!("<tr><td class=l>{name}</td><td>—</td><td>—</td><td>—</td></tr>"),
@@ -159,10 +161,10 @@ fn model_summary(m: &GyroModel) -> String {
     format!(
         "bias {} °/h, scale-factor error {} ppm, temp_coeff {} °/h per °C, temp_rate_coeff {} \
          °/h per °C/min at T0 = {} °C",
-        sig(m.bias / DEG_PER_H, 4),
-        sig(m.scale_factor_error * 1e6, 4),
-        sig(m.temp_coeff / DEG_PER_H, 4),
-        sig(m.temp_rate_coeff * TEMP_RATE_COEFF.per_si, 4),
+        sig(RATE.of(m.bias), 4),
+        sig(PPM.of(m.scale_factor_error), 4),
+        sig(TEMP_COEFF.of(m.temp_coeff), 4),
+        sig(TEMP_RATE_COEFF.of(m.temp_rate_coeff), 4),
         sig(m.reference_temperature, 4)
     )
 }
@@ -209,8 +211,8 @@ fn fit_quality(h: &mut String, o: &CalibrationOutcome, source: &str) {
                 h,
                 "<li>{:+.1}σ over {}–{} in <b>{}</b>: {}</li>",
                 x.z,
-                super::super::quality::clock(x.start_s),
-                super::super::quality::clock(x.end_s),
+                crate::display::hms(x.start_s),
+                crate::display::hms(x.end_s),
                 escape(&x.window),
                 escape(&x.context)
             );
@@ -233,7 +235,7 @@ fn exclusions(h: &mut String, o: &CalibrationOutcome) {
             h,
             "<tr><td class=l>{}</td><td>{:.3}</td><td>{:.1}</td><td class=l>{}</td><td>{}</td></tr>",
             escape(&x.label),
-            x.start_s / 3600.0,
+            HOURS.of(x.start_s),
             x.end_s - x.start_s,
             x.why.key().replace('_', " "),
             x.samples
@@ -254,9 +256,9 @@ fn exclusions(h: &mut String, o: &CalibrationOutcome) {
                 "{}: {}; host clock {:+.1} ppm against it, host stamps' jitter {} ms, latest {} ms",
                 b.topic,
                 b.source.key().replace('_', " "),
-                (f.rate - 1.0) * 1e6,
-                sig(f.jitter_s * 1e3, 3),
-                sig(f.max_late_s * 1e3, 3)
+                PPM.of(f.rate - 1.0),
+                sig(MILLISECONDS.of(f.jitter_s), 3),
+                sig(MILLISECONDS.of(f.max_late_s), 3)
             ),
             None => format!("{}: {}", b.topic, b.source.key().replace('_', " ")),
         };
@@ -290,7 +292,7 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
          <li>Model temperature: {}{}; dT/dt by local linear regression over {} s.</li>\n\
          <li>Error model: V − Ω_in = bias + s·Ω_in + temp_coeff·(T − T0) + temp_rate_coeff·dT/dt, \
          Ω_in = table rate + Earth's rate along the axis.</li>\n</ul>",
-        sig(duration / 3600.0, 3),
+        sig(HOURS.of(duration), 3),
         d.run.series.gyro_time_s.len(),
         d.spans.len(),
         match d.run.series.latitude_deg.or(opts.latitude_deg) {
@@ -365,8 +367,8 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
              <th>Δk_dt, °/h</th></tr>\n{}\n{}\n</table>",
             sig(o.temp_range_c.0, 3),
             sig(o.temp_range_c.1, 3),
-            sig(o.rate_range_c_s.0 * 60.0, 3),
-            sig(o.rate_range_c_s.1 * 60.0, 3),
+            sig(TEMP_RATE.of(o.rate_range_c_s.0), 3),
+            sig(TEMP_RATE.of(o.rate_range_c_s.1), 3),
             function_error_row("joint fit", t.joint.as_ref()),
             function_error_row("seed method", t.seed.as_ref()),
         );
@@ -400,13 +402,13 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
                     "N, angle random walk",
                     "°/√h",
                     &f.arw_deg_per_sqrt_h(),
-                    truth.map(|m| m.arw / DEG_PER_SQRT_H)
+                    truth.map(|m| ARW.of(m.arw))
                 ),
                 noise_row(
                     "B, bias instability",
                     "°/h",
                     &f.bias_instability_deg_per_h(),
-                    truth.map(|m| m.bias_instability / FLICKER_FLOOR_FACTOR / DEG_PER_H)
+                    truth.map(|m| RATE.of(m.bias_instability / FLICKER_FLOOR_FACTOR))
                 ),
                 noise_row(
                     "K, rate random walk",
@@ -479,12 +481,12 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
             escape(&w.label),
             kind_text(w.kind),
             direction_text(w.direction),
-            start.map_or("—".into(), |s| format!("{:.3}", s / 3600.0)),
-            format_args!("{:.2}", w.duration_s / 60.0),
+            start.map_or("—".into(), |s| format!("{:.3}", HOURS.of(s))),
+            format_args!("{:.2}", MINUTES.of(w.duration_s)),
             w.samples,
             format_args!("{:.2}", w.mean_temp_c),
             format_args!("{:.2}", w.temp_span_c),
-            sig(w.mean_table_rate_rad_s / bench_physics::units::DEG_PER_MIN, 4),
+            sig(TABLE_RATE.of(w.mean_table_rate_rad_s), 4),
         );
     }
     let _ = writeln!(h, "</table>");

@@ -68,18 +68,9 @@ pub(super) fn decimate(t: &[f64], v: &[f64], max_bins: usize) -> Vec<Bin> {
     bins(t, v, width)
 }
 
-/// Root mean square; NaN for no values.
+/// Root mean square of the finite values ([`bench_analysis::stats::rms`]); NaN for none.
 pub(super) fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v.filter(|x| x.is_finite()) {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
+    bench_analysis::stats::rms(v.filter(|x| x.is_finite()))
 }
 
 #[cfg(test)]
