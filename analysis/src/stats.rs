@@ -74,7 +74,8 @@ mod tests {
 
     #[test]
     fn a_line_through_exact_points_is_recovered() {
-        let pts: Vec<(f64, f64)> = (0..11).map(|i| (1e6 + f64::from(i), 3.0 - 0.5 * f64::from(i))).collect();
+        let pts: Vec<(f64, f64)> =
+            (0..11).map(|i| (1e6 + f64::from(i), 3.0 - 0.5 * f64::from(i))).collect();
         let l = line(pts.iter().copied());
         assert_eq!(l.slope, Some(-0.5));
         assert!((l.at(1e6, 0.0) - 3.0).abs() < 1e-9);

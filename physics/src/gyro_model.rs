@@ -415,12 +415,12 @@ mod tests {
         assert_eq!(bad(ModelKey::Bias, -1.0), Ok(()));
         assert_eq!(bad(ModelKey::Bias, f64::NAN), Err(ModelKey::Bias));
         assert_eq!(bad(ModelKey::Arw, -1e-9), Err(ModelKey::Arw));
-        assert_eq!(bad(ModelKey::ThermalTimeConstant, f64::INFINITY), Err(ModelKey::ThermalTimeConstant));
-        assert_eq!(bad(ModelKey::TempRateCoeff, -3.0), Ok(()));
         assert_eq!(
-            ModelKey::ScaleFactorError.check(-2.0),
-            Err("must be finite and above -1")
+            bad(ModelKey::ThermalTimeConstant, f64::INFINITY),
+            Err(ModelKey::ThermalTimeConstant)
         );
+        assert_eq!(bad(ModelKey::TempRateCoeff, -3.0), Ok(()));
+        assert_eq!(ModelKey::ScaleFactorError.check(-2.0), Err("must be finite and above -1"));
         assert_eq!(ModelKey::BiasInstability.check(-1.0), Err("must be finite and not negative"));
     }
 

@@ -103,7 +103,10 @@ impl<'de> Deserialize<'de> for ModelKeys {
             fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
                 f.write_str("the [gyro_model] table")
             }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<ModelKeys, A::Error> {
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<ModelKeys, A::Error> {
                 let mut model = GyroModel::zero();
                 let mut seen = Vec::with_capacity(ModelKey::ALL.len());
                 while let Some(FileKey(k)) = map.next_key()? {
@@ -415,7 +418,8 @@ mod tests {
         );
         let doc: toml::Table = toml::from_str(&f.to_toml()).expect("TOML");
         let keys = |section: &str| -> Vec<String> {
-            let mut k: Vec<String> = doc[section].as_table().expect("table").keys().cloned().collect();
+            let mut k: Vec<String> =
+                doc[section].as_table().expect("table").keys().cloned().collect();
             k.sort();
             k
         };
@@ -432,7 +436,10 @@ mod tests {
         // A scale factor of zero or less is refused, as everywhere a model is read.
         let text = text.replace("scale_factor_error = 0.0", "scale_factor_error = -1.0");
         let e = CalibrationFile::parse(&text, "m.toml").expect_err("k_sf = 0");
-        assert!(e.to_string().contains("scale_factor_error = -1: must be finite and above -1"), "{e}");
+        assert!(
+            e.to_string().contains("scale_factor_error = -1: must be finite and above -1"),
+            "{e}"
+        );
     }
 
     #[test]

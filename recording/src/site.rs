@@ -123,10 +123,7 @@ impl Site {
             (SiteNumber::LONGITUDE_DEG, self.longitude_deg),
             (SiteNumber::HEIGHT_M, self.height_m),
         ];
-        numbers
-            .into_iter()
-            .filter_map(|(n, v)| n.check(v?).err().map(|e| (n.key, e)))
-            .collect()
+        numbers.into_iter().filter_map(|(n, v)| n.check(v?).err().map(|e| (n.key, e))).collect()
     }
 
     /// Whether the sensing axis points up (`axis` absent or `up`).
@@ -171,16 +168,14 @@ impl Site {
         let num = |n: SiteNumber| {
             meta.get(n.key)
                 .map(|v| {
-                    v.trim()
-                        .parse::<f64>()
-                        .ok()
-                        .and_then(|x| n.check(x).ok())
-                        .ok_or_else(|| MetadataError {
+                    v.trim().parse::<f64>().ok().and_then(|x| n.check(x).ok()).ok_or_else(|| {
+                        MetadataError {
                             record: META_SITE,
                             key: n.key,
                             value: v.clone(),
                             expected: n.expected,
-                        })
+                        }
+                    })
                 })
                 .transpose()
         };

@@ -87,8 +87,7 @@ mod tests {
             (16, ev(3, Start, "wait")),
         ];
         let steps = pair(msgs.iter().map(|(t, m)| (*t, m)));
-        let got: Vec<_> =
-            steps.iter().map(|s| (s.index, s.start, s.end, s.is_record())).collect();
+        let got: Vec<_> = steps.iter().map(|s| (s.index, s.start, s.end, s.is_record())).collect();
         assert_eq!(
             got,
             [

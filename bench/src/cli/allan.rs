@@ -71,8 +71,12 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
     let (from, to, what) = match &args.window {
         Some(label) => {
             let step = s.steps.iter().find(|w| &w.label == label).with_context(|| {
-                let labels: Vec<&str> =
-                    s.steps.iter().map(|w| w.label.as_str()).filter(|l| is_record_label(l)).collect();
+                let labels: Vec<&str> = s
+                    .steps
+                    .iter()
+                    .map(|w| w.label.as_str())
+                    .filter(|l| is_record_label(l))
+                    .collect();
                 format!(
                     "{}: no step labelled {label:?}; record windows: {}",
                     args.recording.display(),

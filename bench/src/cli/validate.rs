@@ -85,7 +85,11 @@ pub fn run(args: ValidateArgs) -> anyhow::Result<ExitCode> {
     };
     match bench::scenario::load(&args.scenario, &caps) {
         Ok(plan) => {
-            let records = plan.steps.iter().filter(|s| bench_recording::message::is_record_label(&s.label)).count();
+            let records = plan
+                .steps
+                .iter()
+                .filter(|s| bench_recording::message::is_record_label(&s.label))
+                .count();
             let estimate = plan.estimate();
             if !args.quiet {
                 println!(

@@ -14,8 +14,8 @@ use crate::plan::{
     Action, GyroSetup, PlannedStep, RunPlan, SimSetup, Station, TempSource, ACCEPTANCE_KEYS,
     STATION_KEYS,
 };
-use bench_recording::toml_doc::{line_col, Entry, Node, Value};
 use bench_recording::message::is_record_label;
+use bench_recording::toml_doc::{line_col, Entry, Node, Value};
 use bench_recording::{Axis, Site, SiteNumber};
 
 /// Largest number of steps a scenario may expand to.

@@ -96,7 +96,6 @@ impl FitQuality {
     }
 }
 
-
 /// Judge `outcome`'s fits.
 pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
     let cal = &outcome.calibration;
@@ -245,9 +244,10 @@ fn context(outcome: &CalibrationOutcome, w: usize, start_s: f64, end_s: f64) -> 
     }
     let mid = 0.5 * (start_s + end_s);
     match data.motion.segment_at(mid) {
-        Some(s) => {
-            parts.push(format!("table steady at {:+.2} °/min", crate::display::TABLE_RATE.of(s.rate_rad_s)))
-        }
+        Some(s) => parts.push(format!(
+            "table steady at {:+.2} °/min",
+            crate::display::TABLE_RATE.of(s.rate_rad_s)
+        )),
         None => parts.push("table not steady".into()),
     }
     if let Some(x) = data
