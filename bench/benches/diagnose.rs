@@ -21,9 +21,10 @@
 //! measures the serial time.
 #![allow(missing_docs)] // criterion's macros generate undocumented items
 
-use std::{hint::black_box, io::Cursor, path::Path, time::Duration};
+use std::{hint::black_box, path::Path, time::Duration};
 
-use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench::runner::simulate_in_memory;
+use bench::simulate::capabilities;
 use bench_analysis::diagnose::{residual_scan, DiagnoseOptions};
 use bench_recording::Recording;
 use bench_report::diagnose::diagnose_recording;
@@ -32,9 +33,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 fn simulated() -> Vec<u8> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/thermal-short.toml");
     let plan = bench::scenario::load(&path, &capabilities()).expect("valid scenario");
-    let (_, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None)
-        .expect("simulated run");
-    cursor.into_inner()
+    simulate_in_memory(&plan, 1).expect("simulated run").1
 }
 
 fn lab_null_5h(c: &mut Criterion) {

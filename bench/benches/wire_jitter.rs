@@ -8,7 +8,7 @@ use std::io::Cursor;
 use std::sync::Arc;
 
 use bench::bench_config::for_served_bench;
-use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::runner::{run, run_info, Bench, Pace, RunOptions};
 use bench::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
 use bench_recording::Recording;
@@ -28,24 +28,21 @@ fn main() -> anyhow::Result<()> {
     );
     let plan = bench::scenario::parse(&scenario, "jitter.toml", &capabilities())?;
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
-    let rec = rt.block_on(async {
+    let clock = SystemClock::new(1.0);
+    let (_served, devices) = rt.block_on(async {
         let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(1.0));
         let served = bench_sim::serve::bench::serve_bench(sim_config(&plan, 1), sim_clock).await?;
         let config = for_served_bench(&served.endpoints, 1.0, 48.0, true);
-        let clock = SystemClock::new(1.0);
         let (devices, _) = config.connect(Arc::new(clock.clone())).await?;
-        let (report, cur) = run_realtime(
-            &plan,
-            devices,
-            clock,
-            run_info(&plan, SIM_EPOCH_NS),
-            Cursor::new(Vec::new()),
-            RunOptions::default(),
-        )
-        .await?;
-        anyhow::ensure!(report.completed(), "run {}", report.outcome);
-        Ok::<_, anyhow::Error>(Recording::from_bytes(cur.get_ref())?)
+        Ok::<_, anyhow::Error>((served, devices))
     })?;
+    let _entered = rt.enter();
+    let info = Box::new(run_info(&plan, SIM_EPOCH_NS));
+    let opts = RunOptions { pace: Pace::RealTime(1.0), ..RunOptions::default() };
+    let bench = Bench::Connected { devices, clock, info };
+    let (report, cur) = run(&plan, bench, Cursor::new(Vec::new()), opts)?;
+    anyhow::ensure!(report.completed(), "run {}", report.outcome);
+    let rec = Recording::from_bytes(cur.get_ref())?;
     println!("20 Hz sampling jitter through virtual ports, {seconds} s at 1× real time");
     let channels: [(&str, Vec<u64>); 3] = [
         ("/gyro/rate (SLCAN)", rec.gyro.iter().map(|m| m.log_time_ns).collect()),

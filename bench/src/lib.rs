@@ -2,16 +2,17 @@
 //!
 //! Scenario TOML → validated [`plan::RunPlan`] ([`scenario`]) → run on devices behind the
 //! `bench-drivers` traits ([`run`]) → MCAP per the recording format (`bench-recording`),
-//! analysed by `bench-report`. [`simulate`] is the embedded default bench: the in-process
-//! simulators in virtual time.
+//! analysed by `bench-report`. [`runner::run`] is the one way to run: on the embedded
+//! simulated bench ([`simulate`]: the in-process simulators), a replay, or connected devices,
+//! in virtual or real time.
 //!
 //! ```no_run
-//! use bench::simulate::{run_scenario_file, SimOptions};
-//! let report = run_scenario_file(
-//!     "scenarios/seed.toml".as_ref(),
-//!     "seed.mcap".as_ref(),
-//!     &SimOptions { seed: 7, ..Default::default() },
-//! )?;
+//! use bench::runner::{run, Bench, RunOptions};
+//! use bench::simulate::{capabilities, sim_config};
+//! let plan = bench::scenario::load("scenarios/seed.toml".as_ref(), &capabilities())?;
+//! let file = std::io::BufWriter::new(std::fs::File::create("seed.mcap")?);
+//! let bench = Bench::Simulated(sim_config(&plan, 7));
+//! let (report, _file) = run(&plan, bench, file, RunOptions::default())?;
 //! println!("{} in {:?} of bench time", report.outcome, report.bench_time);
 //! # Ok::<(), anyhow::Error>(())
 //! ```

@@ -1,8 +1,10 @@
-//! One way to run a plan and record it, whatever the bench: the embedded simulators and replays
-//! in virtual time ([`run_virtual`]), real devices or simulators behind virtual ports and
-//! replays in real (or scaled) time on tokio ([`run_realtime`]). Both start the recording the
-//! same way (recorder thread, live view, progress), run [`crate::run::execute`], and end with the
-//! same typed [`RunReport`].
+//! The one way to run a plan and record it, whatever the bench: [`run`] takes the plan, the
+//! [`Bench`] (the embedded simulators, a replayed recording, or devices already connected) and
+//! a [`Pace`] (virtual time, as fast as the CPU allows, or real time × a scale on tokio). Every
+//! run starts the recording the same way (recorder thread, live view, progress), runs
+//! [`crate::run::execute`], and ends with the same typed [`RunReport`].
+//! [`simulate_in_memory`] is the studies' and tests' short form: the simulated bench in
+//! virtual time into memory.
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
@@ -16,14 +18,17 @@ use bench_drivers::{Clock, SystemClock};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
 use bench_recording::{Outcome, Recorder, RecorderOptions, RunInfo};
+use bench_sim::{SimBench, SimConfig};
 
 use crate::live_view::{LiveTee, LiveView};
 use crate::plan::RunPlan;
+use crate::replay::ReplayData;
 use crate::run::threaded::ThreadedSink;
 use crate::run::{
     execute, outcome_of, ConsoleLayer, Devices, ExecOptions, Fault, FaultCause, FaultPolicy, Live,
     RunResult, StopSignal, Stopper,
 };
+use crate::simulate::{recorded_effects, sim_config, SIM_EPOCH_NS};
 
 /// What a run did.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +43,21 @@ pub struct RunReport {
     pub wall_time: Duration,
     /// Gyro samples recorded.
     pub gyro_samples: u64,
+    /// On a replay: how the run's commands compared with the recording's.
+    pub replay: Option<ReplayCounts>,
+}
+
+/// How a replayed run's commands compared with the recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReplayCounts {
+    /// Table rate commands sent.
+    pub table_commands: u64,
+    /// Of them, commands that disagree with the recorded `rate_command`.
+    pub table_mismatches: u64,
+    /// Chamber targets sent.
+    pub chamber_targets: u64,
+    /// Of them, targets that disagree with the recorded set point.
+    pub chamber_mismatches: u64,
 }
 
 impl RunReport {
@@ -52,9 +72,45 @@ impl RunReport {
     }
 }
 
+/// How fast a run goes.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Pace {
+    /// Virtual time, as fast as the CPU allows: a deterministic discrete-event executor (the
+    /// simulated bench and replays).
+    #[default]
+    Virtual,
+    /// Real time × this scale on tokio, as a bench with real devices runs (1 for real
+    /// devices; any positive scale for simulators and replays).
+    RealTime(f64),
+}
+
+/// Where a run's devices come from.
+pub enum Bench {
+    /// The embedded simulated bench with this configuration (seed, truth, …: usually
+    /// [`crate::simulate::sim_config`]); the recording keeps its truth in `bench.gyro_model`
+    /// (role `simulation`). Bench time zero: [`SIM_EPOCH_NS`].
+    Simulated(SimConfig),
+    /// A recording replayed: its devices answer as recorded; the scenario's commands are
+    /// checked against the recorded ones ([`RunReport::replay`]). In virtual time the log
+    /// times are the recording's, in real time the wall clock's.
+    Replay(Arc<ReplayData>),
+    /// Devices already connected on `clock` (real drivers, or simulators behind virtual ports),
+    /// recorded with `info`: always real time at the clock's scale.
+    Connected {
+        /// The devices.
+        devices: Devices,
+        /// Their clock.
+        clock: SystemClock,
+        /// The recording's `bench.*` metadata (see [`run_info`]).
+        info: Box<RunInfo>,
+    },
+}
+
 /// Options of a run, whatever its bench.
 #[derive(Default)]
 pub struct RunOptions {
+    /// Virtual or real time (ignored by [`Bench::Connected`], which is real time).
+    pub pace: Pace,
     /// Show a progress bar on a terminal.
     pub progress: bool,
     /// Also show the streams in a Foxglove live view.
@@ -74,6 +130,10 @@ pub struct RunOptions {
 
 /// Default of [`RunOptions::flush_interval`]: 1 s of bench time.
 pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+
+/// A flush interval for runs recorded into memory (the studies): long, so chunks fill and the
+/// run is not held to the recorder thread (a kill loses such a run whole anyway).
+pub const IN_MEMORY_FLUSH_INTERVAL: Duration = Duration::from_secs(3600);
 
 /// How a kill-safety bound `loss` of bench time is split: the recorder flushes every ¾ of
 /// it, and in virtual time the run may run ahead of the recorder thread by at most ¼ of it
@@ -141,13 +201,117 @@ fn finish<W: Write + Seek + Send + 'static>(
         bench_time: result.duration,
         wall_time,
         gyro_samples: live.snapshot().gyro_samples,
+        replay: None,
     };
     Ok((report, writer))
 }
 
+/// Run `plan` on `bench` at `opts.pace`, recording into `writer`; returns the report and the
+/// finished writer. Blocks: a real-time run goes on the current tokio runtime (enter the one
+/// the devices were connected on, and call it from outside async code, e.g. in
+/// `spawn_blocking`), or on a runtime of its own when there is none.
+pub fn run<W: Write + Seek + Send + 'static>(
+    plan: &RunPlan,
+    bench: Bench,
+    writer: W,
+    opts: RunOptions,
+) -> anyhow::Result<(RunReport, W)> {
+    match (bench, opts.pace) {
+        (Bench::Connected { devices, clock, info }, _) => {
+            on_tokio(run_realtime(plan, devices, clock, *info, writer, opts))
+        }
+        (Bench::Simulated(config), Pace::Virtual) => {
+            let clock = VirtualClock::new();
+            let (devices, info) = simulated(plan, config, Arc::new(clock.clone()))?;
+            run_virtual(plan, devices, &clock, info, writer, opts)
+        }
+        (Bench::Simulated(config), Pace::RealTime(scale)) => {
+            let clock = SystemClock::new(scale);
+            let (devices, info) = simulated(plan, config, Arc::new(clock.clone()))?;
+            on_tokio(run_realtime(plan, devices, clock, info, writer, opts))
+        }
+        (Bench::Replay(data), pace) => {
+            let mut plan = plan.clone();
+            let (report, writer, checks) = match pace {
+                Pace::Virtual => {
+                    let info = crate::replay::prepare(&mut plan, &data, data.epoch_ns);
+                    let clock = VirtualClock::new();
+                    let (devices, checks) =
+                        data.devices(Arc::new(clock.clone()), Default::default()).into_devices();
+                    let (report, writer) = run_virtual(&plan, devices, &clock, info, writer, opts)?;
+                    (report, writer, checks)
+                }
+                Pace::RealTime(speed) => {
+                    let info = crate::replay::prepare(&mut plan, &data, wall_epoch_ns());
+                    let clock = SystemClock::new(speed);
+                    let (devices, checks) =
+                        data.devices(Arc::new(clock.clone()), Default::default()).into_devices();
+                    let (report, writer) =
+                        on_tokio(run_realtime(&plan, devices, clock, info, writer, opts))?;
+                    (report, writer, checks)
+                }
+            };
+            let (table_commands, table_mismatches, chamber_targets, chamber_mismatches) =
+                checks.counts();
+            let replay = Some(ReplayCounts {
+                table_commands,
+                table_mismatches,
+                chamber_targets,
+                chamber_mismatches,
+            });
+            Ok((RunReport { replay, ..report }, writer))
+        }
+    }
+}
+
+/// The simulated bench in virtual time into memory, as the studies and tests run it: seed
+/// `seed`, the plan's simulator configuration ([`crate::simulate::sim_config`]), a long flush
+/// interval. Returns the report and the recording's bytes.
+pub fn simulate_in_memory(plan: &RunPlan, seed: u64) -> anyhow::Result<(RunReport, Vec<u8>)> {
+    let opts =
+        RunOptions { flush_interval: Some(IN_MEMORY_FLUSH_INTERVAL), ..RunOptions::default() };
+    let bench = Bench::Simulated(sim_config(plan, seed));
+    let (report, cursor) = run(plan, bench, std::io::Cursor::new(Vec::new()), opts)?;
+    Ok((report, cursor.into_inner()))
+}
+
+/// The simulated bench's devices for `plan` with `config` on `clock`, and the run info of a
+/// simulated run: the truth model recorded, role `simulation`, bench time zero
+/// [`SIM_EPOCH_NS`].
+fn simulated(
+    plan: &RunPlan,
+    config: SimConfig,
+    clock: Arc<dyn Clock>,
+) -> anyhow::Result<(Devices, RunInfo)> {
+    let recorded = recorded_effects(plan, &config);
+    let sim = SimBench::new(config, clock)
+        .context("the scenario asks for a simulator configuration it cannot run")?;
+    let (table, chamber, gyro) = sim.into_parts();
+    let devices =
+        Devices { table: Box::new(table), chamber: Box::new(chamber), gyro: Box::new(gyro) };
+    let mut info = run_info(plan, SIM_EPOCH_NS);
+    info.gyro_model = gyro_model_metadata(&plan.sim.truth, &recorded);
+    info.gyro_model_role = bench_recording::ModelRole::Simulation;
+    Ok((devices, info))
+}
+
+/// `fut` run to its end on the current tokio runtime, or on a two-worker runtime of its own
+/// when there is none.
+fn on_tokio<T>(fut: impl std::future::Future<Output = anyhow::Result<T>>) -> anyhow::Result<T> {
+    match tokio::runtime::Handle::try_current() {
+        Ok(handle) => handle.block_on(fut),
+        Err(_) => tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .context("cannot start the tokio runtime")?
+            .block_on(fut),
+    }
+}
+
 /// Run `plan` on `devices` whose clock is `clock`, in virtual time (the simulated bench and
 /// replays), recording into `writer` with `info`.
-pub fn run_virtual<W: Write + Seek + Send + 'static>(
+fn run_virtual<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     devices: Devices,
     clock: &VirtualClock,
@@ -179,7 +343,7 @@ pub fn run_virtual<W: Write + Seek + Send + 'static>(
 /// through the recorder thread one by one, so a crash loses at most the recorder's unflushed
 /// tail (it flushes every ¾ of [`RunOptions::flush_interval`] of bench time and at every
 /// step end).
-pub async fn run_realtime<W: Write + Seek + Send + 'static>(
+async fn run_realtime<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
     devices: Devices,
     clock: SystemClock,

@@ -31,7 +31,7 @@ use serde::Serialize;
 use crate::bench_config::for_served_bench;
 use crate::plan::RunPlan;
 use crate::run::FaultCause;
-use crate::runner::{run_info, run_realtime, RunOptions};
+use crate::runner::{run_info, Bench, Pace, RunOptions};
 use crate::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 
 /// Default time scale: bench time per wall time the wire path sustains on a 2-core machine
@@ -754,19 +754,21 @@ async fn run_segment(
     };
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
-    let (report, writer) = run_realtime(
-        plan,
+    let bench = Bench::Connected {
         devices,
-        clock.clone(),
-        run_info(plan, SIM_EPOCH_NS),
-        std::io::BufWriter::new(file),
-        RunOptions {
-            policy: config.bench.policy(),
-            flush_interval: plan.flush_interval,
-            ..RunOptions::default()
-        },
-    )
-    .await?;
+        clock: clock.clone(),
+        info: Box::new(run_info(plan, SIM_EPOCH_NS)),
+    };
+    let run_opts = RunOptions {
+        pace: Pace::RealTime(opts.time_scale),
+        policy: config.bench.policy(),
+        flush_interval: plan.flush_interval,
+        ..RunOptions::default()
+    };
+    // The run blocks its thread; the injector and the sampler go on on the runtime's others.
+    let (report, writer) = tokio::task::block_in_place(|| {
+        crate::runner::run(plan, bench, std::io::BufWriter::new(file), run_opts)
+    })?;
     injector.abort();
     sampler.abort();
     let table1 = table_snapshot(&served.wire);

@@ -23,14 +23,14 @@
 //! recording's.
 
 use std::fmt::Write as _;
-use std::io::Cursor;
 
 use anyhow::Context as _;
 use bench_analysis::diagnose::{Collinearity, DiagnoseOptions, Diagnosis};
 use bench_physics::effects::EffectId;
 use bench_physics::GyroModel;
 
-use crate::simulate::{capabilities, run_plan, SimOptions};
+use crate::runner::simulate_in_memory;
+use crate::simulate::capabilities;
 
 /// What the suggestion is for: a confounded pair and how it separates.
 #[derive(Debug, Clone, PartialEq)]
@@ -196,10 +196,9 @@ fn suggest_for(
 pub fn predict(s: &mut Suggestion, seed: u64) -> anyhow::Result<()> {
     let plan = crate::scenario::parse(&s.text, "suggested scenario", &capabilities())
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let sim = SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
-    let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
+    let (report, bytes) = simulate_in_memory(&plan, seed)?;
     anyhow::ensure!(report.completed(), "the suggested run did not complete: {}", report.outcome);
-    let rec = bench_recording::Recording::from_bytes(cursor.get_ref())?;
+    let rec = bench_recording::Recording::from_bytes(&bytes)?;
     let model: GyroModel = plan.gyro.model.clone();
     // Each target judged at the recording's grid value (a lag's τ, a harmonic's k).
     let opts = DiagnoseOptions {

@@ -59,11 +59,13 @@ fn every_shipped_scenario_runs_within_5_percent_of_its_estimate() {
                                 bench::scenario::load(path, &bench::simulate::capabilities())
                                     .expect("shipped scenarios validate");
                             let estimate = plan.estimated_duration().as_secs_f64();
-                            let (report, _) = bench::simulate::run_plan(
+                            let (report, _) = bench::runner::run(
                                 &plan,
+                                bench::runner::Bench::Simulated(bench::simulate::sim_config(
+                                    &plan, 1,
+                                )),
                                 Discard::default(),
-                                &bench::simulate::SimOptions::default(),
-                                None,
+                                bench::runner::RunOptions::default(),
                             )
                             .expect("runs");
                             assert!(report.completed(), "{}: {}", path.display(), report.outcome);

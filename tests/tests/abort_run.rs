@@ -3,7 +3,8 @@
 use std::io::Cursor;
 
 use bench::run::FaultCause;
-use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench::runner::simulate_in_memory;
+use bench::simulate::capabilities;
 use bench_recording::Recording;
 
 /// The chamber heats from 20 °C at 1 °C/min, so the air cannot be within 0.1 °C of 60 °C after
@@ -42,14 +43,13 @@ record = "5 min"
 fn timed_out_wait_aborts_to_safe_state_and_keeps_the_data() {
     let plan = bench::scenario::parse(IMPOSSIBLE_WAIT, "abort.toml", &capabilities())
         .expect("valid scenario");
-    let (report, cursor) =
-        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
+    let (report, bytes) = simulate_in_memory(&plan, 1).expect("runs");
     let outcome = report.outcome.to_string();
     assert!(outcome.starts_with("aborted: step 2 (wait_temperature soak 60C)"), "{outcome}");
     assert!(outcome.contains("not within 60 ± 0.1 °C"), "{outcome}");
     assert_eq!(report.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
 
-    let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
+    let rec = Recording::from_bytes(&bytes).expect("readable");
     assert_eq!(rec.outcome(), Some(report.outcome));
 
     // Step 2 started and aborted at its timeout; the record step never started.
@@ -290,17 +290,16 @@ fn a_chamber_told_to_hold_keeps_its_set_point_in_the_safe_state() {
     );
     let plan = bench::scenario::parse(&text, "abort.toml", &capabilities()).expect("valid");
     assert!(plan.safe_chamber_hold);
-    let (report, cursor) =
-        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
+    let (report, bytes) = simulate_in_memory(&plan, 1).expect("runs");
     assert_eq!(report.fault.as_ref().map(|f| f.cause), Some(FaultCause::StepTimeout));
-    let rec = Recording::from_bytes(cursor.get_ref()).expect("readable");
+    let rec = Recording::from_bytes(&bytes).expect("readable");
     // Heating on at 1 °C/min through the abort and the tail: the set point does not turn down.
     let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
     let at_abort = rec.chamber.iter().rfind(|c| c.log_time_ns <= abort_ns).expect("reading");
     let last = rec.chamber.last().expect("readings");
     assert!(last.msg.setpoint_c >= at_abort.msg.setpoint_c, "{:?} → {:?}", at_abort.msg, last.msg);
     // The run said so in /log, and sent no safe set point.
-    let logs: Vec<String> = mcap::MessageStream::new(cursor.get_ref())
+    let logs: Vec<String> = mcap::MessageStream::new(&bytes)
         .expect("mcap")
         .filter_map(Result::ok)
         .filter(|m| m.channel.topic == "/log")

@@ -2,10 +2,10 @@
 //! simulator's model within its stated errors and removes the thermal error; its files load
 //! back; a recording lacking what calibration needs says what is missing.
 
-use std::io::Cursor;
 use std::path::PathBuf;
 
-use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench::runner::simulate_in_memory;
+use bench::simulate::capabilities;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
 use bench_recording::Recording;
 use bench_report::calibrate::{calibrate_recording, json, CalibrateError, CalibrateSettings};
@@ -16,15 +16,9 @@ fn workspace() -> PathBuf {
 
 fn simulate(scenario: &str, seed: u64) -> Recording {
     let plan = bench::scenario::load(&workspace().join(scenario), &capabilities()).expect("valid");
-    let (report, cursor) = run_plan(
-        &plan,
-        Cursor::new(Vec::new()),
-        &SimOptions { seed, ..SimOptions::default() },
-        None,
-    )
-    .expect("runs");
+    let (report, bytes) = simulate_in_memory(&plan, seed).expect("runs");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
-    Recording::from_bytes(cursor.get_ref()).expect("reads back")
+    Recording::from_bytes(&bytes).expect("reads back")
 }
 
 fn settings() -> CalibrateSettings {

@@ -1,10 +1,10 @@
 //! `bench diagnose` on recordings of the simulated bench: a run whose truth is the nominal
 //! model gives no finding; the files it writes load back.
 
-use std::io::Cursor;
 use std::path::PathBuf;
 
-use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench::runner::simulate_in_memory;
+use bench::simulate::capabilities;
 use bench_analysis::diagnose::{DiagnoseOptions, Diagnosis, Verdict};
 use bench_recording::Recording;
 use bench_report::diagnose::{diagnose_recording, json};
@@ -15,15 +15,9 @@ fn workspace() -> PathBuf {
 
 fn simulate_text(text: &str, seed: u64) -> Recording {
     let plan = bench::scenario::parse(text, "test.toml", &capabilities()).expect("valid");
-    let (report, cursor) = run_plan(
-        &plan,
-        Cursor::new(Vec::new()),
-        &SimOptions { seed, ..SimOptions::default() },
-        None,
-    )
-    .expect("runs");
+    let (report, bytes) = simulate_in_memory(&plan, seed).expect("runs");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
-    Recording::from_bytes(cursor.get_ref()).expect("reads back")
+    Recording::from_bytes(&bytes).expect("reads back")
 }
 
 fn scenario(name: &str) -> String {

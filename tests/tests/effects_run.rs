@@ -2,9 +2,8 @@
 //! gyro stream but leaves no trace in `bench.gyro_model`; a nominal one is recorded as
 //! `effect.*` keys.
 
-use std::io::Cursor;
-
-use bench::simulate::{capabilities, run_plan, SimOptions};
+use bench::runner::simulate_in_memory;
+use bench::simulate::capabilities;
 use bench_physics::effects::{BiasStep, Effects, OncePerRevolution, RateRipple};
 use bench_recording::Recording;
 
@@ -30,10 +29,9 @@ record = "200 s"
 fn run(effects: &str) -> Recording {
     let plan = bench::scenario::parse(&scenario(effects), "effects.toml", &capabilities())
         .expect("valid scenario");
-    let (report, cursor) =
-        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None).expect("runs");
+    let (report, bytes) = simulate_in_memory(&plan, 1).expect("runs");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
-    Recording::from_bytes(cursor.get_ref()).expect("readable")
+    Recording::from_bytes(&bytes).expect("readable")
 }
 
 /// Mean gyro rate over samples with `from_s <= t < to_s` (bench seconds from the first sample).

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bench::bench_config::for_served_bench;
-use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::runner::{run, run_info, Bench, Pace, RunOptions};
 use bench::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
 use bench_recording::status;
@@ -85,16 +85,12 @@ async fn run_text_with(
             inject(&faults);
         }))
     };
-    let (report, cur) = run_realtime(
-        &plan,
-        devices,
-        clock,
-        run_info(&plan, SIM_EPOCH_NS),
-        Cursor::new(Vec::new()),
-        RunOptions::default(),
-    )
-    .await
-    .expect("run ends (completed or aborted)");
+    let bench = Bench::Connected { devices, clock, info: Box::new(run_info(&plan, SIM_EPOCH_NS)) };
+    let opts = RunOptions { pace: Pace::RealTime(SCALE), ..RunOptions::default() };
+    // The run blocks its thread (the runtime's other worker serves the simulators).
+    let (report, cur) =
+        tokio::task::block_in_place(|| run(&plan, bench, Cursor::new(Vec::new()), opts))
+            .expect("run ends (completed or aborted)");
     if let Some(injector) = injector {
         injector.abort();
     }

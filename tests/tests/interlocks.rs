@@ -240,12 +240,6 @@ fn a_gyro_failing_its_built_in_test_trips_gyro_status() {
 fn the_same_run_without_faults_completes() {
     let text = scenario("");
     let plan = bench::scenario::parse(&text, "interlocks.toml", &capabilities()).expect("valid");
-    let (report, _) = bench::simulate::run_plan(
-        &plan,
-        Cursor::new(Vec::new()),
-        &bench::simulate::SimOptions { seed: 3, ..Default::default() },
-        None,
-    )
-    .expect("runs");
+    let (report, _) = bench::runner::simulate_in_memory(&plan, 3).expect("runs");
     assert!(report.completed(), "{}", report.outcome);
 }

@@ -156,16 +156,9 @@ fn diagnose_suggestion_with(
     let text = format!("{}\n[simulation.truth.effects]\n{effects}\n", s.text);
     let plan = bench::scenario::parse(&text, "suggested", &bench::simulate::capabilities())
         .expect("validates");
-    let sim = bench::simulate::SimOptions {
-        seed: 3,
-        flush_interval: bench::simulate::SimOptions::IN_MEMORY,
-        ..Default::default()
-    };
-    let (report, cursor) =
-        bench::simulate::run_plan(&plan, std::io::Cursor::new(Vec::new()), &sim, None)
-            .expect("runs");
+    let (report, bytes) = bench::runner::simulate_in_memory(&plan, 3).expect("runs");
     assert!(report.completed(), "{}", report.outcome);
-    let run = Recording::from_bytes(cursor.get_ref()).expect("reads");
+    let run = Recording::from_bytes(&bytes).expect("reads");
     diagnose_recording(&run, None, &Default::default()).expect("diagnoses").diagnosis
 }
 

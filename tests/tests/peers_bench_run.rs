@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use bench::bench_config::BenchSource;
-use bench::runner::{run_info, run_realtime, RunOptions};
+use bench::runner::{run, run_info, Bench, Pace, RunOptions};
 use bench_drivers::{Clock, SystemClock};
 use bench_recording::Recording;
 use bench_tests::peer::{read_log, Peer};
@@ -48,16 +48,16 @@ async fn scenario_on_the_three_peers_through_peer_toml() {
         plan.site = site;
     }
     let info = run_info(&plan, 0);
-    let (report, cur) = run_realtime(
-        &plan,
-        devices,
-        clock.clone(),
-        info,
-        Cursor::new(Vec::new()),
-        RunOptions { policy: config.bench.policy(), ..RunOptions::default() },
-    )
-    .await
-    .expect("run");
+    let bench = Bench::Connected { devices, clock: clock.clone(), info: Box::new(info) };
+    let opts = RunOptions {
+        pace: Pace::RealTime(config.bench.time_scale),
+        policy: config.bench.policy(),
+        ..RunOptions::default()
+    };
+    // The run blocks its thread (the runtime's other worker carries the drivers' I/O).
+    let (report, cur) =
+        tokio::task::block_in_place(|| run(&plan, bench, Cursor::new(Vec::new()), opts))
+            .expect("run");
     // After the run: 35 s of bench time without keep-alive (see the table check below).
     clock.sleep(std::time::Duration::from_secs(35)).await;
     drop(peer);

@@ -26,8 +26,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use bench::bench_config::for_served_bench;
-use bench::runner::{run_info, run_realtime, RunOptions};
-use bench::simulate::{capabilities, run_plan_with, sim_config, SimOptions};
+use bench::runner::{run, run_info, Bench, Pace, RunOptions};
+use bench::simulate::{capabilities, sim_config};
 use bench_drivers::{Clock, SystemClock};
 use bench_recording::Recording;
 use bench_report::calibrate::{calibrate_recording, CalibrateSettings};
@@ -86,14 +86,9 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
 
     let mut sim = sim_config(&plan, SEED);
     sim.chamber.sensor_noise_c = 0.0;
-    let (virt, cur) = run_plan_with(
-        &plan,
-        sim.clone(),
-        Cursor::new(Vec::new()),
-        &SimOptions { seed: SEED, ..Default::default() },
-        None,
-    )
-    .expect("in-process run");
+    let (virt, cur) =
+        run(&plan, Bench::Simulated(sim.clone()), Cursor::new(Vec::new()), RunOptions::default())
+            .expect("in-process run");
     assert_eq!(virt.outcome, bench_recording::Outcome::Completed);
     let a = Recording::from_bytes(cur.get_ref()).expect("readable");
 
@@ -112,16 +107,13 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     let clock = SystemClock::new(SCALE);
     let (devices, caps) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");
     let wire_plan = bench::scenario::load(&scenario, &caps).expect("valid on the wired bench");
-    let (real, cur) = run_realtime(
-        &wire_plan,
-        devices,
-        clock,
-        run_info(&wire_plan, bench::simulate::SIM_EPOCH_NS),
-        Cursor::new(Vec::new()),
-        RunOptions::default(),
-    )
-    .await
-    .expect("wired run");
+    let info = Box::new(run_info(&wire_plan, bench::simulate::SIM_EPOCH_NS));
+    let wired = Bench::Connected { devices, clock, info };
+    let opts = RunOptions { pace: Pace::RealTime(SCALE), ..RunOptions::default() };
+    // The run blocks its thread (the runtime's other worker serves the simulators).
+    let (real, cur) =
+        tokio::task::block_in_place(|| run(&wire_plan, wired, Cursor::new(Vec::new()), opts))
+            .expect("wired run");
     drop(served);
     assert_eq!(real.outcome, bench_recording::Outcome::Completed);
     let b = Recording::from_bytes(cur.get_ref()).expect("readable");

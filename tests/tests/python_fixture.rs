@@ -99,13 +99,17 @@ fn a_scenario_replays_on_the_python_file_and_re_records_its_gyro() {
     assert_eq!(data.epoch_ns, 1_750_000_000_000_000_000, "from bench.run started");
     let plan = bench::scenario::parse(SCENARIO, "python_fixture.toml", &data.capabilities())
         .expect("valid on the replay");
-    let (report, out) =
-        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), Default::default())
-            .expect("runs");
-    assert_eq!(report.run.outcome, bench_recording::Outcome::Completed);
+    let (report, out) = bench::runner::run(
+        &plan,
+        bench::runner::Bench::Replay(data.clone()),
+        Cursor::new(Vec::new()),
+        Default::default(),
+    )
+    .expect("runs");
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     // The waits were satisfied by the recorded data, at the recorded times: ramp end at 20 s,
     // the record window 20 s long, the stop settled; then safe state and 1 s of tail.
-    let end = report.run.bench_time.as_secs_f64();
+    let end = report.bench_time.as_secs_f64();
     assert!((41.0..43.0).contains(&end), "run ended at {end} s");
     let again = Recording::from_bytes(&out.into_inner()).expect("re-recorded");
     let labels: Vec<(u64, &str, &str)> = again
@@ -122,9 +126,9 @@ fn a_scenario_replays_on_the_python_file_and_re_records_its_gyro() {
     assert!(n >= 800, "{n}");
     assert_eq!(again.gyro[..], rec.gyro[..n]);
     // Every command agreed with the recording (spin CW = negative rate, stop, safe state).
-    let (tc, tm, cc, cm) = report.checks.counts();
-    assert!(tc >= 3 && cc >= 2, "{tc} {cc}");
-    assert_eq!((tm, cm), (0, 0));
+    let c = report.replay.expect("a replay's checks");
+    assert!(c.table_commands >= 3 && c.chamber_targets >= 2, "{c:?}");
+    assert_eq!((c.table_mismatches, c.chamber_mismatches), (0, 0));
 }
 
 #[test]

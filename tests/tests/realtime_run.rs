@@ -4,12 +4,9 @@
 
 use std::collections::BTreeMap;
 use std::io::Cursor;
-use std::sync::Arc;
 
-use bench::run::Devices;
-use bench::runner::{run_info, run_realtime, RunOptions};
-use bench::simulate::{capabilities, run_plan, sim_config, SimOptions, SIM_EPOCH_NS};
-use bench_drivers::{Clock, SystemClock};
+use bench::runner::{run, Bench, Pace, RunOptions};
+use bench::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 use bench_recording::Recording;
 
 const MINI: &str = r#"
@@ -57,33 +54,23 @@ fn window(rec: &Recording, label: &str) -> BTreeMap<u64, f64> {
         .collect()
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn scaled_real_time_run_matches_the_virtual_run() {
+#[test]
+fn scaled_real_time_run_matches_the_virtual_run() {
     let plan = bench::scenario::parse(MINI, "mini.toml", &capabilities()).expect("valid");
     let seed = 11;
+    // The one run API, paced two ways.
+    let paced = |pace| {
+        let bench = Bench::Simulated(sim_config(&plan, seed));
+        let opts = RunOptions { pace, ..RunOptions::default() };
+        run(&plan, bench, Cursor::new(Vec::new()), opts)
+    };
 
-    let (virt, cur) =
-        run_plan(&plan, Cursor::new(Vec::new()), &SimOptions { seed, ..Default::default() }, None)
-            .expect("virtual run");
+    let (virt, cur) = paced(Pace::Virtual).expect("virtual run");
     assert_eq!(virt.outcome, bench_recording::Outcome::Completed);
     let a = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     let scale = 50.0;
-    let clock = SystemClock::new(scale);
-    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
-    let sim = bench_sim::SimBench::new(sim_config(&plan, seed), shared).expect("sim");
-    let (t, c, g) = sim.into_parts();
-    let devices = Devices { table: Box::new(t), chamber: Box::new(c), gyro: Box::new(g) };
-    let (real, cur) = run_realtime(
-        &plan,
-        devices,
-        clock,
-        run_info(&plan, SIM_EPOCH_NS),
-        Cursor::new(Vec::new()),
-        RunOptions::default(),
-    )
-    .await
-    .expect("real-time run");
+    let (real, cur) = paced(Pace::RealTime(scale)).expect("real-time run");
     assert_eq!(real.outcome, bench_recording::Outcome::Completed);
     let b = Recording::from_bytes(cur.get_ref()).expect("readable");
 

@@ -17,11 +17,9 @@ fn workspace() -> PathBuf {
 fn record_seed() -> Vec<u8> {
     let path = workspace().join("scenarios/seed.toml");
     let plan = bench::scenario::load(&path, &bench::simulate::capabilities()).expect("valid");
-    let opts = bench::simulate::SimOptions { seed: 3, ..Default::default() };
-    let (report, cursor) =
-        bench::simulate::run_plan(&plan, Cursor::new(Vec::new()), &opts, None).expect("runs");
+    let (report, bytes) = bench::runner::simulate_in_memory(&plan, 3).expect("runs");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
-    cursor.into_inner()
+    bytes
 }
 
 #[test]
@@ -34,14 +32,15 @@ fn a_replayed_run_re_records_the_original_device_streams() {
     // The scenario validates against what the replay offers, and runs on it in virtual time.
     let path = workspace().join("scenarios/seed.toml");
     let plan = bench::scenario::load(&path, &data.capabilities()).expect("valid on the replay");
+    let bench = bench::runner::Bench::Replay(data.clone());
     let (report, cursor) =
-        bench::replay::run_virtual(&plan, &data, Cursor::new(Vec::new()), Default::default())
+        bench::runner::run(&plan, bench, Cursor::new(Vec::new()), Default::default())
             .expect("replay runs");
-    assert_eq!(report.run.outcome, bench_recording::Outcome::Completed);
+    assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     // Every command the scenario sent agrees with the recording.
-    let (table_cmds, table_bad, chamber_cmds, chamber_bad) = report.checks.counts();
-    assert!(table_cmds >= 4 && chamber_cmds >= 4, "{table_cmds} {chamber_cmds}");
-    assert_eq!((table_bad, chamber_bad), (0, 0));
+    let c = report.replay.expect("a replay's checks");
+    assert!(c.table_commands >= 4 && c.chamber_targets >= 4, "{c:?}");
+    assert_eq!((c.table_mismatches, c.chamber_mismatches), (0, 0));
 
     let replayed = Recording::from_bytes(&cursor.into_inner()).expect("readable");
     assert!(replayed.complete);

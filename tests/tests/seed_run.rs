@@ -56,12 +56,16 @@ fn read_linear(bytes: &[u8]) -> Read {
 fn run_seed(seed: u64) -> Vec<u8> {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("seed.mcap");
-    let report = bench::simulate::run_scenario_file(
+    let plan = bench::scenario::load(
         &workspace().join("scenarios/seed.toml"),
-        &out,
-        &bench::simulate::SimOptions { seed, ..Default::default() },
+        &bench::simulate::capabilities(),
     )
-    .expect("seed scenario runs");
+    .expect("valid");
+    let file = std::fs::File::create(&out).expect("created");
+    let bench = bench::runner::Bench::Simulated(bench::simulate::sim_config(&plan, seed));
+    let (report, file) =
+        bench::runner::run(&plan, bench, file, Default::default()).expect("seed scenario runs");
+    file.sync_all().expect("written");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     std::fs::read(&out).expect("recording written")
 }

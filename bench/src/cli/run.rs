@@ -10,9 +10,8 @@ use std::sync::Arc;
 use anyhow::Context as _;
 use bench::bench_config::{BenchConfig, BenchSource, ReplayBenchConfig};
 use bench::plan::RunPlan;
-use bench::runner::{run_info, stop_on_signals, wall_epoch_ns, RunOptions, RunReport};
+use bench::runner::{run_info, stop_on_signals, wall_epoch_ns, Bench, Pace, RunOptions, RunReport};
 use bench::scenario::{Capabilities, LoadError};
-use bench::simulate::{SimOptions, SIM_EPOCH_NS};
 use bench_drivers::{Clock, SystemClock};
 use bench_recording::TomlAttachment;
 
@@ -286,31 +285,23 @@ fn run_simulated(
     }
     apply_station(&mut plan, args);
     let rt = runtime()?;
-    let live = start_live(&rt, args)?;
+    let _entered = rt.enter();
     let (flush_interval, time_marks) = args.recording_options()?;
-    let opts = SimOptions {
-        seed: args.seed,
-        epoch_ns: SIM_EPOCH_NS,
-        progress,
-        live,
-        flush_interval: None,
-    };
     let file = std::fs::File::create(out)
         .with_context(|| format!("cannot create recording {}", out.display()))?;
-    let writer = std::io::BufWriter::new(file);
-    let mut run_opts = opts.run_options(Some(super::console_layer(verbose)));
-    run_opts.flush_interval = flush_interval_of(flush_interval, &plan);
-    run_opts.time_marks = time_marks;
-    if let Some(config) = config {
-        run_opts.policy = config.bench.policy();
-    }
-    let (report, writer) = match args.time_scale {
-        None => bench::simulate::run_plan_opts(&plan, writer, args.seed, opts.epoch_ns, run_opts)?,
-        Some(scale) => rt.block_on(async {
-            run_opts.stop = Some(stop_on_signals());
-            bench::simulate::run_plan_realtime(&plan, writer, args.seed, scale, run_opts).await
-        })?,
+    let opts = RunOptions {
+        pace: args.time_scale.map_or(Pace::Virtual, Pace::RealTime),
+        progress,
+        live: start_live(&rt, args)?,
+        console: Some(super::console_layer(verbose)),
+        // A real-time run is stopped by the operator as a real bench is.
+        stop: args.time_scale.map(|_| stop_on_signals()),
+        policy: config.map(|c| c.bench.policy()).unwrap_or_default(),
+        flush_interval: flush_interval_of(flush_interval, &plan),
+        time_marks,
     };
+    let bench = Bench::Simulated(bench::simulate::sim_config(&plan, args.seed));
+    let (report, writer) = bench::runner::run(&plan, bench, std::io::BufWriter::new(file), opts)?;
     finish_file(writer, out)?;
     Ok(Some(report))
 }
@@ -352,65 +343,62 @@ fn run_on_bench(
     let config_text = std::fs::read_to_string(config_path)
         .with_context(|| format!("cannot read {}", config_path.display()))?;
     let rt = runtime()?;
+    let _entered = rt.enter();
     let live = start_live(&rt, args)?;
     let (flush_interval, time_marks) = args.recording_options()?;
-    rt.block_on(async {
-        let clock = SystemClock::new(config.bench.time_scale);
-        // Bench time zero is now: log times are wall-clock times (scaled around this instant
-        // for simulators behind virtual ports).
-        let epoch_ns = wall_epoch_ns();
-        let shared: Arc<dyn Clock> = Arc::new(clock.clone());
-        let (devices, caps) = config.connect(shared).await?;
-        let Some(mut plan) = load_plan(&args.scenario, &caps)? else {
-            return Ok(None);
-        };
-        apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
-        plan.station = plan.station.overridden_by(&config.station());
-        apply_station(&mut plan, args);
-        if let Some(site) = config.site() {
-            if site.latitude_deg != plan.site.latitude_deg {
-                tracing::warn!(
-                    "bench config latitude {}° overrides the scenario's {}°",
-                    site.latitude_deg,
-                    plan.site.latitude_deg
-                );
-            }
-            plan.site = site;
+    let clock = SystemClock::new(config.bench.time_scale);
+    // Bench time zero is now: log times are wall-clock times (scaled around this instant for
+    // simulators behind virtual ports).
+    let epoch_ns = wall_epoch_ns();
+    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
+    let (devices, caps) = rt.block_on(config.connect(shared))?;
+    let Some(mut plan) = load_plan(&args.scenario, &caps)? else {
+        return Ok(None);
+    };
+    apply_gyro_model(&mut plan, args.gyro_model.as_deref())?;
+    plan.station = plan.station.overridden_by(&config.station());
+    apply_station(&mut plan, args);
+    if let Some(site) = config.site() {
+        if site.latitude_deg != plan.site.latitude_deg {
+            tracing::warn!(
+                "bench config latitude {}° overrides the scenario's {}°",
+                site.latitude_deg,
+                plan.site.latitude_deg
+            );
         }
-        let mut info = run_info(&plan, epoch_ns);
-        // Real drivers: the gyro is the lab's, so its model is what the lab gave (nominal), or
-        // none; the scenario's defaults are not this gyro's.
-        if !plan.gyro.model_given {
-            info.gyro_model.clear();
-        }
-        info.config = Some(TomlAttachment {
-            name: config_path
-                .file_name()
-                .map_or("bench.toml".into(), |n| n.to_string_lossy().into_owned()),
-            text: config_text,
-        });
-        let file = std::fs::File::create(out)
-            .with_context(|| format!("cannot create recording {}", out.display()))?;
-        let (report, writer) = bench::runner::run_realtime(
-            &plan,
-            devices,
-            clock,
-            info,
-            std::io::BufWriter::new(file),
-            RunOptions {
-                progress,
-                stop: Some(stop_on_signals()),
-                console: Some(super::console_layer(verbose)),
-                policy: config.bench.policy(),
-                live,
-                flush_interval: flush_interval_of(flush_interval, &plan),
-                time_marks,
-            },
-        )
-        .await?;
-        finish_file(writer, out)?;
-        Ok(Some(report))
-    })
+        plan.site = site;
+    }
+    let mut info = run_info(&plan, epoch_ns);
+    // Real drivers: the gyro is the lab's, so its model is what the lab gave (nominal), or
+    // none; the scenario's defaults are not this gyro's.
+    if !plan.gyro.model_given {
+        info.gyro_model.clear();
+    }
+    info.config = Some(TomlAttachment {
+        name: config_path
+            .file_name()
+            .map_or("bench.toml".into(), |n| n.to_string_lossy().into_owned()),
+        text: config_text,
+    });
+    let file = std::fs::File::create(out)
+        .with_context(|| format!("cannot create recording {}", out.display()))?;
+    let (report, writer) = bench::runner::run(
+        &plan,
+        Bench::Connected { devices, clock, info: Box::new(info) },
+        std::io::BufWriter::new(file),
+        RunOptions {
+            pace: Pace::RealTime(config.bench.time_scale),
+            progress,
+            stop: Some(stop_on_signals()),
+            console: Some(super::console_layer(verbose)),
+            policy: config.bench.policy(),
+            live,
+            flush_interval: flush_interval_of(flush_interval, &plan),
+            time_marks,
+        },
+    )?;
+    finish_file(writer, out)?;
+    Ok(Some(report))
 }
 
 /// Against a recording: the scenario is validated against what the replay offers, then run in
@@ -434,30 +422,31 @@ fn run_on_replay(
         .with_context(|| format!("cannot create recording {}", out.display()))?;
     let writer = std::io::BufWriter::new(file);
     let rt = runtime()?;
+    let _entered = rt.enter();
     let opts = RunOptions {
+        pace: config.replay.speed.map_or(Pace::Virtual, Pace::RealTime),
         progress,
         live: start_live(&rt, args)?,
         console: Some(super::console_layer(verbose)),
-        stop: None,
+        stop: config.replay.speed.map(|_| stop_on_signals()),
         policy: config.bench.policy(),
         flush_interval: flush_interval_of(args.recording_options()?.0, &plan),
         time_marks: args.recording_options()?.1,
     };
-    let (report, writer) = match config.replay.speed {
-        None => bench::replay::run_virtual(&plan, &data, writer, opts)?,
-        Some(speed) => rt.block_on(async {
-            let opts = RunOptions { stop: Some(stop_on_signals()), ..opts };
-            bench::replay::run_realtime(&plan, &data, speed, writer, opts).await
-        })?,
-    };
+    let (report, writer) = bench::runner::run(&plan, Bench::Replay(data), writer, opts)?;
     finish_file(writer, out)?;
-    let (tc, tm, cc, cm) = report.checks.counts();
-    println!(
-        "replay of {}: {tc} table command(s), {tm} disagreeing with the recording; {cc} chamber \
-         target(s), {cm} disagreeing",
-        rec.display()
-    );
-    Ok(Some(report.run))
+    if let Some(c) = report.replay {
+        println!(
+            "replay of {}: {} table command(s), {} disagreeing with the recording; {} chamber \
+             target(s), {} disagreeing",
+            rec.display(),
+            c.table_commands,
+            c.table_mismatches,
+            c.chamber_targets,
+            c.chamber_mismatches
+        );
+    }
+    Ok(Some(report))
 }
 
 /// A two-worker tokio runtime.

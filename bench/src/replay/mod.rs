@@ -30,7 +30,7 @@
 
 mod run;
 
-pub use run::{prepare, run_realtime, run_virtual, ReplayReport};
+pub use run::prepare;
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -7,7 +7,6 @@
 //! seeds whose stated 95 % interval (±1.96σ) covers the truth and the mean z-score; and the
 //! thermal error removed over each run.
 
-use std::io::Cursor;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -19,7 +18,8 @@ use bench_recording::Recording;
 use bench_report::calibrate::{calibrate_recording, CalibrateSettings};
 
 use super::lab::LabTraits;
-use crate::simulate::{capabilities, run_plan, SimOptions};
+use crate::runner::simulate_in_memory;
+use crate::simulate::capabilities;
 
 /// The coefficients compared.
 pub const COEFFICIENTS: [ModelKey; 4] = ModelKey::CALIBRATED;
@@ -174,10 +174,9 @@ fn one_seed(
     settings: &CalibrateSettings,
     lab: Option<&LabTraits>,
 ) -> anyhow::Result<SeedResult> {
-    let opts = SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
-    let (report, cursor) = run_plan(plan, Cursor::new(Vec::new()), &opts, None)?;
+    let (report, bytes) = simulate_in_memory(plan, seed)?;
     anyhow::ensure!(report.completed(), "run {}", report.outcome);
-    let mut rec = Recording::from_bytes(cursor.get_ref())?;
+    let mut rec = Recording::from_bytes(&bytes)?;
     if let Some(traits) = lab {
         rec = super::lab::apply(&rec, traits, seed)?;
     }
@@ -260,7 +259,9 @@ pub fn summarise(scenario: String, lab: bool, seeds: Vec<SeedResult>) -> MonteCa
                     EstimatorSummary {
                         estimator: (*name).to_owned(),
                         rms_error: bench_analysis::stats::rms(pairs.iter().map(|(v, _, t)| v - t)),
-                        rms_sigma: bench_analysis::stats::rms(pairs.iter().map(|(_, s, _)| *s).filter(|s| s.is_finite())),
+                        rms_sigma: bench_analysis::stats::rms(
+                            pairs.iter().map(|(_, s, _)| *s).filter(|s| s.is_finite()),
+                        ),
                         coverage_95: with_sigma.iter().filter(|z| z.abs() <= 1.959_964).count()
                             as f64
                             / n,

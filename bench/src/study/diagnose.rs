@@ -5,7 +5,6 @@
 //! The scenario's `[simulation.truth.effects]` are the concealed truth: the recording's
 //! `bench.gyro_model` holds only the nominal model, and the diagnosis runs against that.
 
-use std::io::Cursor;
 use std::path::Path;
 use std::time::Instant;
 
@@ -15,7 +14,8 @@ use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::effects::{EffectId, Effects};
 use bench_physics::GyroModel;
 
-use crate::simulate::{capabilities, run_plan, sim_config, SimOptions};
+use crate::runner::simulate_in_memory;
+use crate::simulate::{capabilities, sim_config};
 use crate::study::calibrate::parallel_seeds;
 use bench_recording::Recording;
 
@@ -166,11 +166,8 @@ pub fn run(
         count,
         jobs,
         |seed| {
-            let sim =
-                SimOptions { seed, flush_interval: SimOptions::IN_MEMORY, ..SimOptions::default() };
-            let (report, cursor) = run_plan(&plan, Cursor::new(Vec::new()), &sim, None)?;
+            let (report, mut bytes) = simulate_in_memory(&plan, seed)?;
             anyhow::ensure!(report.completed(), "run {}", report.outcome);
-            let mut bytes = cursor.into_inner();
             if let Some(traits) = lab {
                 bytes = super::lab::apply_to_bytes(&Recording::from_bytes(&bytes)?, traits, seed)?;
             }

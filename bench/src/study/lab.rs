@@ -231,7 +231,7 @@ fn move_record_steps(steps: &mut [(u64, StepMsg)], changes: &[u64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{capabilities, run_plan, SimOptions};
+    use crate::simulate::capabilities;
 
     #[test]
     fn a_simulated_run_gets_a_labs_traits() {
@@ -240,9 +240,8 @@ mod tests {
             &capabilities(),
         )
         .expect("the shipped seed scenario");
-        let (_, cur) = run_plan(&plan, Cursor::new(Vec::new()), &SimOptions::default(), None)
-            .expect("simulated");
-        let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
+        let (_, bytes) = crate::runner::simulate_in_memory(&plan, 1).expect("simulated");
+        let rec = Recording::from_bytes(&bytes).expect("readable");
         let lab = apply(&rec, &LabTraits::lab(), 1).expect("lab traits");
         // Rates: table at 10 Hz, chamber at 1 Hz, gyro minus lost frames.
         let ratio = |a: usize, b: usize| a as f64 / b as f64;
