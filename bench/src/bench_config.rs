@@ -10,6 +10,7 @@
 //! endpoint = { tcp = { addr = "192.168.10.20:62000" } }
 //!
 //! [chamber]
+//! protocol = "modbus"          # the default, the only protocol so far
 //! endpoint = { serial = { path = "/dev/ttyUSB0", baud = 9600 } }
 //! unit_id = 1
 //! map = "watlow_f4t"
@@ -31,7 +32,7 @@ use bench_drivers::real::chamber::{ModbusChamber, ModbusChamberConfig};
 use bench_drivers::real::gyro_can::{CanGyro, CanGyroConfig};
 use bench_drivers::real::gyro_kvh::{Dsp3000Config, Dsp3000Gyro, Kvh1750Config, Kvh1750Gyro};
 use bench_drivers::real::table::{RateTableDriver, TableDriverConfig};
-use bench_drivers::{Clock, DeviceError, Gyro};
+use bench_drivers::{Chamber, Clock, DeviceError, Gyro};
 use bench_physics::effects::Effects;
 use serde::{Deserialize, Serialize};
 
@@ -53,9 +54,9 @@ pub struct BenchConfig {
     /// bench.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub table: Option<TableDriverConfig>,
-    /// The chamber's driver (Modbus RTU or TCP).
+    /// The chamber's driver, by protocol.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub chamber: Option<ModbusChamberConfig>,
+    pub chamber: Option<ChamberConfig>,
     /// The gyro's driver.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gyro: Option<GyroConfig>,
@@ -250,6 +251,149 @@ pub enum GyroConfig {
     Dsp3000(Dsp3000Config),
 }
 
+/// The chamber's driver, chosen by `protocol`: one variant per protocol, each with its own
+/// settings, beside the others as the gyro's drivers are ([`GyroConfig`]). `protocol` may be
+/// left out for `modbus`, the only one so far (configs written before there was a choice name
+/// none).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "protocol", rename_all = "snake_case")]
+pub enum ChamberConfig {
+    /// A controller over Modbus RTU or TCP (Watlow F4/F4T, Eurotherm 3216, a custom map).
+    Modbus(ModbusChamberConfig),
+}
+
+impl ChamberConfig {
+    /// The driver's own checks of its settings (what `connect` would refuse): (key, problem)
+    /// with the key to locate it at (`None`: the section).
+    pub fn problems(&self) -> Vec<(Option<&'static str>, String)> {
+        match self {
+            ChamberConfig::Modbus(c) => {
+                let mut out: Vec<(Option<&'static str>, String)> = c
+                    .given_twice()
+                    .into_iter()
+                    .map(|(s, ms)| {
+                        (
+                            Some(ms),
+                            format!("`{s}` and the older `{ms}` give the same setting: keep `{s}`"),
+                        )
+                    })
+                    .collect();
+                if out.is_empty() {
+                    if let Err(e) = c.validate() {
+                        out.push((None, e.message().to_owned()));
+                    } else if let Err(e) = c.map.map().validate() {
+                        out.push((Some("map"), format!("map: {e}")));
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    /// Connect to the chamber (failing if it cannot be reached or does not answer as
+    /// expected).
+    pub async fn connect(&self, clock: Arc<dyn Clock>) -> Result<Box<dyn Chamber>, DeviceError> {
+        match self {
+            ChamberConfig::Modbus(c) => {
+                Ok(Box::new(ModbusChamber::connect(c.clone(), clock).await?))
+            }
+        }
+    }
+}
+
+/// A protocol's name in `[chamber] protocol`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum ChamberProtocol {
+    Modbus,
+}
+
+impl<'de> Deserialize<'de> for ChamberConfig {
+    /// `protocol` (default `modbus`) picks the variant; every other key is the variant's, read
+    /// straight from the file so that each error keeps its line and column.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = ChamberConfig;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a [chamber] table")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<ChamberConfig, A::Error> {
+                let mut keys = WithoutProtocol { inner: map, protocol: None };
+                let c = ModbusChamberConfig::deserialize(
+                    serde::de::value::MapAccessDeserializer::new(&mut keys),
+                )?;
+                match keys.protocol.unwrap_or(ChamberProtocol::Modbus) {
+                    ChamberProtocol::Modbus => Ok(ChamberConfig::Modbus(c)),
+                }
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
+/// A table's keys without `protocol`, which is kept aside.
+struct WithoutProtocol<A> {
+    inner: A,
+    protocol: Option<ChamberProtocol>,
+}
+
+/// A key: `protocol`, or another read by `seed` (taken only then, so the next key can use it).
+struct KeySeed<'s, K>(&'s mut Option<K>);
+
+enum Key<T> {
+    Protocol,
+    Other(T),
+}
+
+impl<'de, K: serde::de::DeserializeSeed<'de>> serde::de::DeserializeSeed<'de> for KeySeed<'_, K> {
+    type Value = Key<K::Value>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        struct V<'s, K>(&'s mut Option<K>);
+        impl<'de, K: serde::de::DeserializeSeed<'de>> serde::de::Visitor<'de> for V<'_, K> {
+            type Value = Key<K::Value>;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a key")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Self::Value, E> {
+                if v == "protocol" {
+                    return Ok(Key::Protocol);
+                }
+                let seed = self.0.take().ok_or_else(|| E::custom("key read twice"))?;
+                seed.deserialize(serde::de::value::StrDeserializer::<E>::new(v)).map(Key::Other)
+            }
+        }
+        d.deserialize_identifier(V(self.0))
+    }
+}
+
+impl<'de, A: serde::de::MapAccess<'de>> serde::de::MapAccess<'de> for WithoutProtocol<A> {
+    type Error = A::Error;
+    fn next_key_seed<K: serde::de::DeserializeSeed<'de>>(
+        &mut self,
+        seed: K,
+    ) -> Result<Option<K::Value>, A::Error> {
+        let mut seed = Some(seed);
+        loop {
+            match self.inner.next_key_seed(KeySeed(&mut seed))? {
+                None => return Ok(None),
+                Some(Key::Other(k)) => return Ok(Some(k)),
+                // Checked where it stands: an unknown protocol is an error at its value.
+                Some(Key::Protocol) => self.protocol = Some(self.inner.next_value()?),
+            }
+        }
+    }
+    fn next_value_seed<V: serde::de::DeserializeSeed<'de>>(
+        &mut self,
+        seed: V,
+    ) -> Result<V::Value, A::Error> {
+        self.inner.next_value_seed(seed)
+    }
+}
+
 /// A bench config that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -360,12 +504,12 @@ impl BenchConfig {
                 bad(&["table"], format!("[table] {}", e.message()));
             }
         }
-        if let Some(c) = &cfg.chamber {
-            if let Err(e) = c.validate() {
-                bad(&["chamber"], format!("[chamber] {}", e.message()));
-            } else if let Err(e) = c.map.map().validate() {
-                bad(&["chamber", "map"], format!("[chamber] map: {e}"));
-            }
+        for (key, problem) in cfg.chamber.iter().flat_map(ChamberConfig::problems) {
+            let path: &[&str] = match key {
+                Some(k) => &["chamber", k],
+                None => &["chamber"],
+            };
+            bad(path, format!("[chamber] {problem}"));
         }
         let kvh = match &cfg.gyro {
             Some(GyroConfig::Can(g)) => {
@@ -522,7 +666,8 @@ impl BenchConfig {
         let table = RateTableDriver::connect_with_clock(table.clone(), clock.clone())
             .await
             .map_err(|source| ConfigError::Connect { device: "rate table", source })?;
-        let chamber = ModbusChamber::connect(chamber.clone(), clock.clone())
+        let chamber = chamber
+            .connect(clock.clone())
             .await
             .map_err(|source| ConfigError::Connect { device: "chamber", source })?;
         let gyro: Box<dyn Gyro> = match gyro {
@@ -541,13 +686,13 @@ impl BenchConfig {
                 })?)
             }
         };
-        use bench_drivers::{Chamber, RateTable};
+        use bench_drivers::RateTable;
         let caps = Capabilities {
             table: table.info().clone(),
             chamber: chamber.info().clone(),
             gyro: gyro.info().clone(),
         };
-        Ok((Devices { table: Box::new(table), chamber: Box::new(chamber), gyro }, caps))
+        Ok((Devices { table: Box::new(table), chamber, gyro }, caps))
     }
 }
 
@@ -715,10 +860,10 @@ pub fn for_served_bench(
             ..BenchSettings::default()
         },
         table: Some(TableDriverConfig::new(endpoints.table_actidyn_pty.clone(), Dialect::Actidyn)),
-        chamber: Some(ModbusChamberConfig::new(
+        chamber: Some(ChamberConfig::Modbus(ModbusChamberConfig::new(
             endpoints.chamber_rtu.clone(),
             MapChoice::Preset(endpoints.chamber_preset),
-        )),
+        ))),
         gyro: Some(GyroConfig::Can(gyro)),
         simulation: None,
         station: None,
@@ -785,9 +930,64 @@ transport = { kind = "slcan", serial = { path = "/dev/ttyACM0", baud = 115200 } 
         assert_eq!(c.bench.policy().max_consecutive_errors, 5);
         assert_eq!(c.site().map(|s| (s.latitude_deg, s.axis_up())), Some((43.56, true)));
         assert!(matches!(c.gyro, Some(GyroConfig::Can(_))));
-        assert_eq!(c.chamber.as_ref().map(|c| c.unit_id), Some(1));
+        assert!(matches!(&c.chamber, Some(ChamberConfig::Modbus(m)) if m.unit_id == 1));
         assert!(!c.is_simulated());
         assert_eq!(c.sim_effects(), Effects::default());
+    }
+
+    #[test]
+    fn the_chamber_is_chosen_by_protocol_modbus_by_default() {
+        let modbus = |c: &BenchConfig| match &c.chamber {
+            Some(ChamberConfig::Modbus(m)) => m.clone(),
+            None => panic!("no chamber"),
+        };
+        let plain = BenchConfig::parse(GOOD, "lab.toml").expect("valid");
+        let text = GOOD.replace("[chamber]\n", "[chamber]\nprotocol = \"modbus\"\n");
+        let named = BenchConfig::parse(&text, "lab.toml").expect("valid");
+        assert_eq!(modbus(&named), modbus(&plain));
+        // Written out, it names its protocol and reads back the same.
+        let again = plain.to_toml().expect("serialises");
+        assert!(again.contains("protocol = \"modbus\""), "{again}");
+        assert_eq!(BenchConfig::parse(&again, "again.toml").expect("valid"), plain);
+        // An unknown protocol is an error at its value.
+        let text = GOOD.replace("[chamber]\n", "[chamber]\nprotocol = \"profibus\"\n");
+        let e = BenchConfig::parse(&text, "lab.toml").expect_err("unknown").to_string();
+        assert!(e.starts_with("lab.toml:10:12: unknown variant `profibus`"), "{e}");
+        assert!(e.contains("`modbus`"), "{e}");
+    }
+
+    #[test]
+    fn chamber_times_in_seconds_or_the_older_ms_but_never_both() {
+        let modbus = |c: &BenchConfig| match &c.chamber {
+            Some(ChamberConfig::Modbus(m)) => m.clone(),
+            None => panic!("no chamber"),
+        };
+        let with = |extra: &str| GOOD.replace("unit_id = 1\n", &format!("unit_id = 1\n{extra}"));
+        let s = BenchConfig::parse(
+            &with("retry_backoff_s = 0.02\nrequest_timeout_s = 0.5\n"),
+            "s.toml",
+        )
+        .expect("seconds");
+        let ms = BenchConfig::parse(
+            &with("retry_backoff_ms = 20\nrequest_timeout_ms = 500\n"),
+            "ms.toml",
+        )
+        .expect("the older milliseconds, still read");
+        assert_eq!(modbus(&s).retry_policy(), modbus(&ms).retry_policy());
+        assert_eq!(modbus(&s).request_timeout(), modbus(&ms).request_timeout());
+        let e = BenchConfig::parse(
+            &with("retry_backoff_s = 0.02\nretry_backoff_ms = 20\n"),
+            "both.toml",
+        )
+        .expect_err("both forms")
+        .to_string();
+        // Located at the older key's value.
+        assert!(
+            e.starts_with(
+                "both.toml:13:20: [chamber] `retry_backoff_s` and the older `retry_backoff_ms`"
+            ),
+            "{e}"
+        );
     }
 
     #[test]

@@ -689,9 +689,9 @@ async fn run_segment(
         table.reply_timeout_s = WIRE_TIMEOUT.as_secs_f64();
         table.retry_backoff_s = 0.005;
     }
-    if let Some(chamber) = config.chamber.as_mut() {
-        chamber.request_timeout_ms = WIRE_TIMEOUT.as_millis() as u64;
-        chamber.retry_backoff_ms = 5;
+    if let Some(crate::bench_config::ChamberConfig::Modbus(chamber)) = config.chamber.as_mut() {
+        chamber.request_timeout_s = Some(WIRE_TIMEOUT.as_secs_f64());
+        chamber.retry_backoff_s = Some(0.005);
     }
     let (devices, _) = config.connect(shared.clone()).await?;
     let table0 = table_snapshot(&served.wire);

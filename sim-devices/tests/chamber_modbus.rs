@@ -55,9 +55,9 @@ impl Rig {
     fn config(&self) -> ModbusChamberConfig {
         let mut c =
             ModbusChamberConfig::new(self.served.endpoint.clone(), MapChoice::Preset(self.preset));
-        c.request_timeout_ms = 150;
+        c.request_timeout_s = Some(0.15);
         c.retries = 1;
-        c.retry_backoff_ms = 10;
+        c.retry_backoff_s = Some(0.01);
         c
     }
 

@@ -70,8 +70,8 @@ async fn run_text_with(
         table.reply_timeout_s = 0.05;
         table.retries = 1;
     }
-    if let Some(chamber) = config.chamber.as_mut() {
-        chamber.request_timeout_ms = 50;
+    if let Some(bench::bench_config::ChamberConfig::Modbus(chamber)) = config.chamber.as_mut() {
+        chamber.request_timeout_s = Some(0.05);
     }
     let clock = SystemClock::new(SCALE);
     let (devices, _) = config.connect(Arc::new(clock.clone())).await.expect("devices answer");

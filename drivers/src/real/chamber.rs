@@ -8,7 +8,7 @@
 //!
 //! | failure | kind |
 //! |---|---|
-//! | no reply within `request_timeout_ms` | `Timeout` |
+//! | no reply within `request_timeout_s` | `Timeout` |
 //! | bytes came back but no valid frame (bad CRC, garbage) before the timeout | `Protocol` |
 //! | reply for another request (header / function mismatch), undecodable frame | `Protocol` |
 //! | port closed, connection reset | `Link` |
@@ -19,8 +19,11 @@
 //! | exception 5 acknowledge, 6 busy | `NotReady` |
 //!
 //! Transient failures (`Timeout`, `Protocol`, `Link`) are retried `retries` times with a
-//! doubling back-off; a TCP connection (whose stream may then hold a late reply) and a failed
-//! serial port are reopened on the next attempt. Exceptions are not retried.
+//! doubling back-off ([`super::link::RetryPolicy`], the one policy of line and Modbus devices);
+//! a TCP connection (whose stream may then hold a late reply) and a failed serial port are
+//! reopened on the next attempt. Exceptions are not retried. Times are in seconds
+//! (`request_timeout_s`, `retry_backoff_s`); the older `request_timeout_ms` and
+//! `retry_backoff_ms` are still read, and a config giving both forms of one is refused.
 //!
 //! **Ramps.** If the map has a set-point rate-limit register (Eurotherm 35), `set_target` writes
 //! the rate there and then the set point (through the remote set point 26 on the Eurotherm, never
@@ -41,7 +44,7 @@
 //!     map = "eurotherm_3216"
 //! "#).unwrap();
 //! assert_eq!(cfg.unit_id, 1);
-//! assert_eq!(cfg.request_timeout_ms, 300);
+//! assert_eq!(cfg.request_timeout(), std::time::Duration::from_millis(300));
 //! ```
 
 use std::pin::Pin;
@@ -56,6 +59,7 @@ use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio_modbus::client::{Context, Reader, Writer};
 use tokio_modbus::{ExceptionCode, Slave};
 
+use super::link::RetryPolicy;
 use crate::protocol::modbus_map::{Preset, RateUnits, RegisterMap, RegisterWrite};
 use crate::transport::{BoxStream, Endpoint};
 use crate::{
@@ -157,15 +161,22 @@ pub struct ModbusChamberConfig {
     pub unit_id: u8,
     /// Register map: a preset name or a custom map.
     pub map: MapChoice,
-    /// Time to wait for each reply, wall-clock ms (default 300).
-    #[serde(default = "default_timeout_ms")]
-    pub request_timeout_ms: u64,
+    /// Time to wait for each reply, wall-clock s (default 0.3; [`Self::request_timeout`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub request_timeout_s: Option<f64>,
+    /// The same in ms: the older key, still read. Give one or the other.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub request_timeout_ms: Option<u64>,
     /// Extra attempts after a transient failure (default 2).
     #[serde(default = "default_retries")]
     pub retries: u32,
-    /// Wait before the first retry, wall-clock ms, doubled for each further one (default 50).
-    #[serde(default = "default_backoff_ms")]
-    pub retry_backoff_ms: u64,
+    /// Wait before the first retry, wall-clock s, doubled for each further one (default 0.05;
+    /// [`Self::retry_policy`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retry_backoff_s: Option<f64>,
+    /// The same in ms: the older key, still read. Give one or the other.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retry_backoff_ms: Option<u64>,
     /// Bench time between set-point writes when the driver ramps itself, s (default 1).
     #[serde(default = "default_step_period_s")]
     pub step_period_s: f64,
@@ -184,14 +195,12 @@ pub struct ModbusChamberConfig {
 fn default_unit_id() -> u8 {
     1
 }
-fn default_timeout_ms() -> u64 {
-    300
-}
+/// Default of `request_timeout_s`.
+const DEFAULT_TIMEOUT_S: f64 = 0.3;
+/// Default of `retry_backoff_s`.
+const DEFAULT_BACKOFF_S: f64 = 0.05;
 fn default_retries() -> u32 {
     2
-}
-fn default_backoff_ms() -> u64 {
-    50
 }
 fn default_step_period_s() -> f64 {
     1.0
@@ -204,9 +213,11 @@ impl ModbusChamberConfig {
             endpoint,
             unit_id: default_unit_id(),
             map,
-            request_timeout_ms: default_timeout_ms(),
+            request_timeout_s: None,
+            request_timeout_ms: None,
             retries: default_retries(),
-            retry_backoff_ms: default_backoff_ms(),
+            retry_backoff_s: None,
+            retry_backoff_ms: None,
             step_period_s: default_step_period_s(),
             rate_units: RateUnits::default(),
             model_check: None,
@@ -214,15 +225,51 @@ impl ModbusChamberConfig {
         }
     }
 
+    /// The settings given in both forms, seconds and the older milliseconds: (seconds key,
+    /// milliseconds key) of each. A config must give one or the other.
+    pub fn given_twice(&self) -> Vec<(&'static str, &'static str)> {
+        let mut out = Vec::new();
+        if self.request_timeout_s.is_some() && self.request_timeout_ms.is_some() {
+            out.push(("request_timeout_s", "request_timeout_ms"));
+        }
+        if self.retry_backoff_s.is_some() && self.retry_backoff_ms.is_some() {
+            out.push(("retry_backoff_s", "retry_backoff_ms"));
+        }
+        out
+    }
+
+    /// Time to wait for each reply, wall-clock: `request_timeout_s`, or the older
+    /// `request_timeout_ms`, or 0.3 s.
+    pub fn request_timeout(&self) -> Duration {
+        seconds(self.request_timeout_s, self.request_timeout_ms, DEFAULT_TIMEOUT_S)
+    }
+
+    /// The retry policy of its requests: `retries`, and `retry_backoff_s` (or the older
+    /// `retry_backoff_ms`, or 0.05 s) doubling.
+    pub fn retry_policy(&self) -> RetryPolicy {
+        let backoff = seconds(self.retry_backoff_s, self.retry_backoff_ms, DEFAULT_BACKOFF_S);
+        RetryPolicy { retries: self.retries, backoff }
+    }
+
     /// Check values that serde cannot (`connect` does; so does `bench validate --bench`).
     pub fn validate(&self) -> DeviceResult<()> {
         let bad = |m: String| Err(DeviceError::new(ErrorKind::OutOfRange, m));
         let c = &self.capabilities;
+        if let Some((s, ms)) = self.given_twice().first() {
+            return bad(format!("`{s}` and the older `{ms}` give the same setting: keep `{s}`"));
+        }
         if !(self.step_period_s.is_finite() && self.step_period_s > 0.0) {
             return bad(format!("step_period_s = {} must be positive", self.step_period_s));
         }
-        if self.request_timeout_ms == 0 {
-            return bad("request_timeout_ms must be positive".into());
+        let timeout_s = self.request_timeout_s.unwrap_or(DEFAULT_TIMEOUT_S);
+        if !(timeout_s.is_finite() && timeout_s > 0.0 && timeout_s < 1e6)
+            || self.request_timeout_ms == Some(0)
+        {
+            return bad("request_timeout_s must be a positive number of seconds".into());
+        }
+        let backoff_s = self.retry_backoff_s.unwrap_or(DEFAULT_BACKOFF_S);
+        if !(backoff_s.is_finite() && (0.0..1e6).contains(&backoff_s)) {
+            return bad(format!("retry_backoff_s = {backoff_s} must be a number of seconds ≥ 0"));
         }
         let rates = [c.max_heat_rate_c_s, c.max_cool_rate_c_s, c.temp_resolution_c];
         if !(c.min_temp_c < c.max_temp_c && rates.iter().all(|r| r.is_finite() && *r > 0.0)) {
@@ -232,6 +279,15 @@ impl ModbusChamberConfig {
             ));
         }
         Ok(())
+    }
+}
+
+/// A setting in seconds, or in the older milliseconds, or `default_s`.
+fn seconds(s: Option<f64>, ms: Option<u64>, default_s: f64) -> Duration {
+    match (s, ms) {
+        (Some(s), _) => Duration::try_from_secs_f64(s).unwrap_or(Duration::ZERO),
+        (None, Some(ms)) => Duration::from_millis(ms),
+        (None, None) => Duration::from_secs_f64(default_s),
     }
 }
 
@@ -524,7 +580,7 @@ impl ModbusChamber {
     }
 
     fn timeout(&self) -> Duration {
-        Duration::from_millis(self.config.request_timeout_ms)
+        self.config.request_timeout()
     }
 
     async fn open(&mut self) -> Result<(), Failure> {
@@ -581,50 +637,58 @@ impl ModbusChamber {
         }
     }
 
-    /// Do `op` with retries on transient failures; `what` names it in errors.
+    /// One attempt of `op`, opening the link first if it is closed.
+    async fn attempt_open(&mut self, op: &Op) -> Result<Vec<u16>, Failure> {
+        let timeout = self.timeout();
+        if self.ctx.is_none() {
+            self.open().await?;
+        }
+        match self.ctx.as_mut() {
+            Some(ctx) => Self::attempt(ctx, op, &self.received, timeout).await,
+            None => Err(Failure::Open(DeviceError::new(ErrorKind::Link, "not open"))),
+        }
+    }
+
+    /// Do `op` under the retry policy; `what` names it in errors.
     async fn transact(&mut self, op: &Op, what: &str) -> DeviceResult<Vec<u16>> {
         let timeout = self.timeout();
-        let mut backoff = Duration::from_millis(self.config.retry_backoff_ms);
-        let mut attempt = 0;
-        loop {
-            let result = match self.ctx.as_mut() {
-                Some(ctx) => Self::attempt(ctx, op, &self.received, timeout).await,
-                None => match self.open().await {
-                    Ok(()) => match self.ctx.as_mut() {
-                        Some(ctx) => Self::attempt(ctx, op, &self.received, timeout).await,
-                        None => Err(Failure::Open(DeviceError::new(ErrorKind::Link, "not open"))),
-                    },
-                    Err(f) => Err(f),
+        let policy = self.config.retry_policy();
+        let owned = op.clone();
+        let r = policy
+            .run(
+                self,
+                what,
+                move |me| {
+                    let op = owned.clone();
+                    Box::pin(async move { me.attempt_open(&op).await })
                 },
-            };
-            let failure = match result {
-                Ok(words) => return Ok(words),
-                Err(f) => f,
-            };
-            let kind = failure.kind();
-            // A broken link must be reopened, and a TCP stream may hold a late or partial
-            // reply after a timeout; a serial RTU client discards stale bytes before each
-            // request, and a TCP stream stays in step after a whole but mismatched reply.
-            let tcp = matches!(self.config.endpoint, Endpoint::Tcp { .. });
-            if kind == ErrorKind::Link || (tcp && matches!(failure, Failure::NoReply { .. })) {
-                self.ctx = None;
+                |me, failure| {
+                    // A broken link must be reopened, and a TCP stream may hold a late or
+                    // partial reply after a timeout; a serial RTU client discards stale bytes
+                    // before each request, and a TCP stream stays in step after a whole but
+                    // mismatched reply.
+                    let tcp = matches!(me.config.endpoint, Endpoint::Tcp { .. });
+                    let kind = failure.kind();
+                    if kind == ErrorKind::Link
+                        || (tcp && matches!(failure, Failure::NoReply { .. }))
+                    {
+                        me.ctx = None;
+                    }
+                    kind
+                },
+            )
+            .await;
+        r.result.map_err(|failure| {
+            let tries =
+                if r.attempts > 1 { format!(" ({} attempts)", r.attempts) } else { String::new() };
+            let msg = format!("{what}: {op}: {}{tries}", failure.describe(timeout));
+            let err = DeviceError::new(failure.kind(), msg);
+            match failure {
+                Failure::Modbus(e) => err.with_source(e),
+                Failure::Open(e) => err.with_source(e),
+                _ => err,
             }
-            attempt += 1;
-            if !kind.is_transient() || attempt > self.config.retries {
-                let tries =
-                    if attempt > 1 { format!(" ({attempt} attempts)") } else { String::new() };
-                let msg = format!("{what}: {op}: {}{tries}", failure.describe(timeout));
-                let err = DeviceError::new(kind, msg);
-                return Err(match failure {
-                    Failure::Modbus(e) => err.with_source(e),
-                    Failure::Open(e) => err.with_source(e),
-                    _ => err,
-                });
-            }
-            tracing::debug!(what, %op, attempt, error = failure.describe(timeout), "retrying");
-            tokio::time::sleep(backoff).await;
-            backoff = backoff.saturating_mul(2);
-        }
+        })
     }
 
     async fn read_value(&mut self, addr: u16, what: &str) -> DeviceResult<f64> {
@@ -783,7 +847,8 @@ mod tests {
         .expect("parses");
         assert_eq!(cfg.map.map(), RegisterMap::preset(Preset::WatlowF4));
         assert_eq!(cfg.retries, 2);
-        assert_eq!(cfg.retry_backoff_ms, 50);
+        assert_eq!(cfg.retry_policy(), RetryPolicy::from_seconds(2, 0.05));
+        assert_eq!(cfg.request_timeout(), Duration::from_millis(300));
         assert_eq!(cfg.step_period_s, 1.0);
         assert_eq!(cfg.rate_units, RateUnits::PerMinute);
         assert_eq!(cfg.capabilities, CapabilityConfig::default());
@@ -808,6 +873,32 @@ mod tests {
         assert_eq!(cfg.map.map().process_value, 2980);
         assert_eq!(cfg.capabilities.min_temp_c, -70.0);
         assert_eq!(cfg.capabilities.max_temp_c, 185.0);
+    }
+
+    #[test]
+    fn times_in_seconds_and_the_older_milliseconds_but_not_both() {
+        let parse = |extra: &str| {
+            toml::from_str::<ModbusChamberConfig>(&format!(
+                "endpoint = {{ tcp = {{ addr = \"a:1\" }} }}\nmap = \"watlow_f4\"\n{extra}"
+            ))
+            .expect("parses")
+        };
+        let s = parse("request_timeout_s = 0.15\nretry_backoff_s = 0.01\n");
+        assert_eq!(s.request_timeout(), Duration::from_millis(150));
+        assert_eq!(s.retry_policy().backoff, Duration::from_millis(10));
+        let ms = parse("request_timeout_ms = 150\nretry_backoff_ms = 10\n");
+        assert_eq!(
+            (ms.request_timeout(), ms.retry_policy()),
+            (s.request_timeout(), s.retry_policy())
+        );
+        assert!(s.validate().is_ok() && ms.validate().is_ok());
+        let both = parse("retry_backoff_s = 0.01\nretry_backoff_ms = 10\n");
+        assert_eq!(both.given_twice(), [("retry_backoff_s", "retry_backoff_ms")]);
+        let e = both.validate().expect_err("both forms");
+        assert!(
+            e.to_string().contains("`retry_backoff_s` and the older `retry_backoff_ms`"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -6,6 +6,7 @@ pub mod chamber;
 pub mod gyro_can;
 pub mod gyro_kvh;
 pub mod gyro_link;
+pub mod link;
 pub mod slcan;
 pub mod socketcan;
 pub mod table;

@@ -17,9 +17,9 @@
 //! | [`RateTable::service`] when due | `ALC 0` (keep-alive) | nothing |
 //! | [`RateTableDriver::release`] | `MOD 1,OFF:LOC 0` | `:mode:off 1`, `:interlock:open 1`, `:utility:lockout off` |
 //!
-//! Link behaviour: every exchange waits at most `reply_timeout_s` (wall-clock time: it bounds
-//! I/O) and is retried `retries` times with a doubling back-off on timeouts, link faults and
-//! unreadable replies. A link fault drops the connection; the next attempt reopens the endpoint
+//! Link behaviour ([`super::link`], the one retry policy of line and Modbus devices): every
+//! exchange waits at most `reply_timeout_s` (wall-clock time: it bounds I/O) and is retried
+//! `retries` times with a doubling back-off on timeouts, link faults and unreadable replies. A link fault drops the connection; the next attempt reopens the endpoint
 //! and repeats the session start. An unreadable reply is counted ([`LinkCounters`]), skipped,
 //! and the command is sent again; device error replies are not retried. The keep-alive period is
 //! bench time on the driver's [`Clock`], so a scaled-time run against a simulator keeps the same
@@ -44,12 +44,13 @@ use std::time::Duration;
 use async_trait::async_trait;
 use bench_physics::units::{ARCSEC, DEG};
 use serde::{Deserialize, Serialize};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
+pub use super::link::LinkCounters;
+use super::link::{shown, Attempt, LineDecoder, LineLink, RetryPolicy};
 use crate::clock::{Clock, SystemClock};
 use crate::protocol::Dialect;
 use crate::protocol::{actidyn, acutrol};
-use crate::transport::{BoxStream, Endpoint};
+use crate::transport::Endpoint;
 use crate::{
     DeviceError, DeviceInfo, DeviceResult, ErrorKind, RateTable, TableCapabilities, TableMode,
     TableReading,
@@ -199,6 +200,11 @@ impl TableDriverConfig {
         Ok(())
     }
 
+    /// The retry policy of its exchanges.
+    pub fn retry_policy(&self) -> RetryPolicy {
+        RetryPolicy::from_seconds(self.retries, self.retry_backoff_s)
+    }
+
     fn acutrol_encoding(&self) -> acutrol::Encoding {
         acutrol::Encoding {
             form: if self.acutrol_short_form { acutrol::Form::Short } else { acutrol::Form::Long },
@@ -209,22 +215,6 @@ impl TableDriverConfig {
 
 fn config_error(msg: String) -> DeviceError {
     DeviceError::new(ErrorKind::Other, format!("table driver config: {msg}"))
-}
-
-/// What the driver has had to cope with on the link. Counters only grow.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct LinkCounters {
-    /// Replies that could not be decoded (garbled, over-long), skipped.
-    pub corrupt_replies: u64,
-    /// Well-formed replies that did not answer the command in flight (late answers to an
-    /// earlier, timed-out command), skipped.
-    pub stale_replies: u64,
-    /// Exchanges sent again after a transient failure.
-    pub retries: u64,
-    /// Times the endpoint was reopened after a link fault.
-    pub reconnects: u64,
-    /// Keep-alive `ALC 0` commands sent by [`RateTable::service`].
-    pub keep_alives: u64,
 }
 
 /// Tracks whole turns of a position readout that wraps (at 360° or ±180°), so the reported
@@ -250,19 +240,495 @@ impl Unwrapper {
     }
 }
 
-/// Reply decoder of the dialect in use.
-#[derive(Debug)]
-enum Decoder {
-    Actidyn(actidyn::ReplyDecoder),
-    Acutrol(acutrol::ReplyDecoder),
+/// What a telemetry read returns, in the controller's units.
+#[derive(Debug, Clone, Copy)]
+struct Telemetry {
+    position_deg: f64,
+    rate_deg_s: f64,
+    /// The mode, when the controller reports it.
+    mode: Option<TableMode>,
 }
 
-impl Decoder {
-    fn new(d: Dialect) -> Self {
-        match d {
-            Dialect::Actidyn => Decoder::Actidyn(actidyn::ReplyDecoder::new()),
-            Dialect::Acutrol => Decoder::Acutrol(acutrol::ReplyDecoder::new()),
+/// A controller dialect: its commands for each of the driver's calls, its replies, its
+/// session. One implementation per dialect ([`ActidynLine`], [`AcutrolLine`]); the driver
+/// holds one and never asks which.
+#[async_trait]
+trait Controller: Send {
+    /// The model reported when the config names none.
+    fn default_model(&self) -> &'static str;
+    /// Whether the link is open.
+    fn connected(&self) -> bool;
+    /// Link statistics.
+    fn counters(&self) -> LinkCounters;
+    /// The drive alarm: set by the controller's alarm reply or an unexpected drive-off,
+    /// cleared by a rate command it accepts.
+    fn alarm(&mut self) -> &mut bool;
+    /// Open the link and take remote control (with retries).
+    async fn connect(&mut self) -> DeviceResult<()>;
+    /// Clear the controller's alarms.
+    async fn clear_alarms(&mut self) -> DeviceResult<()>;
+    /// Drive off, control back to the front panel.
+    async fn release(&mut self) -> DeviceResult<()>;
+    /// Rate mode at `rate_deg_s`; `mode` is the mode as commanded, updated as it changes.
+    async fn set_rate(
+        &mut self,
+        mode: &mut TableMode,
+        rate_deg_s: f64,
+        accel_deg_s2: f64,
+    ) -> DeviceResult<()>;
+    /// A controlled stop; `mode` as in [`Controller::set_rate`].
+    async fn stop(&mut self, mode: &mut TableMode) -> DeviceResult<()>;
+    /// Position, rate and (where the dialect reports it) the mode.
+    async fn read(&mut self) -> DeviceResult<Telemetry>;
+    /// What must be sent on time (a keep-alive), when due.
+    async fn service(&mut self) -> DeviceResult<()>;
+}
+
+/// A dialect on its line link.
+trait OnLine: Send {
+    /// Its reply decoder.
+    type Decoder: LineDecoder;
+    /// The link.
+    fn link(&mut self) -> &mut LineLink<Self::Decoder>;
+}
+
+/// One exchange of `c` under the link's retry policy (`attempt` reopens the link and restarts
+/// the session first when it was dropped). Retries are counted; an error after the last
+/// attempt says how many were made.
+async fn with_retries<C, T, A>(c: &mut C, what: &str, attempt: A) -> DeviceResult<T>
+where
+    C: OnLine,
+    T: Send,
+    A: for<'a> FnMut(&'a mut C) -> Attempt<'a, T, DeviceError> + Send,
+{
+    let policy = c.link().policy;
+    let r = policy.run(c, what, attempt, |c, e| c.link().note_failure(e)).await;
+    c.link().counters.retries += u64::from(r.attempts.saturating_sub(1));
+    r.result.map_err(|e| {
+        if e.kind().is_transient() {
+            DeviceError::new(e.kind(), format!("{} ({} attempts)", e.message(), r.attempts))
+        } else {
+            e
         }
+    })
+}
+
+/// The Actidyn dialect (ST1300 class): `MNEMONIC axis,args` commands joined by `:` on one
+/// line, a keep-alive `ALC 0` within the controller's 30 s.
+struct ActidynLine {
+    link: LineLink<actidyn::ReplyDecoder>,
+    axis: u8,
+    clock: Arc<dyn Clock>,
+    keep_alive_s: f64,
+    last_keep_alive: Duration,
+    alarm: bool,
+}
+
+impl OnLine for ActidynLine {
+    type Decoder = actidyn::ReplyDecoder;
+    fn link(&mut self) -> &mut LineLink<actidyn::ReplyDecoder> {
+        &mut self.link
+    }
+}
+
+impl ActidynLine {
+    fn axis(&self) -> actidyn::Axis {
+        actidyn::Axis::Number(self.axis)
+    }
+
+    /// One exchange, one attempt: the replies, one per command, or the first error.
+    async fn once(&mut self, cmds: &[actidyn::Command]) -> DeviceResult<Vec<actidyn::Reply>> {
+        let line = actidyn::encode_commands(cmds)?;
+        self.link.send(&line).await?;
+        let deadline = self.link.deadline();
+        loop {
+            match self.link.decoder.next_line() {
+                None => self.link.fill(&line, deadline).await?,
+                Some(Err(e)) => return Err(self.link.protocol_error(&line, e)),
+                Some(Ok(replies)) => {
+                    let answers = replies.len() == cmds.len()
+                        && replies.iter().zip(cmds).all(|(r, c)| r.answers(c));
+                    if !answers {
+                        self.link.counters.stale_replies += 1;
+                        tracing::debug!(?replies, "reply to another command skipped");
+                        continue;
+                    }
+                    for r in &replies {
+                        if let actidyn::ReplyBody::Error { code, message } = &r.body {
+                            let kind = actidyn::error_kind(*code);
+                            if *code == actidyn::errors::DRIVE_ALARM {
+                                self.alarm = true;
+                            }
+                            return Err(DeviceError::new(
+                                kind,
+                                format!(
+                                    "sent `{}` on {}, the controller refused `{} {}`: error {code} {message}",
+                                    shown(&line),
+                                    self.link.endpoint,
+                                    r.mnemonic.as_str(),
+                                    r.axis
+                                ),
+                            ));
+                        }
+                    }
+                    return Ok(replies);
+                }
+            }
+        }
+    }
+
+    /// Take remote control: `RMT 0:ALC 0`, one attempt.
+    async fn session(&mut self) -> DeviceResult<()> {
+        self.once(&[actidyn::Command::Remote, actidyn::Command::ClearAlarms]).await?;
+        self.last_keep_alive = self.clock.now();
+        Ok(())
+    }
+
+    /// Reopen the link and start the session if the link was dropped.
+    async fn ensure_open(&mut self) -> DeviceResult<()> {
+        if self.link.is_open() {
+            return Ok(());
+        }
+        self.link.open().await?;
+        self.link.counters.reconnects += 1;
+        tracing::info!(endpoint = %self.link.endpoint, "rate table link reopened");
+        if let Err(e) = self.session().await {
+            if e.kind() == ErrorKind::Link {
+                self.link.close();
+            }
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// An exchange with retries.
+    async fn exchange(&mut self, cmds: &[actidyn::Command]) -> DeviceResult<Vec<actidyn::Reply>> {
+        let cmds = cmds.to_vec();
+        with_retries(self, "rate-table exchange", move |me| {
+            let cmds = cmds.clone();
+            Box::pin(async move {
+                me.ensure_open().await?;
+                me.once(&cmds).await
+            })
+        })
+        .await
+    }
+}
+
+#[async_trait]
+impl Controller for ActidynLine {
+    fn default_model(&self) -> &'static str {
+        "Actidyn ST1300"
+    }
+
+    fn connected(&self) -> bool {
+        self.link.is_open()
+    }
+
+    fn counters(&self) -> LinkCounters {
+        self.link.counters
+    }
+
+    fn alarm(&mut self) -> &mut bool {
+        &mut self.alarm
+    }
+
+    async fn connect(&mut self) -> DeviceResult<()> {
+        self.link.open().await?;
+        with_retries(self, "session start", |me| {
+            Box::pin(async move {
+                me.ensure_open().await?;
+                me.session().await
+            })
+        })
+        .await
+    }
+
+    async fn clear_alarms(&mut self) -> DeviceResult<()> {
+        self.exchange(&[actidyn::Command::ClearAlarms]).await?;
+        self.last_keep_alive = self.clock.now();
+        Ok(())
+    }
+
+    async fn release(&mut self) -> DeviceResult<()> {
+        let axis = self.axis();
+        self.exchange(&[
+            actidyn::Command::SetMode { axis, mode: actidyn::Mode::Off },
+            actidyn::Command::Local,
+        ])
+        .await?;
+        Ok(())
+    }
+
+    async fn set_rate(
+        &mut self,
+        _mode: &mut TableMode,
+        rate_deg_s: f64,
+        accel_deg_s2: f64,
+    ) -> DeviceResult<()> {
+        let axis = self.axis();
+        self.exchange(&[
+            actidyn::Command::SetMode { axis, mode: actidyn::Mode::Rate },
+            actidyn::Command::Rate { axis, rate_deg_s, accel_deg_s2 },
+        ])
+        .await?;
+        Ok(())
+    }
+
+    /// `MOD 1,STP`: the controller's own controlled stop.
+    async fn stop(&mut self, mode: &mut TableMode) -> DeviceResult<()> {
+        let axis = self.axis();
+        self.exchange(&[actidyn::Command::SetMode { axis, mode: actidyn::Mode::Stop }]).await?;
+        *mode = TableMode::Stopped;
+        Ok(())
+    }
+
+    async fn read(&mut self) -> DeviceResult<Telemetry> {
+        let axis = self.axis();
+        let cmds = [actidyn::Command::QueryPrv { axis }, actidyn::Command::QueryMode { axis }];
+        let replies = self.exchange(&cmds).await?;
+        let prv = replies.first().and_then(actidyn::Reply::prv);
+        let mode = replies.get(1).and_then(actidyn::Reply::modes).and_then(|m| m.first().copied());
+        let (Some(prv), Some(mode)) = (prv, mode) else {
+            self.link.counters.corrupt_replies += 1;
+            return Err(DeviceError::new(
+                ErrorKind::Protocol,
+                format!(
+                    "sent `PRV {axis},?:MOD {axis},?` on {}, expected 3 values and a mode, got {replies:?}",
+                    self.link.endpoint
+                ),
+            ));
+        };
+        Ok(Telemetry {
+            position_deg: prv.position_deg,
+            rate_deg_s: prv.rate_deg_s,
+            mode: Some(table_mode(mode)),
+        })
+    }
+
+    /// `ALC 0` when `keep_alive_s` of bench time has passed since the last one.
+    async fn service(&mut self) -> DeviceResult<()> {
+        if self.keep_alive_s <= 0.0 {
+            return Ok(());
+        }
+        let now = self.clock.now();
+        if now.saturating_sub(self.last_keep_alive).as_secs_f64() < self.keep_alive_s {
+            return Ok(());
+        }
+        self.exchange(&[actidyn::Command::ClearAlarms]).await?;
+        self.last_keep_alive = now;
+        self.link.counters.keep_alives += 1;
+        Ok(())
+    }
+}
+
+/// The ACUTROL dialect (SCPI-like keywords, one command a line, `OK`, a value or `ERR`).
+struct AcutrolLine {
+    link: LineLink<acutrol::ReplyDecoder>,
+    axis: u8,
+    encoding: acutrol::Encoding,
+    alarm: bool,
+}
+
+impl OnLine for AcutrolLine {
+    type Decoder = acutrol::ReplyDecoder;
+    fn link(&mut self) -> &mut LineLink<acutrol::ReplyDecoder> {
+        &mut self.link
+    }
+}
+
+impl AcutrolLine {
+    /// One exchange, one attempt.
+    async fn once(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
+        let line = cmd.encode(self.encoding)?;
+        self.link.send(&line).await?;
+        let deadline = self.link.deadline();
+        loop {
+            let reply = match self.link.decoder.next_reply() {
+                None => {
+                    self.link.fill(&line, deadline).await?;
+                    continue;
+                }
+                Some(Err(e)) => return Err(self.link.protocol_error(&line, e)),
+                Some(Ok(r)) => r,
+            };
+            return match (&reply, cmd.is_query()) {
+                (acutrol::Reply::Error(text), _) => Err(DeviceError::new(
+                    acutrol::error_kind(text),
+                    format!(
+                        "sent `{}` on {}, the controller refused it: ERR {text}",
+                        shown(&line),
+                        self.link.endpoint
+                    ),
+                )),
+                (acutrol::Reply::Value(_), true) | (acutrol::Reply::Ok, false) => Ok(reply),
+                (other, query) => {
+                    // A late answer to an earlier command: the stream is out of step.
+                    self.link.counters.stale_replies += 1;
+                    Err(DeviceError::new(
+                        ErrorKind::Protocol,
+                        format!(
+                            "sent `{}` on {}, expected {}, got {other:?}",
+                            shown(&line),
+                            self.link.endpoint,
+                            if query { "a number" } else { "OK" }
+                        ),
+                    ))
+                }
+            };
+        }
+    }
+
+    /// Take remote control: lockout, then open, reset and close the interlock; one attempt
+    /// per command.
+    async fn session(&mut self) -> DeviceResult<()> {
+        let a = self.axis;
+        for c in [
+            acutrol::Command::Lockout(true),
+            acutrol::Command::InterlockOpen(a),
+            acutrol::Command::InterlockReset(a),
+            acutrol::Command::InterlockClose(a),
+        ] {
+            self.once(c).await?;
+        }
+        Ok(())
+    }
+
+    /// Reopen the link and start the session if the link was dropped.
+    async fn ensure_open(&mut self) -> DeviceResult<()> {
+        if self.link.is_open() {
+            return Ok(());
+        }
+        self.link.open().await?;
+        self.link.counters.reconnects += 1;
+        tracing::info!(endpoint = %self.link.endpoint, "rate table link reopened");
+        if let Err(e) = self.session().await {
+            if e.kind() == ErrorKind::Link {
+                self.link.close();
+            }
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// An exchange with retries.
+    async fn exchange(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
+        with_retries(self, "rate-table exchange", move |me| {
+            Box::pin(async move {
+                me.ensure_open().await?;
+                me.once(cmd).await
+            })
+        })
+        .await
+    }
+}
+
+#[async_trait]
+impl Controller for AcutrolLine {
+    fn default_model(&self) -> &'static str {
+        "Acutronic ACUTROL table"
+    }
+
+    fn connected(&self) -> bool {
+        self.link.is_open()
+    }
+
+    fn counters(&self) -> LinkCounters {
+        self.link.counters
+    }
+
+    fn alarm(&mut self) -> &mut bool {
+        &mut self.alarm
+    }
+
+    async fn connect(&mut self) -> DeviceResult<()> {
+        self.link.open().await?;
+        with_retries(self, "session start", |me| {
+            Box::pin(async move {
+                me.ensure_open().await?;
+                me.session().await
+            })
+        })
+        .await
+    }
+
+    async fn clear_alarms(&mut self) -> DeviceResult<()> {
+        let a = self.axis;
+        self.exchange(acutrol::Command::InterlockReset(a)).await?;
+        self.exchange(acutrol::Command::InterlockClose(a)).await?;
+        Ok(())
+    }
+
+    async fn release(&mut self) -> DeviceResult<()> {
+        let a = self.axis;
+        self.exchange(acutrol::Command::ModeOff(a)).await?;
+        self.exchange(acutrol::Command::InterlockOpen(a)).await?;
+        self.exchange(acutrol::Command::Lockout(false)).await?;
+        Ok(())
+    }
+
+    /// The known ACUTROL command set has no acceleration argument: the controller's own limits
+    /// apply.
+    async fn set_rate(
+        &mut self,
+        mode: &mut TableMode,
+        rate_deg_s: f64,
+        _accel_deg_s2: f64,
+    ) -> DeviceResult<()> {
+        let a = self.axis;
+        if *mode != TableMode::Rate {
+            self.exchange(acutrol::Command::ModeRate(a)).await?;
+            *mode = TableMode::Rate;
+        }
+        self.exchange(acutrol::Command::DemandRate { axis: a, rate_deg_s }).await?;
+        Ok(())
+    }
+
+    /// Demand rate 0, held in rate mode.
+    async fn stop(&mut self, mode: &mut TableMode) -> DeviceResult<()> {
+        let a = self.axis;
+        self.exchange(acutrol::Command::DemandRate { axis: a, rate_deg_s: 0.0 }).await?;
+        if *mode == TableMode::Rate {
+            *mode = TableMode::Stopped;
+        }
+        Ok(())
+    }
+
+    async fn read(&mut self) -> DeviceResult<Telemetry> {
+        let a = self.axis;
+        let pos = self.exchange(acutrol::Command::ReadPosition(a)).await?;
+        let rate = self.exchange(acutrol::Command::ReadRate(a)).await?;
+        let (acutrol::Reply::Value(p), acutrol::Reply::Value(r)) = (pos, rate) else {
+            return Err(DeviceError::new(ErrorKind::Protocol, "expected two values"));
+        };
+        Ok(Telemetry { position_deg: p, rate_deg_s: r, mode: None })
+    }
+
+    /// Nothing is due: the ACUTROL has no keep-alive.
+    async fn service(&mut self) -> DeviceResult<()> {
+        Ok(())
+    }
+}
+
+/// The controller of `cfg`'s dialect on `cfg`'s endpoint (closed until `connect`).
+fn controller(cfg: &TableDriverConfig, clock: Arc<dyn Clock>) -> Box<dyn Controller> {
+    let timeout = Duration::from_secs_f64(cfg.reply_timeout_s);
+    let policy = cfg.retry_policy();
+    match cfg.dialect {
+        Dialect::Actidyn => Box::new(ActidynLine {
+            link: LineLink::new(cfg.endpoint.clone(), timeout, policy),
+            axis: cfg.axis,
+            last_keep_alive: clock.now(),
+            clock,
+            keep_alive_s: cfg.keep_alive_s,
+            alarm: false,
+        }),
+        Dialect::Acutrol => Box::new(AcutrolLine {
+            link: LineLink::new(cfg.endpoint.clone(), timeout, policy),
+            axis: cfg.axis,
+            encoding: cfg.acutrol_encoding(),
+            alarm: false,
+        }),
     }
 }
 
@@ -271,38 +737,21 @@ impl Decoder {
 pub struct RateTableDriver {
     cfg: TableDriverConfig,
     info: DeviceInfo<TableCapabilities>,
-    clock: Arc<dyn Clock>,
-    stream: Option<BoxStream>,
-    decoder: Decoder,
-    /// Bytes received since the connection was opened.
-    rx_total: u64,
-    /// `rx_total` when the decoder was last reset (its offsets count from there).
-    rx_base: u64,
-    /// Drain stale input before the next send (after a timeout or an unreadable reply).
-    resync: bool,
-    counters: LinkCounters,
-    last_keep_alive: Duration,
+    ctl: Box<dyn Controller>,
     unwrap: Unwrapper,
     rate_command_rad_s: f64,
     /// Mode as commanded by this driver.
     mode: TableMode,
-    /// A drive alarm was reported and not yet cleared by a successful mode command.
-    alarm: bool,
 }
 
 impl std::fmt::Debug for RateTableDriver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RateTableDriver")
             .field("driver", &self.info.driver)
-            .field("connected", &self.stream.is_some())
-            .field("counters", &self.counters)
+            .field("connected", &self.ctl.connected())
+            .field("counters", &self.ctl.counters())
             .finish_non_exhaustive()
     }
-}
-
-/// Readable form of a request line for messages: no terminator.
-fn shown(line: &[u8]) -> String {
-    String::from_utf8_lossy(line).trim_end_matches(['\r', '\n']).to_owned()
 }
 
 impl RateTableDriver {
@@ -320,15 +769,9 @@ impl RateTableDriver {
         clock: Arc<dyn Clock>,
     ) -> DeviceResult<Self> {
         cfg.validate()?;
-        let model = cfg.model.clone().unwrap_or_else(|| {
-            match cfg.dialect {
-                Dialect::Actidyn => "Actidyn ST1300",
-                Dialect::Acutrol => "Acutronic ACUTROL table",
-            }
-            .to_owned()
-        });
+        let ctl = controller(&cfg, clock);
         let info = DeviceInfo {
-            model,
+            model: cfg.model.clone().unwrap_or_else(|| ctl.default_model().to_owned()),
             driver: format!("{}/{}", cfg.dialect, cfg.endpoint),
             capabilities: TableCapabilities {
                 max_rate_rad_s: cfg.max_rate_deg_s * DEG,
@@ -337,36 +780,27 @@ impl RateTableDriver {
             },
         };
         let mut me = Self {
-            decoder: Decoder::new(cfg.dialect),
             info,
-            last_keep_alive: clock.now(),
-            clock,
-            stream: None,
-            rx_total: 0,
-            rx_base: 0,
-            resync: false,
-            counters: LinkCounters::default(),
+            ctl,
             unwrap: Unwrapper::default(),
             rate_command_rad_s: 0.0,
             mode: TableMode::Off,
-            alarm: false,
             cfg,
         };
         let what = format!("connecting to the {} table on {}", me.cfg.dialect, me.cfg.endpoint);
-        me.open().await.map_err(|e| context(&what, e))?;
-        me.with_retries(|me| Box::pin(me.start_session())).await.map_err(|e| context(&what, e))?;
+        me.ctl.connect().await.map_err(|e| context(&what, e))?;
         let r = me.read().await.map_err(|e| context(&what, e))?;
         // The probe tells the actual mode: do not claim the drive is off if it is running.
         me.mode = r.mode;
         me.rate_command_rad_s = if r.mode == TableMode::Rate { r.rate_rad_s } else { 0.0 };
-        me.alarm = false;
+        *me.ctl.alarm() = false;
         tracing::info!(driver = %me.info.driver, angle_rad = r.angle_rad, "rate table connected");
         Ok(me)
     }
 
     /// Link statistics.
     pub fn counters(&self) -> LinkCounters {
-        self.counters
+        self.ctl.counters()
     }
 
     /// The configuration in use.
@@ -377,365 +811,16 @@ impl RateTableDriver {
     /// Clear the controller's alarms now (Actidyn `ALC 0`; ACUTROL `:interlock:reset`,
     /// `:interlock:close`). After a drive alarm, the next `set_rate` switches the drive on again.
     pub async fn clear_alarms(&mut self) -> DeviceResult<()> {
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                self.actidyn(&[actidyn::Command::ClearAlarms]).await?;
-                self.last_keep_alive = self.clock.now();
-            }
-            Dialect::Acutrol => {
-                let a = self.cfg.axis;
-                self.acutrol(acutrol::Command::InterlockReset(a)).await?;
-                self.acutrol(acutrol::Command::InterlockClose(a)).await?;
-            }
-        }
-        Ok(())
+        self.ctl.clear_alarms().await
     }
 
     /// Switch the drive off and give control back to the front panel (Actidyn
     /// `MOD 1,OFF:LOC 0`; ACUTROL `:mode:off 1`, `:interlock:open 1`, `:utility:lockout off`).
     pub async fn release(&mut self) -> DeviceResult<()> {
-        let axis = self.cfg.axis;
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                self.actidyn(&[
-                    actidyn::Command::SetMode {
-                        axis: actidyn::Axis::Number(axis),
-                        mode: actidyn::Mode::Off,
-                    },
-                    actidyn::Command::Local,
-                ])
-                .await?;
-            }
-            Dialect::Acutrol => {
-                self.acutrol(acutrol::Command::ModeOff(axis)).await?;
-                self.acutrol(acutrol::Command::InterlockOpen(axis)).await?;
-                self.acutrol(acutrol::Command::Lockout(false)).await?;
-            }
-        }
+        self.ctl.release().await?;
         self.mode = TableMode::Off;
         self.rate_command_rad_s = 0.0;
         Ok(())
-    }
-
-    fn reply_timeout(&self) -> Duration {
-        Duration::from_secs_f64(self.cfg.reply_timeout_s)
-    }
-
-    fn reset_decoder(&mut self) {
-        self.decoder = Decoder::new(self.cfg.dialect);
-        self.rx_base = self.rx_total;
-    }
-
-    /// Open the endpoint (no session start).
-    async fn open(&mut self) -> DeviceResult<()> {
-        let timeout = self.reply_timeout().max(Duration::from_secs(1));
-        let stream = self.cfg.endpoint.open(timeout).await?;
-        self.stream = Some(stream);
-        self.rx_total = 0;
-        self.reset_decoder();
-        self.resync = false;
-        Ok(())
-    }
-
-    /// Take remote control: one attempt per command, no reconnect.
-    async fn start_session(&mut self) -> DeviceResult<()> {
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                self.actidyn_once(&[actidyn::Command::Remote, actidyn::Command::ClearAlarms])
-                    .await?;
-                self.last_keep_alive = self.clock.now();
-            }
-            Dialect::Acutrol => {
-                let a = self.cfg.axis;
-                for c in [
-                    acutrol::Command::Lockout(true),
-                    acutrol::Command::InterlockOpen(a),
-                    acutrol::Command::InterlockReset(a),
-                    acutrol::Command::InterlockClose(a),
-                ] {
-                    self.acutrol_once(c).await?;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Reopen the endpoint and start the session if the link was dropped.
-    async fn ensure_open(&mut self) -> DeviceResult<()> {
-        if self.stream.is_some() {
-            return Ok(());
-        }
-        self.open().await?;
-        self.counters.reconnects += 1;
-        tracing::info!(endpoint = %self.cfg.endpoint, "rate table link reopened");
-        if let Err(e) = self.start_session().await {
-            if e.kind() == ErrorKind::Link {
-                self.stream = None;
-            }
-            return Err(e);
-        }
-        Ok(())
-    }
-
-    /// Discard whatever is already waiting on the link (late replies) and restart the decoder.
-    fn drain(&mut self) {
-        let mut buf = [0u8; 512];
-        let mut closed = false;
-        if let Some(s) = self.stream.as_mut() {
-            loop {
-                let mut cx = std::task::Context::from_waker(std::task::Waker::noop());
-                let mut rb = tokio::io::ReadBuf::new(&mut buf);
-                match std::pin::Pin::new(&mut *s).poll_read(&mut cx, &mut rb) {
-                    std::task::Poll::Ready(Ok(())) if rb.filled().is_empty() => {
-                        closed = true;
-                        break;
-                    }
-                    std::task::Poll::Ready(Ok(())) => {
-                        self.rx_total = self.rx_total.saturating_add(rb.filled().len() as u64);
-                    }
-                    std::task::Poll::Ready(Err(_)) => {
-                        closed = true;
-                        break;
-                    }
-                    std::task::Poll::Pending => break,
-                }
-            }
-        }
-        if closed {
-            self.stream = None;
-        }
-        self.reset_decoder();
-    }
-
-    /// Prepare for the next attempt after `e`.
-    fn note_failure(&mut self, e: &DeviceError) {
-        match e.kind() {
-            ErrorKind::Link => self.stream = None,
-            ErrorKind::Timeout | ErrorKind::Protocol => self.resync = true,
-            _ => {}
-        }
-    }
-
-    fn backoff(&self, attempt: u32) -> Duration {
-        let factor = 2f64.powi(i32::try_from(attempt).unwrap_or(i32::MAX).min(16));
-        Duration::from_secs_f64(self.cfg.retry_backoff_s * factor)
-    }
-
-    async fn send(&mut self, line: &[u8]) -> DeviceResult<()> {
-        if self.resync {
-            self.resync = false;
-            self.drain();
-        }
-        let ep = &self.cfg.endpoint;
-        let Some(s) = self.stream.as_mut() else {
-            return Err(DeviceError::new(ErrorKind::Link, format!("{ep} is not open")));
-        };
-        let r = async {
-            s.write_all(line).await?;
-            s.flush().await
-        };
-        r.await.map_err(|e| {
-            DeviceError::new(ErrorKind::Link, format!("sending `{}` on {ep}: {e}", shown(line)))
-                .with_source(e)
-        })
-    }
-
-    /// Read more bytes into the decoder before `deadline`.
-    async fn fill(&mut self, line: &[u8], deadline: tokio::time::Instant) -> DeviceResult<()> {
-        let ep = self.cfg.endpoint.to_string();
-        let timeout_ms = self.reply_timeout().as_millis();
-        let Some(s) = self.stream.as_mut() else {
-            return Err(DeviceError::new(ErrorKind::Link, format!("{ep} is not open")));
-        };
-        let mut buf = [0u8; 512];
-        match tokio::time::timeout_at(deadline, s.read(&mut buf)).await {
-            Err(_) => Err(DeviceError::new(
-                ErrorKind::Timeout,
-                format!("sent `{}` on {ep}, no reply within {timeout_ms} ms", shown(line)),
-            )),
-            Ok(Ok(0)) => Err(DeviceError::new(
-                ErrorKind::Link,
-                format!("sent `{}` on {ep}, the connection was closed", shown(line)),
-            )),
-            Ok(Err(e)) => Err(DeviceError::new(
-                ErrorKind::Link,
-                format!("sent `{}` on {ep}, read failed: {e}", shown(line)),
-            )
-            .with_source(e)),
-            Ok(Ok(n)) => {
-                let got = buf.get(..n).unwrap_or_default();
-                self.rx_total = self.rx_total.saturating_add(n as u64);
-                match &mut self.decoder {
-                    Decoder::Actidyn(d) => d.push(got),
-                    Decoder::Acutrol(d) => d.push(got),
-                }
-                Ok(())
-            }
-        }
-    }
-
-    fn protocol_error(&mut self, line: &[u8], e: crate::protocol::DecodeError) -> DeviceError {
-        self.counters.corrupt_replies += 1;
-        let e = e.shifted(self.rx_base);
-        tracing::warn!(error = %e, "unreadable rate-table reply skipped");
-        DeviceError::new(
-            ErrorKind::Protocol,
-            format!(
-                "sent `{}` on {}, got an unreadable reply: {e}",
-                shown(line),
-                self.cfg.endpoint
-            ),
-        )
-        .with_source(e)
-    }
-
-    /// One Actidyn exchange, one attempt: the replies, one per command, or the first error.
-    async fn actidyn_once(
-        &mut self,
-        cmds: &[actidyn::Command],
-    ) -> DeviceResult<Vec<actidyn::Reply>> {
-        let line = actidyn::encode_commands(cmds)?;
-        self.send(&line).await?;
-        let deadline = tokio::time::Instant::now() + self.reply_timeout();
-        loop {
-            let next = match &mut self.decoder {
-                Decoder::Actidyn(d) => d.next_line(),
-                Decoder::Acutrol(_) => None,
-            };
-            match next {
-                None => self.fill(&line, deadline).await?,
-                Some(Err(e)) => return Err(self.protocol_error(&line, e)),
-                Some(Ok(replies)) => {
-                    let answers = replies.len() == cmds.len()
-                        && replies.iter().zip(cmds).all(|(r, c)| r.answers(c));
-                    if !answers {
-                        self.counters.stale_replies += 1;
-                        tracing::debug!(?replies, "reply to another command skipped");
-                        continue;
-                    }
-                    for r in &replies {
-                        if let actidyn::ReplyBody::Error { code, message } = &r.body {
-                            let kind = crate::protocol::actidyn::error_kind(*code);
-                            if *code == crate::protocol::actidyn::errors::DRIVE_ALARM {
-                                self.alarm = true;
-                            }
-                            return Err(DeviceError::new(
-                                kind,
-                                format!(
-                                    "sent `{}` on {}, the controller refused `{} {}`: error {code} {message}",
-                                    shown(&line),
-                                    self.cfg.endpoint,
-                                    r.mnemonic.as_str(),
-                                    r.axis
-                                ),
-                            ));
-                        }
-                    }
-                    return Ok(replies);
-                }
-            }
-        }
-    }
-
-    /// One ACUTROL exchange, one attempt.
-    async fn acutrol_once(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
-        let line = cmd.encode(self.cfg.acutrol_encoding())?;
-        self.send(&line).await?;
-        let deadline = tokio::time::Instant::now() + self.reply_timeout();
-        loop {
-            let next = match &mut self.decoder {
-                Decoder::Acutrol(d) => d.next_reply(),
-                Decoder::Actidyn(_) => None,
-            };
-            let reply = match next {
-                None => {
-                    self.fill(&line, deadline).await?;
-                    continue;
-                }
-                Some(Err(e)) => return Err(self.protocol_error(&line, e)),
-                Some(Ok(r)) => r,
-            };
-            return match (&reply, cmd.is_query()) {
-                (acutrol::Reply::Error(text), _) => Err(DeviceError::new(
-                    crate::protocol::acutrol::error_kind(text),
-                    format!(
-                        "sent `{}` on {}, the controller refused it: ERR {text}",
-                        shown(&line),
-                        self.cfg.endpoint
-                    ),
-                )),
-                (acutrol::Reply::Value(_), true) | (acutrol::Reply::Ok, false) => Ok(reply),
-                (other, query) => {
-                    // A late answer to an earlier command: the stream is out of step.
-                    self.counters.stale_replies += 1;
-                    Err(DeviceError::new(
-                        ErrorKind::Protocol,
-                        format!(
-                            "sent `{}` on {}, expected {}, got {other:?}",
-                            shown(&line),
-                            self.cfg.endpoint,
-                            if query { "a number" } else { "OK" }
-                        ),
-                    ))
-                }
-            };
-        }
-    }
-
-    /// Retry policy around one exchange: `attempt` runs it once.
-    async fn with_retries<T, F>(&mut self, mut attempt: F) -> DeviceResult<T>
-    where
-        F: for<'a> FnMut(
-            &'a mut Self,
-        ) -> std::pin::Pin<
-            Box<dyn std::future::Future<Output = DeviceResult<T>> + Send + 'a>,
-        >,
-    {
-        let mut n: u32 = 0;
-        loop {
-            let r = match self.ensure_open().await {
-                Ok(()) => attempt(self).await,
-                Err(e) => Err(e),
-            };
-            match r {
-                Ok(v) => return Ok(v),
-                Err(e) => {
-                    self.note_failure(&e);
-                    if !e.kind().is_transient() {
-                        return Err(e);
-                    }
-                    if n >= self.cfg.retries {
-                        return Err(DeviceError::new(
-                            e.kind(),
-                            format!("{} ({} attempts)", e.message(), n + 1),
-                        ));
-                    }
-                    tracing::debug!(error = %e, attempt = n + 1, "rate-table exchange retried");
-                    tokio::time::sleep(self.backoff(n)).await;
-                    n += 1;
-                    self.counters.retries += 1;
-                }
-            }
-        }
-    }
-
-    /// An Actidyn exchange with retries.
-    async fn actidyn(&mut self, cmds: &[actidyn::Command]) -> DeviceResult<Vec<actidyn::Reply>> {
-        let cmds = cmds.to_vec();
-        self.with_retries(move |me| {
-            let cmds = cmds.clone();
-            Box::pin(async move { me.actidyn_once(&cmds).await })
-        })
-        .await
-    }
-
-    /// An ACUTROL exchange with retries.
-    async fn acutrol(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
-        self.with_retries(move |me| Box::pin(me.acutrol_once(cmd))).await
-    }
-
-    fn axis(&self) -> actidyn::Axis {
-        actidyn::Axis::Number(self.cfg.axis)
     }
 
     fn check_rate(&self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<f64> {
@@ -788,7 +873,7 @@ impl RateTableDriver {
         if mode == TableMode::Off {
             st |= status::table::DRIVE_OFF;
         }
-        if self.alarm || drive_off_unexpected {
+        if *self.ctl.alarm() || drive_off_unexpected {
             st |= status::table::ALARM;
         }
         let tol = 1e-3 * self.rate_command_rad_s.abs() + 1e-4;
@@ -828,30 +913,10 @@ impl RateTable for RateTableDriver {
 
     async fn set_rate(&mut self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<()> {
         let accel_deg_s2 = self.check_rate(rate_rad_s, accel_rad_s2)?;
-        let rate_deg_s = rate_rad_s / DEG;
-        let axis = self.axis();
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                self.actidyn(&[
-                    actidyn::Command::SetMode { axis, mode: actidyn::Mode::Rate },
-                    actidyn::Command::Rate { axis, rate_deg_s, accel_deg_s2 },
-                ])
-                .await?;
-            }
-            Dialect::Acutrol => {
-                // The known ACUTROL command set has no acceleration argument: the controller's
-                // own limits apply.
-                let a = self.cfg.axis;
-                if self.mode != TableMode::Rate {
-                    self.acutrol(acutrol::Command::ModeRate(a)).await?;
-                    self.mode = TableMode::Rate;
-                }
-                self.acutrol(acutrol::Command::DemandRate { axis: a, rate_deg_s }).await?;
-            }
-        }
+        self.ctl.set_rate(&mut self.mode, rate_rad_s / DEG, accel_deg_s2).await?;
         self.mode = TableMode::Rate;
         self.rate_command_rad_s = rate_rad_s;
-        self.alarm = false;
+        *self.ctl.alarm() = false;
         Ok(())
     }
 
@@ -859,83 +924,27 @@ impl RateTable for RateTableDriver {
     /// `decel_rad_s2`, which is only checked). ACUTROL: demand rate 0, held in rate mode.
     async fn stop(&mut self, decel_rad_s2: f64) -> DeviceResult<()> {
         self.check_accel(decel_rad_s2)?;
-        let axis = self.axis();
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                self.actidyn(&[actidyn::Command::SetMode { axis, mode: actidyn::Mode::Stop }])
-                    .await?;
-                self.mode = TableMode::Stopped;
-            }
-            Dialect::Acutrol => {
-                let a = self.cfg.axis;
-                self.acutrol(acutrol::Command::DemandRate { axis: a, rate_deg_s: 0.0 }).await?;
-                if self.mode == TableMode::Rate {
-                    self.mode = TableMode::Stopped;
-                }
-            }
-        }
+        self.ctl.stop(&mut self.mode).await?;
         self.rate_command_rad_s = 0.0;
         Ok(())
     }
 
     async fn read(&mut self) -> DeviceResult<TableReading> {
-        let axis = self.axis();
-        match self.cfg.dialect {
-            Dialect::Actidyn => {
-                let cmds =
-                    [actidyn::Command::QueryPrv { axis }, actidyn::Command::QueryMode { axis }];
-                let replies = self.actidyn(&cmds).await?;
-                let prv = replies.first().and_then(actidyn::Reply::prv);
-                let mode =
-                    replies.get(1).and_then(actidyn::Reply::modes).and_then(|m| m.first().copied());
-                let (Some(prv), Some(mode)) = (prv, mode) else {
-                    self.counters.corrupt_replies += 1;
-                    return Err(DeviceError::new(
-                        ErrorKind::Protocol,
-                        format!(
-                            "sent `PRV {axis},?:MOD {axis},?` on {}, expected 3 values and a mode, got {replies:?}",
-                            self.cfg.endpoint
-                        ),
-                    ));
-                };
-                let mode = table_mode(mode);
-                let unexpected = mode == TableMode::Off && self.mode != TableMode::Off;
-                if unexpected {
-                    tracing::warn!(
-                        "the controller switched the drive off (alarm or lost keep-alive)"
-                    );
-                    self.alarm = true;
-                    self.mode = TableMode::Off;
-                    self.rate_command_rad_s = 0.0;
-                }
-                Ok(self.reading(prv.position_deg, prv.rate_deg_s, mode, unexpected))
-            }
-            Dialect::Acutrol => {
-                let a = self.cfg.axis;
-                let pos = self.acutrol(acutrol::Command::ReadPosition(a)).await?;
-                let rate = self.acutrol(acutrol::Command::ReadRate(a)).await?;
-                let (acutrol::Reply::Value(p), acutrol::Reply::Value(r)) = (pos, rate) else {
-                    return Err(DeviceError::new(ErrorKind::Protocol, "expected two values"));
-                };
-                let mode = self.mode;
-                Ok(self.reading(p, r, mode, false))
-            }
+        let t = self.ctl.read().await?;
+        let mode = t.mode.unwrap_or(self.mode);
+        let unexpected = t.mode == Some(TableMode::Off) && self.mode != TableMode::Off;
+        if unexpected {
+            tracing::warn!("the controller switched the drive off (alarm or lost keep-alive)");
+            *self.ctl.alarm() = true;
+            self.mode = TableMode::Off;
+            self.rate_command_rad_s = 0.0;
         }
+        Ok(self.reading(t.position_deg, t.rate_deg_s, mode, unexpected))
     }
 
     /// Actidyn: sends `ALC 0` when `keep_alive_s` of bench time has passed since the last one.
     async fn service(&mut self) -> DeviceResult<()> {
-        if self.cfg.dialect != Dialect::Actidyn || self.cfg.keep_alive_s <= 0.0 {
-            return Ok(());
-        }
-        let now = self.clock.now();
-        if now.saturating_sub(self.last_keep_alive).as_secs_f64() < self.cfg.keep_alive_s {
-            return Ok(());
-        }
-        self.actidyn(&[actidyn::Command::ClearAlarms]).await?;
-        self.last_keep_alive = now;
-        self.counters.keep_alives += 1;
-        Ok(())
+        self.ctl.service().await
     }
 }
 
