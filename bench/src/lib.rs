@@ -20,6 +20,7 @@
 pub mod bench_config;
 pub mod live_view;
 pub mod plan;
+pub mod process;
 pub mod progress;
 pub mod replay;
 pub mod run;

@@ -85,6 +85,8 @@ pub enum Pace {
 }
 
 /// Where a run's devices come from.
+// One value per run, moved once: the size of the simulated variant does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum Bench {
     /// The embedded simulated bench with this configuration (seed, truth, …: usually
     /// [`crate::simulate::sim_config`]); the recording keeps its truth in `bench.gyro_model`

@@ -30,6 +30,7 @@ use serde::Serialize;
 
 use crate::bench_config::for_served_bench;
 use crate::plan::RunPlan;
+use crate::process::memory_mib;
 use crate::run::FaultCause;
 use crate::runner::{run_info, Bench, Pace, RunOptions};
 use crate::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
@@ -352,17 +353,6 @@ pub fn builtin_segment(minutes: f64, target_c: f64) -> String {
          [[step]]\nlabel = \"record ccw\"\nrecord = \"{half:.0} s\"\n\n\
          [[step]]\nstop = \"table\"\n"
     )
-}
-
-/// VmRSS and VmHWM of this process, MiB (Linux; `None` elsewhere).
-pub fn memory_mib() -> Option<(f64, f64)> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let field = |name: &str| -> Option<f64> {
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-        Some(kb / 1024.0)
-    };
-    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 /// Least-squares slope of `y` over `x`; `None` with fewer than 2 distinct `x`.

@@ -25,6 +25,7 @@ pub mod calibrate;
 pub mod diagnose;
 pub mod display;
 pub mod load;
+pub mod npy;
 pub(crate) mod render;
 #[cfg(test)]
 mod testutil;

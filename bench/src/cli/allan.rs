@@ -8,6 +8,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use bench_analysis::allan_fit::{allan_fit, NoiseTerm};
+use bench_analysis::stats::line;
 use bench_physics::allan::adev_octaves;
 use bench_physics::units::DEG_PER_H;
 use bench_recording::message::is_record_label;
@@ -41,25 +42,6 @@ pub struct AllanArgs {
 
 fn term(t: &NoiseTerm) -> serde_json::Value {
     json!({"value": t.value, "low": t.low, "high": t.high, "tau_s": t.tau_s, "upper_bound": t.upper_bound})
-}
-
-/// Least-squares slope of `y` over `t`.
-fn slope(t: &[f64], y: &[f64]) -> f64 {
-    let n = t.len() as f64;
-    if t.len() < 2 {
-        return 0.0;
-    }
-    let (mt, my) = (t.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (a, b) in t.iter().zip(y) {
-        sxy += (a - mt) * (b - my);
-        sxx += (a - mt) * (a - mt);
-    }
-    if sxx > 0.0 {
-        sxy / sxx
-    } else {
-        0.0
-    }
 }
 
 /// Compute and print the deviation.
@@ -113,7 +95,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         args.recording.display(),
         gr.len()
     );
-    let table_rate = slope(&tt, &ta);
+    let table_rate = line(tt.iter().copied().zip(ta.iter().copied())).slope.unwrap_or(0.0);
     let rate: Vec<f64> = gr.iter().map(|r| r - table_rate).collect();
     let dt = data.gyro_dt_s;
     let curve = adev_octaves(&rate, dt);

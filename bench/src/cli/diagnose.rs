@@ -311,10 +311,10 @@ fn scan_only(
             (m.model, m.effects, "bench.gyro_model".into())
         }
     };
-    let cpu0 = process_cpu_s();
+    let cpu0 = bench::process::cpu_time_s();
     let scan = bench_analysis::diagnose::residual_scan(&data.series, &model, &effects, opts)
         .with_context(|| format!("cannot scan {}", args.recording.display()))?;
-    let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
+    let cpu_s = bench::process::cpu_time_s().zip(cpu0).map(|(b, a)| b - a);
     let best: Vec<serde_json::Value> = scan
         .best
         .iter()
@@ -369,7 +369,7 @@ fn scan_only(
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for (name, values) in &scan.inputs.arrays {
             let path = dir.join(format!("{name}.npy"));
-            std::fs::write(&path, npy(values))
+            std::fs::write(&path, bench_report::npy::npy_f64(values))
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
         let scalars: serde_json::Map<String, serde_json::Value> =
@@ -389,35 +389,4 @@ fn scan_only(
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(Exit::Success.into())
-}
-
-/// A one-dimensional little-endian f64 array in NumPy's `.npy` format (version 1.0).
-fn npy(values: &[f64]) -> Vec<u8> {
-    let mut header =
-        format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({},), }}", values.len());
-    // Magic (6) + version (2) + length (2) + header + '\n', padded to a multiple of 64.
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + 8 * values.len());
-    out.extend_from_slice(b"\x93NUMPY\x01\x00");
-    out.extend_from_slice(&u16::try_from(header.len()).unwrap_or(u16::MAX).to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    for v in values {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    out
-}
-
-/// CPU time of this process so far, every thread, user and system (Linux `/proc/self/stat`,
-/// in clock ticks of 10 ms); `None` elsewhere.
-fn process_cpu_s() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // Fields after the command name (which may hold spaces) in parentheses: utime and stime
-    // are the 14th and 15th fields of the line, the 12th and 13th after ") ".
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
 }

@@ -219,7 +219,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
             report.wall_time.as_secs_f64(),
             report.speed(),
             report.gyro_samples,
-            peak_rss_mb().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
+            bench::process::peak_rss_mib().map_or("n/a".to_string(), |m| format!("{m:.1} MB")),
         );
     }
     if let Some(path) = &args.json {
@@ -231,7 +231,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
             "bench_time_s": report.bench_time.as_secs_f64(),
             "wall_time_s": report.wall_time.as_secs_f64(),
             "gyro_samples": report.gyro_samples,
-            "peak_rss_mb": peak_rss_mb(),
+            "peak_rss_mb": bench::process::peak_rss_mib(),
         });
         let text = serde_json::to_string_pretty(&v)?;
         if to_stdout {
@@ -464,14 +464,6 @@ fn start_live(
     args: &RunArgs,
 ) -> anyhow::Result<Option<Arc<bench::live_view::LiveView>>> {
     super::start_live(rt, args.live, args.live_addr)
-}
-
-/// Peak resident set size of this process (Linux `VmHWM`), MB.
-fn peak_rss_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
 }
 
 #[cfg(test)]
