@@ -54,4 +54,6 @@ pub mod chamber {
     pub const RAMPING: u32 = 1 << 1;
     /// Heating or cooling output is saturated.
     pub const SATURATED: u32 = 1 << 2;
+    /// The chamber door is open (a door switch the controller's register map reports).
+    pub const DOOR_OPEN: u32 = 1 << 3;
 }

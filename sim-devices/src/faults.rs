@@ -37,6 +37,10 @@ pub enum Fault {
     },
     /// The table acknowledges rate commands but its rate does not follow.
     StuckTable,
+    /// The table controller drops its drive with an alarm (an amplifier fault), once, at the
+    /// next request: the axis decelerates to rest, the mode reads off, and mode and motion
+    /// commands are refused with a drive alarm until the alarms are cleared.
+    DriveAlarm,
     /// The chamber overshoots new set points by this much, °C.
     ChamberOvershoot {
         /// Overshoot, °C.
@@ -134,5 +138,7 @@ mod tests {
         assert_eq!(f, Fault::Corrupt { every: 4 });
         let f: Fault = serde_json::from_str(r#"{"fault":"stuck_table"}"#).expect("parses");
         assert_eq!(f, Fault::StuckTable);
+        let f: Fault = serde_json::from_str(r#"{"fault":"drive_alarm"}"#).expect("parses");
+        assert_eq!(f, Fault::DriveAlarm);
     }
 }

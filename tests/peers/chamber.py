@@ -23,6 +23,13 @@ unknown registers with exception 2 (illegal data address).
 
 Every request is logged: {"fc", "addr", "count"} for reads with the "words" returned, {"fc",
 "addr", "words"} for writes, and "exception" when refused.
+
+Coupling: --state FILE publishes the air temperature (peerlib.StateFile) for gyro.py
+--chamber-state.
+
+Faults: --status-register ADDR serves a status word there (the peer's own choice: the public
+facts give no alarm or door register for these controllers): bit 0 alarm, from --alarm-after S
+bench seconds on; bit 1 door open, from --door-open-after S on.
 """
 
 from __future__ import annotations
@@ -57,7 +64,9 @@ class Chamber:
     """Air temperature lagging the working set point; the working set point follows the active
     set point at `rate_c_per_min` (0 = at once)."""
 
-    def __init__(self, clock: peerlib.Clock, air_c: float, tau_s: float) -> None:
+    def __init__(self, clock: peerlib.Clock, air_c: float, tau_s: float,
+                 state: peerlib.StateFile | None = None) -> None:
+        self.state = state
         self.clock = clock
         self.t = clock.now()
         self.air = air_c
@@ -80,6 +89,9 @@ class Chamber:
             else:
                 self.wsp = self.sp
             self.air += (self.wsp - self.air) * (1.0 - math.exp(-h / self.tau))
+        if self.state is not None:
+            self.state.write(self.clock.mono(now), t=now, air_c=self.air, wsp_c=self.wsp,
+                             sp_c=self.sp)
 
     def power_percent(self) -> float:
         return max(-100.0, min(100.0, (self.wsp - self.air) * 20.0))
@@ -316,6 +328,13 @@ def fd_serial_handler(master_fd: int) -> str:
     return f"peerfd://{master_fd}"
 
 
+async def publish_task(chamber: Chamber) -> None:
+    """Keep the published air temperature fresh between requests (every 0.1 s of wall time)."""
+    while True:
+        chamber.update()
+        await asyncio.sleep(0.1)
+
+
 async def main() -> None:
     p = peerlib.base_args(__doc__.splitlines()[0])
     p.add_argument("--model", choices=sorted(MODELS), required=True)
@@ -325,16 +344,37 @@ async def main() -> None:
     p.add_argument("--tau-s", type=float, default=20.0, help="air lag time constant, bench s")
     p.add_argument("--decimals", type=int, default=1, help="Eurotherm display decimals")
     p.add_argument("--fahrenheit", action="store_true", help="Watlow F4 set to deg F (901 = 0)")
+    p.add_argument("--status-register", type=int, metavar="ADDR",
+                   help="serve a status word here: bit 0 alarm, bit 1 door open")
+    p.add_argument("--alarm-after", type=float, metavar="S", help="alarm bit from S bench s on")
+    p.add_argument("--door-open-after", type=float, metavar="S",
+                   help="door bit from S bench s on")
+    p.add_argument("--state", help="publish the air temperature here for coupled peers "
+                                   "(gyro.py --chamber-state)")
     p.add_argument("--sp-limits", type=float, nargs=2, default=(-70.0, 190.0),
                    metavar=("LOW", "HIGH"), help="set point limits, deg C")
     args = p.parse_args()
     clock = peerlib.Clock(args.time_scale)
     log = peerlib.Log(args.log, clock)
-    chamber = Chamber(clock, args.air_c, args.tau_s)
+    chamber = Chamber(clock, args.air_c, args.tau_s,
+                      peerlib.StateFile(args.state) if args.state else None)
     model: Model = MODELS[args.model](chamber, args)
     if isinstance(model, Eurotherm3216):
         model.apply()
-    lo, hi = min(model.registers), max(model.registers)
+    registers = model.registers
+    if args.status_register is not None:
+        registers += (args.status_register,)
+        read_model = model.read
+
+        def read(addr):
+            if addr != args.status_register:
+                return read_model(addr)
+            now = clock.now()
+            after = lambda s: s is not None and now >= s  # noqa: E731
+            return (1 if after(args.alarm_after) else 0) | (2 if after(args.door_open_after) else 0)
+
+        model.read = read
+    lo, hi = min(registers), max(registers)
 
     async def action(fc, start, address, count, registers, set_values):
         chamber.update()
@@ -382,7 +422,8 @@ async def main() -> None:
         server = ModbusSerialServer(device, port=fd_serial_handler(pty.master), baudrate=9600)
         await server.serve_forever(background=True)
         peerlib.ready(name, pty=pty.path)
-    await peerlib.run_until_stdin_closes()
+    tasks = [asyncio.create_task(publish_task(chamber))] if args.state else []
+    await peerlib.run_until_stdin_closes(*tasks)
     log.write(event="exit", eeprom_writes={str(k): v for k, v in model.eeprom_writes.items()})
     await server.shutdown()
 

@@ -22,14 +22,35 @@ the first sample after opening and then once per second of samples. Each sample:
 
 The gyro's counter runs from --seq0 at --rate-hz of bench time whether or not the channel is
 open; frames go out only while it is open. Every command and every sample sent is logged.
+
+Coupled (--table-state and --chamber-state, the state files table.py --state and chamber.py
+--state publish): the gyro is a FOG with its sensing axis up on the table peer's axis, inside the
+chamber peer's air, with the linear thermal error model of the seed study (docs/seed-method.md):
+
+    output = (1 + scale_factor_error)(input + earth) + bias + temp_coeff (T - T0)
+             + temp_rate_coeff dT/dt + noise
+
+input = the table's angle increment over the sample interval / the interval (the angle at each
+sample's nominal time, carried on from the table's last published state with its own slew
+kinematics), earth = Omega_E sin(latitude), T the gyro's own temperature (a first-order lag of
+thermal_time_constant behind the air; its mean over the interval, dT/dt its exact mean), noise
+white (arw / sqrt(interval)) plus a first-order Gauss-Markov bias instability (correlation time
+100 s, its Allan deviation peaking near bias_instability). The coefficients come from --model
+(a JSON object with the `bench.gyro_model` keys, SI units), the noise from --seed. The delta
+angle's rounding to the LSB is carried to the next sample, so no angle is lost. The temperature
+is sent in 0.01 degC. --bit-fail-after S sets the built-in-test bit on every sample from S
+bench seconds on.
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
 import math
+import random
 
 import peerlib
+import table as table_peer
 
 LSB_EXP = 40
 BITRATES = {f"S{i}": r for i, r in enumerate(
@@ -65,12 +86,14 @@ class Gyro:
     """The signal: rate = base + slope x k rad/s, temperature 25 degC + 0.01 degC x k; with
     --status-demo some samples carry status bits (see `status`)."""
 
-    def __init__(self, rate_hz: float, seq0: int, base: float, status_demo: bool) -> None:
+    def __init__(self, rate_hz: float, seq0: int, base: float, status_demo: bool,
+                 bit_fail_after: float | None = None) -> None:
         self.period_ns = round(1e9 / rate_hz)
         self.period_s = self.period_ns * 1e-9
         self.seq0 = seq0
         self.base = base
         self.status_demo = status_demo
+        self.bit_fail_after = bit_fail_after
 
     def sample(self, k: int) -> dict:
         rate = self.base + 1e-7 * (k % 50)
@@ -78,12 +101,93 @@ class Gyro:
         status = 0
         if self.status_demo:
             status = {3: 0x0001, 5: 0x0002, 7: 0x0004, 9: 0x0008}.get(k % 10, 0)
+        if self.bit_fail_after is not None and k * self.period_s >= self.bit_fail_after:
+            status |= 0x0002
         return {
             "seq": (self.seq0 + k) & 0xFFFFFFFF,
             "delta": delta,
             "status": status,
             "temp_centi": 2500 + k % 1000,
             "period_ns": self.period_ns,
+        }
+
+
+EARTH_RATE_RAD_S = 7.2921150e-5
+
+
+class CoupledGyro:
+    """A FOG on the table peer's axis in the chamber peer's air (see the module's text)."""
+
+    def __init__(self, rate_hz: float, seq0: int, clock: peerlib.Clock, table_state: str,
+                 chamber_state: str, model: dict, latitude_deg: float, initial_temp_c: float,
+                 seed: int, bit_fail_after: float | None) -> None:
+        self.period_ns = round(1e9 / rate_hz)
+        self.period_s = self.period_ns * 1e-9
+        self.seq0 = seq0
+        self.clock = clock
+        self.table_state = table_state
+        self.chamber_state = chamber_state
+        self.m = {k: float(v) for k, v in model.items()}
+        earth = EARTH_RATE_RAD_S * math.sin(math.radians(latitude_deg))
+        self.earth = earth if self.m.get("earth_rate", 1.0) != 0 else 0.0
+        self.temp = initial_temp_c
+        self.rng = random.Random(seed)
+        self.gm_tau = 100.0
+        self.gm_sigma = self.m.get("bias_instability", 0.0) / 0.62
+        self.gm = self.rng.gauss(0.0, self.gm_sigma)
+        self.theta = None  # rad, the table's angle at the last sample
+        self.residue = 0.0  # rad not yet sent (rounding to the LSB)
+        self.bit_fail_after = bit_fail_after
+
+    def table_angle_rad(self, mono: float) -> float:
+        st = peerlib.StateFile.read(self.table_state)
+        if st is None:
+            return 0.0 if self.theta is None else self.theta
+        dt = (mono - st["mono"]) * self.clock.scale
+        if dt >= 0 and st.get("moving_to") is None:
+            angle, _, _ = table_peer.advance(st["angle_deg"], st["rate_deg_s"],
+                                             st["rate_cmd_deg_s"], st["accel_deg_s2"], dt)
+        else:
+            # A state published after the sample's time (a late wake-up): back at its rate.
+            angle = st["angle_deg"] + st["rate_deg_s"] * dt
+        return math.radians(angle)
+
+    def air_c(self) -> float:
+        st = peerlib.StateFile.read(self.chamber_state)
+        return self.temp if st is None else st["air_c"]
+
+    def sample(self, k: int, mono: float) -> dict:
+        """Sample k, whose interval ends at host monotonic time `mono` (its nominal time)."""
+        m, dt = self.m, self.period_s
+        theta = self.table_angle_rad(mono)
+        d_theta = 0.0 if self.theta is None else theta - self.theta
+        self.theta = theta
+        t0 = self.temp
+        tau = m.get("thermal_time_constant", 0.0)
+        air = self.air_c()
+        self.temp = air + (t0 - air) * math.exp(-dt / tau) if tau > 0 else air
+        t_mean = 0.5 * (t0 + self.temp)
+        rate_in = d_theta / dt + self.earth
+        a = math.exp(-dt / self.gm_tau)
+        self.gm = self.gm * a + self.gm_sigma * math.sqrt(1.0 - a * a) * self.rng.gauss(0, 1)
+        rate = (rate_in * (1.0 + m.get("scale_factor_error", 0.0))
+                + m.get("bias", 0.0)
+                + m.get("temp_coeff", 0.0) * (t_mean - m.get("reference_temperature", 20.0))
+                + m.get("temp_rate_coeff", 0.0) * (self.temp - t0) / dt
+                + m.get("arw", 0.0) / math.sqrt(dt) * self.rng.gauss(0, 1)
+                + self.gm)
+        angle = rate * dt + self.residue
+        delta = round(angle * 2.0**LSB_EXP)
+        self.residue = angle - delta * 2.0**-LSB_EXP
+        failing = self.bit_fail_after is not None and k * dt >= self.bit_fail_after
+        return {
+            "seq": (self.seq0 + k) & 0xFFFFFFFF,
+            "delta": delta,
+            "status": 0x0002 if failing else 0,
+            "temp_centi": round(self.temp * 100),
+            "period_ns": self.period_ns,
+            "table_rad": theta,
+            "air_c": air,
         }
 
 
@@ -152,7 +256,10 @@ class Adapter:
             wait = self.clock.wall(due - self.clock.now())
             if wait > 0:
                 await asyncio.sleep(wait)
-            s = g.sample(k)
+            if isinstance(g, CoupledGyro):
+                s = g.sample(k, self.clock.mono(due))
+            else:
+                s = g.sample(k)
             k += 1
             if not self.open:
                 continue
@@ -176,12 +283,30 @@ async def main() -> None:
                    help="base rate, rad/s")
     p.add_argument("--status-demo", action="store_true",
                    help="samples k%%10 = 3, 5, 7, 9 carry status bits 0, 1, 2, 3")
+    p.add_argument("--table-state", help="coupled: the table peer's state file")
+    p.add_argument("--chamber-state", help="coupled: the chamber peer's state file")
+    p.add_argument("--model", default="{}",
+                   help="coupled: the gyro model, JSON with bench.gyro_model keys (SI)")
+    p.add_argument("--latitude-deg", type=float, default=45.0, help="coupled: site latitude")
+    p.add_argument("--initial-temp-c", type=float, default=20.0,
+                   help="coupled: the gyro's temperature at start")
+    p.add_argument("--seed", type=int, default=1, help="coupled: noise seed")
+    p.add_argument("--bit-fail-after", type=float, metavar="S",
+                   help="set the built-in-test bit on every sample from S bench seconds on")
     args = p.parse_args()
     clock = peerlib.Clock(args.time_scale)
     log = peerlib.Log(args.log, clock)
     pty = peerlib.Pty()
-    adapter = Adapter(peerlib.PtyStream(pty), Gyro(args.rate_hz, args.seq0, args.rate_rad_s,
-                                                   args.status_demo), clock, log)
+    if args.table_state or args.chamber_state:
+        if not (args.table_state and args.chamber_state):
+            p.error("coupling needs both --table-state and --chamber-state")
+        gyro = CoupledGyro(args.rate_hz, args.seq0, clock, args.table_state, args.chamber_state,
+                           json.loads(args.model), args.latitude_deg, args.initial_temp_c,
+                           args.seed, args.bit_fail_after)
+    else:
+        gyro = Gyro(args.rate_hz, args.seq0, args.rate_rad_s, args.status_demo,
+                    args.bit_fail_after)
+    adapter = Adapter(peerlib.PtyStream(pty), gyro, clock, log)
     tasks = [asyncio.create_task(adapter.commands()), asyncio.create_task(adapter.samples())]
     peerlib.ready("gyro-slcan", pty=pty.path)
     await peerlib.run_until_stdin_closes(*tasks)

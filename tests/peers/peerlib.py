@@ -13,6 +13,11 @@ Each peer
   line by line, so a test can read it at any time;
 * runs its physics on bench time = wall time x --time-scale;
 * exits when its standard input closes (the test that started it ended) or on SIGTERM.
+
+Coupled peers (a bench that behaves like one: the gyro senses the table's rate and the chamber's
+air) share their physical state through small state files (`StateFile`): the table and chamber
+peers rewrite theirs (`--state FILE`) as their physics advances, stamped with the host's
+monotonic clock, and the gyro peer reads them for each sample. No peer reads another's protocol.
 """
 
 from __future__ import annotations
@@ -43,6 +48,10 @@ class Clock:
         """Wall seconds for `bench_s` bench seconds."""
         return bench_s / self.scale
 
+    def mono(self, bench_s: float) -> float:
+        """The time.monotonic() of bench time `bench_s`."""
+        return self.t0 + bench_s / self.scale
+
 
 class Log:
     """JSON-lines command log; each entry gets the bench time `t`."""
@@ -57,6 +66,34 @@ class Log:
         entry = {"t": round(self.clock.now(), 4), **entry}
         self.f.write(json.dumps(entry, sort_keys=True) + "\n")
         self.f.flush()
+
+
+class StateFile:
+    """One JSON object a peer publishes for coupled peers, replaced atomically (write to a
+    temporary file, then rename), with `mono`: the time.monotonic() the state holds at (the
+    host's CLOCK_MONOTONIC, shared by every process of the host). It is the state's own time,
+    `Clock.mono(t)`, not the time of writing: a peer descheduled between computing its state
+    and writing it would otherwise stamp it late."""
+
+    def __init__(self, path: str | None) -> None:
+        self.path = path
+
+    def write(self, mono: float, **state) -> None:
+        if not self.path:
+            return
+        tmp = f"{self.path}.tmp{os.getpid()}"
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"mono": mono, **state}, f)
+        os.replace(tmp, self.path)
+
+    @staticmethod
+    def read(path: str) -> dict | None:
+        """The last state published at `path`, or None if there is none yet."""
+        try:
+            with open(path, encoding="utf-8") as f:
+                return json.load(f)
+        except (OSError, ValueError):
+            return None
 
 
 def base_args(description: str) -> argparse.ArgumentParser:

@@ -22,6 +22,13 @@ Set commands are answered "OK"; reads with the number. Anything else: "ERR <text
 
 Physics (bench time): the rate slews to the command at the commanded acceleration, the angle
 integrates; a stop decelerates at --stop-decel. The angle is reported wrapped to [0, 360).
+
+Faults (Actidyn): --watchdog-s (the keep-alive's limit) and --drive-trip-after-rat S (a drive
+alarm S bench seconds after the first rate command that moves the table): the drive switches
+off, the axis decelerates, MOD ? reads OFF, and mode and motion commands are refused (code 4)
+until ALC 0; each drop is logged as {"event": "watchdog" | "drive_trip"}.
+
+Coupling: --state FILE publishes the axis state (peerlib.StateFile) for gyro.py --table-state.
 """
 
 from __future__ import annotations
@@ -33,10 +40,26 @@ import re
 import peerlib
 
 
+def advance(angle: float, rate: float, rate_cmd: float, accel: float,
+            dt: float) -> tuple[float, float, float]:
+    """`dt` seconds of the rate loop: the rate slews to `rate_cmd` at `accel` (deg/s2, 0 = at
+    once), the angle integrates exactly. Returns (angle deg, rate deg/s, acceleration now)."""
+    d = rate_cmd - rate
+    need = abs(d) / accel if accel > 0 else 0.0
+    if need >= dt:
+        a = math.copysign(accel, d)
+        return angle + rate * dt + 0.5 * a * dt * dt, rate + a * dt, a
+    a = math.copysign(accel, d) if d else 0.0
+    angle += rate * need + 0.5 * a * need * need
+    return angle + rate_cmd * (dt - need), rate_cmd, 0.0
+
+
 class Axis:
     """One table axis: mode, rate slewing at a set acceleration, integrated angle."""
 
-    def __init__(self, clock: peerlib.Clock, stop_decel: float) -> None:
+    def __init__(self, clock: peerlib.Clock, stop_decel: float,
+                 state: peerlib.StateFile | None = None) -> None:
+        self.state = state
         self.clock = clock
         self.stop_decel = stop_decel
         self.t = clock.now()
@@ -61,26 +84,27 @@ class Axis:
             self.angle += math.copysign(step, d)
             self.rate = math.copysign(abs(self.rate_cmd), d) if step < abs(d) else 0.0
             self.accel_now = 0.0
+            self.publish()
             return
-        d = self.rate_cmd - self.rate
-        need = abs(d) / self.accel if self.accel > 0 else 0.0
-        if need >= dt:
-            a = math.copysign(self.accel, d)
-            self.angle += self.rate * dt + 0.5 * a * dt * dt
-            self.rate += a * dt
-            self.accel_now = a
-        else:
-            a = math.copysign(self.accel, d) if d else 0.0
-            self.angle += self.rate * need + 0.5 * a * need * need
-            self.rate = self.rate_cmd
-            self.angle += self.rate * (dt - need)
-            self.accel_now = 0.0
+        self.angle, self.rate, self.accel_now = advance(
+            self.angle, self.rate, self.rate_cmd, self.accel, dt)
+        self.publish()
+
+    def publish(self) -> None:
+        """The state for coupled peers (gyro.py --table-state): enough to carry the motion on
+        from `mono` exactly (`advance`) until the next command."""
+        if self.state is not None:
+            self.state.write(self.clock.mono(self.t), t=self.t, angle_deg=self.angle,
+                             rate_deg_s=self.rate, rate_cmd_deg_s=self.rate_cmd,
+                             accel_deg_s2=self.accel, moving_to=self.pos_target,
+                             mode=self.mode)
 
     def command_rate(self, rate: float, accel: float) -> None:
         self.update()
         self.pos_target = None
         self.rate_cmd = rate
         self.accel = accel
+        self.publish()
 
     def stop(self) -> None:
         self.command_rate(0.0, self.stop_decel)
@@ -98,7 +122,8 @@ class Actidyn:
 
     MODES = {"1", "OFF", "POS", "RAT", "SIN", "STP"}
 
-    def __init__(self, axis: Axis, log: peerlib.Log, watchdog_s: float, echo: str) -> None:
+    def __init__(self, axis: Axis, log: peerlib.Log, watchdog_s: float, echo: str,
+                 trip_after_rat: float | None = None) -> None:
         self.axis = axis
         self.log = log
         self.watchdog_s = watchdog_s
@@ -106,20 +131,37 @@ class Actidyn:
         self.remote = False
         self.alarm = False
         self.last_alc = axis.clock.now()
+        # --drive-trip-after-rat: the drive alarm (an amplifier fault, say) comes this long
+        # after the first rate command that moves the table; once.
+        self.trip_after_rat = trip_after_rat
+        self.first_rat: float | None = None
+        self.tripped = False
+
+    def drop_drive(self, event: str, detail: str) -> None:
+        """The drive switches off with an alarm: the axis stops, the mode reads OFF, and mode
+        and motion commands are refused until ALC 0."""
+        self.axis.update()
+        self.axis.stop()
+        self.axis.mode = "OFF"
+        self.alarm = True
+        self.axis.publish()
+        self.log.write(event=event, detail=detail)
 
     def check_watchdog(self) -> None:
         now = self.axis.clock.now()
         if self.axis.mode != "OFF" and not self.alarm and now - self.last_alc > self.watchdog_s:
-            self.axis.update()
-            self.axis.stop()
-            self.axis.mode = "OFF"
-            self.alarm = True
-            self.log.write(event="watchdog", detail=f"no ALC for {self.watchdog_s} s: drive off")
+            self.drop_drive("watchdog", f"no ALC for {self.watchdog_s} s: drive off")
+        due = self.first_rat is not None and self.trip_after_rat is not None \
+            and now >= self.first_rat + self.trip_after_rat
+        if due and not self.tripped and self.axis.mode != "OFF":
+            self.tripped = True
+            self.drop_drive("drive_trip", f"drive alarm {self.trip_after_rat} s after the "
+                            "first rate command: drive off")
 
     async def watchdog_task(self) -> None:
         while True:
             self.check_watchdog()
-            await asyncio.sleep(self.axis.clock.wall(0.1))
+            await asyncio.sleep(min(0.01, self.axis.clock.wall(0.1)))
 
     def element(self, cmd: str, mne: str, args: list[str], values: list[str]) -> str:
         echo = cmd.strip() if self.echo == "full" else f"{mne} {args[0].strip()}"
@@ -180,6 +222,8 @@ class Actidyn:
             if not accel > 0:
                 return self.refuse(mne, args, 6, "acceleration must be positive")
             self.axis.command_rate(rate, accel)
+            if rate != 0 and self.first_rat is None:
+                self.first_rat = self.axis.clock.now()
             return self.element(cmd, mne, args, [])
         if mne == "POS" and len(args) == 3:
             try:
@@ -304,6 +348,13 @@ class Acutrol:
         return reply + "\r\n"
 
 
+async def publish_task(axis: Axis) -> None:
+    """Keep the published state fresh between requests (every 20 ms of wall time)."""
+    while True:
+        axis.update()
+        await asyncio.sleep(0.02)
+
+
 async def main() -> None:
     p = peerlib.base_args(__doc__.splitlines()[0])
     p.add_argument("--dialect", choices=["actidyn", "acutrol"], required=True)
@@ -311,15 +362,23 @@ async def main() -> None:
     p.add_argument("--watchdog-s", type=float, default=30.0,
                    help="Actidyn: drive off without ALC for this long, bench s (default 30)")
     p.add_argument("--echo", choices=["short", "full"], default="short")
+    p.add_argument("--drive-trip-after-rat", type=float, metavar="S",
+                   help="Actidyn: drop the drive with an alarm S bench seconds after the first "
+                        "rate command that moves the table (once)")
+    p.add_argument("--state", help="publish the axis state here for coupled peers "
+                                   "(gyro.py --table-state)")
     p.add_argument("--stop-decel", type=float, default=10.0, help="deg/s2 (default 10)")
     p.add_argument("--acutrol-accel", type=float, default=10.0, help="deg/s2 (default 10)")
     args = p.parse_args()
     clock = peerlib.Clock(args.time_scale)
     log = peerlib.Log(args.log, clock)
-    axis = Axis(clock, args.stop_decel)
+    axis = Axis(clock, args.stop_decel, peerlib.StateFile(args.state) if args.state else None)
+    axis.publish()
     tasks = []
+    if args.state:
+        tasks.append(asyncio.create_task(publish_task(axis)))
     if args.dialect == "actidyn":
-        ctl = Actidyn(axis, log, args.watchdog_s, args.echo)
+        ctl = Actidyn(axis, log, args.watchdog_s, args.echo, args.drive_trip_after_rat)
         server = peerlib.LineServer(ctl.handle, b"\n")
         tasks.append(asyncio.create_task(ctl.watchdog_task()))
     else:

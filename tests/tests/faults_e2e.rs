@@ -214,3 +214,41 @@ async fn a_chamber_overshooting_through_the_wire_trips_chamber_over_temperature(
     let first_hot = rec.chamber.iter().find(|c| c.msg.temperature_c > 35.0).expect("a hot reading");
     assert!(first_hot.log_time_ns <= abort_t);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drive_alarm_mid_window_aborts_at_the_next_poll_with_table_drive_fault() {
+    // The served Actidyn controller drops its drive 60 s in (mid-record): bench used to record
+    // the rest of the window with the table at rest and mark it completed.
+    let rec = run_with(Duration::from_secs(60), |f| f.table.inject(Fault::DriveAlarm)).await;
+    let outcome = rec.outcome_text().unwrap_or_default().to_string();
+    assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
+    assert!(outcome.contains(": table_drive_fault: "), "{outcome}");
+    assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
+    assert!(!rec
+        .steps
+        .iter()
+        .any(|s| s.msg.label == "record cw 20C" && s.msg.event.as_str() == "end"));
+    // The first reading with the drive off ends the window: the abort follows it within a
+    // second of bench time (a 60× run), and the reading before was at speed.
+    let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    let spin_ns = rec.steps.first().map_or(0, |s| s.log_time_ns);
+    let spinning: Vec<_> = rec.table.iter().filter(|t| t.log_time_ns > spin_ns).collect();
+    let off = spinning
+        .iter()
+        .position(|t| t.msg.status & status::table::DRIVE_OFF != 0)
+        .expect("a reading with the drive off");
+    let (before, first_off) = (spinning[off.saturating_sub(1)], spinning[off]);
+    let to_abort = Duration::from_nanos(abort_ns.saturating_sub(first_off.log_time_ns));
+    assert!(to_abort <= Duration::from_secs(1), "abort {to_abort:?} after the reading");
+    assert!((before.msg.rate_rad_s.abs().to_degrees() * 60.0 - 10.0).abs() < 0.01);
+    eprintln!(
+        "drive_alarm: abort {:.3} s after the reading that showed it, {:.3} s after the last \
+         at speed",
+        to_abort.as_secs_f64(),
+        (abort_ns - before.log_time_ns) as f64 * 1e-9
+    );
+    // Every gyro sample up to the abort is kept; the safe state commanded the table to rest.
+    assert!(rec.gyro.windows(2).all(|w| w[1].msg.seq == w[0].msg.seq + 1));
+    assert!(rec.gyro.last().map_or(0, |g| g.log_time_ns) >= abort_ns);
+    assert_eq!(rec.table.last().map(|t| t.msg.rate_command_rad_s), Some(0.0));
+}

@@ -1,7 +1,8 @@
 //! Run-time interlocks end to end on the simulated bench (virtual time): a fault injected into
 //! a device's readings from 120 s of bench time on trips its named interlock, the run aborts
 //! to the safe state, and the recording ends with an `abort` step event and an `outcome` that
-//! names the interlock.
+//! names the interlock. The devices' own fault reports (drive alarm, drive off, interlock,
+//! mode, chamber alarm and door, gyro built-in test) trip within one poll period.
 
 use std::io::Cursor;
 use std::sync::Arc;
@@ -147,19 +148,21 @@ fn run(interlocks: &str, edits: Edits) -> (bench::run::Fault, Duration, Recordin
 }
 
 fn assert_named(fault: &bench::run::Fault, rec: &Recording, name: &str) {
-    assert_eq!(
-        fault.cause,
-        FaultCause::Interlock {
-            name: match name {
-                "table_overspeed" => bench::run::interlocks::TABLE_OVERSPEED,
-                "rate_disagreement" => bench::run::interlocks::RATE_DISAGREEMENT,
-                "chamber_over_temperature" => bench::run::interlocks::CHAMBER_OVER_TEMPERATURE,
-                "chamber_under_temperature" => bench::run::interlocks::CHAMBER_UNDER_TEMPERATURE,
-                "setpoint_not_tracked" => bench::run::interlocks::SETPOINT_NOT_TRACKED,
-                _ => bench::run::interlocks::GYRO_STATUS,
-            }
-        }
-    );
+    use bench::run::interlocks as il;
+    let names = [
+        il::TABLE_OVERSPEED,
+        il::RATE_DISAGREEMENT,
+        il::CHAMBER_OVER_TEMPERATURE,
+        il::CHAMBER_UNDER_TEMPERATURE,
+        il::SETPOINT_NOT_TRACKED,
+        il::GYRO_STATUS,
+    ];
+    let constant = names
+        .into_iter()
+        .chain(il::DEVICE_REPORTS)
+        .find(|n| *n == name)
+        .unwrap_or_else(|| panic!("no interlock named {name}"));
+    assert_eq!(fault.cause, FaultCause::Interlock { name: constant });
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
     assert!(outcome.starts_with("aborted: step 2 (record record cw)"), "{outcome}");
     assert!(outcome.contains(&format!(": {name}: ")), "{outcome}");
@@ -224,16 +227,115 @@ fn air_that_does_not_follow_its_set_point_trips_setpoint_not_tracked() {
 }
 
 #[test]
-fn a_gyro_failing_its_built_in_test_trips_gyro_status() {
+fn a_gyro_flagging_its_samples_invalid_trips_gyro_status_after_its_time() {
     let (f, at, rec) = run(
         "gyro_status_for = \"2 s\"",
         Edits {
-            gyro: Some(Box::new(|s| s.status |= bench_recording::status::gyro::BIT_FAIL)),
+            gyro: Some(Box::new(|s| s.status |= bench_recording::status::gyro::INVALID)),
             ..Edits::default()
         },
     );
     assert_named(&f, &rec, "gyro_status");
     near(at, FAULT_AT + Duration::from_secs(2));
+}
+
+/// A device's own fault report trips its interlock at the first reading that shows it: within
+/// one poll period (the table and chamber are polled at 20 Hz, the gyro streams at 20 Hz) of
+/// [`FAULT_AT`]. The table is stopped (the safe state, checked by `run`), and every gyro sample
+/// up to the abort is kept, its counter without a gap.
+fn device_report(edits: Edits, name: &str) {
+    let (f, at, rec) = run("", edits);
+    assert_named(&f, &rec, name);
+    let late = at.saturating_sub(FAULT_AT);
+    assert!(at >= FAULT_AT && late <= Duration::from_millis(50), "tripped {late:?} after it");
+    let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
+    let before = rec.gyro.iter().filter(|g| g.log_time_ns <= abort_ns).count();
+    assert!(before >= 2390, "{before} gyro samples up to the abort");
+    eprintln!("{name}: abort {late:?} after the fault, {before} gyro samples kept before it");
+    assert!(rec.gyro.windows(2).all(|w| w[1].msg.seq == w[0].msg.seq + 1), "a counter gap");
+}
+
+#[test]
+fn a_table_drive_alarm_trips_table_drive_fault_at_once() {
+    use bench_recording::status::table::{ALARM, DRIVE_OFF};
+    // The real Actidyn driver's reading when the controller switched the drive off.
+    device_report(
+        Edits {
+            table: Some(Box::new(|r| {
+                r.mode = bench_drivers::TableMode::Off;
+                r.status |= DRIVE_OFF | ALARM;
+            })),
+            ..Edits::default()
+        },
+        "table_drive_fault",
+    );
+}
+
+#[test]
+fn a_table_drive_off_with_rate_commanded_trips_table_drive_fault() {
+    // No alarm bit: the mode alone reads off while bench commanded rate mode.
+    device_report(
+        Edits {
+            table: Some(Box::new(|r| r.mode = bench_drivers::TableMode::Off)),
+            ..Edits::default()
+        },
+        "table_drive_fault",
+    );
+}
+
+#[test]
+fn an_open_table_interlock_trips_table_interlock_open() {
+    device_report(
+        Edits {
+            table: Some(Box::new(|r| r.status |= bench_recording::status::table::INTERLOCK)),
+            ..Edits::default()
+        },
+        "table_interlock_open",
+    );
+}
+
+#[test]
+fn a_table_leaving_rate_mode_trips_table_mode_lost() {
+    device_report(
+        Edits {
+            table: Some(Box::new(|r| r.mode = bench_drivers::TableMode::Position)),
+            ..Edits::default()
+        },
+        "table_mode_lost",
+    );
+}
+
+#[test]
+fn a_chamber_alarm_trips_chamber_alarm() {
+    device_report(
+        Edits {
+            chamber: Some(Box::new(|r| r.status |= bench_recording::status::chamber::ALARM)),
+            ..Edits::default()
+        },
+        "chamber_alarm",
+    );
+}
+
+#[test]
+fn an_open_chamber_door_trips_chamber_door_open() {
+    device_report(
+        Edits {
+            chamber: Some(Box::new(|r| r.status |= bench_recording::status::chamber::DOOR_OPEN)),
+            ..Edits::default()
+        },
+        "chamber_door_open",
+    );
+}
+
+#[test]
+fn a_gyro_failing_its_built_in_test_trips_gyro_bit_fail_at_once() {
+    device_report(
+        Edits {
+            gyro: Some(Box::new(|s| s.status |= bench_recording::status::gyro::BIT_FAIL)),
+            ..Edits::default()
+        },
+        "gyro_bit_fail",
+    );
 }
 
 #[test]

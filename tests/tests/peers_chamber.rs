@@ -247,3 +247,41 @@ async fn issue17_watlow_f4_in_fahrenheit_is_refused_at_connect() {
     assert!(e.to_string().contains("901"), "{e}");
     drop(peer);
 }
+
+/// A custom map with the alarm and door bits of a status register (the peer serves one at
+/// 1000: bit 0 alarm, bit 1 door; the public facts give no such register for these
+/// controllers, so no preset has one): each poll reads it, and the reading's status shows
+/// `ALARM` and `DOOR_OPEN` once the peer sets them — what the run's `chamber_alarm` and
+/// `chamber_door_open` interlocks abort on.
+#[tokio::test]
+async fn alarm_and_door_bits_of_a_custom_map_reach_the_reading() {
+    use bench_recording::status::chamber::{ALARM, DOOR_OPEN};
+    let peer = start(
+        "eurotherm_3216",
+        "tcp",
+        &["--status-register", "1000", "--alarm-after", "20", "--door-open-after", "40"],
+    );
+    let clock = SystemClock::new(SCALE);
+    let map = "{ model = \"Eurotherm 3216 + status\", encoding = { type = \"int16\", decimals = \
+               { fixed = 1 } }, process_value = 1, set_point = 26, working_set_point = 5, \
+               ramp_rate = 35, on_connect = [{ register = 276, value = 1 }], \
+               eeprom_registers = [2, 24, 25], alarm = { register = 1000, mask = 1 }, \
+               door = { register = 1000, mask = 2 } }";
+    let cfg: ModbusChamberConfig = toml::from_str(&format!(
+        "endpoint = {{ tcp = {{ addr = \"{}\" }} }}\nmap = {map}\n",
+        peer.tcp()
+    ))
+    .expect("a valid [chamber] section");
+    let mut c = connect(&peer, cfg, &clock).await;
+    let first = c.read().await.expect("read");
+    assert_eq!(first.status & (ALARM | DOOR_OPEN), 0, "{first:?}");
+    let alarm = poll_until(&mut c, &clock, |r| r.status & ALARM != 0).await;
+    assert_eq!(alarm.status & DOOR_OPEN, 0, "{alarm:?}");
+    let door = poll_until(&mut c, &clock, |r| r.status & DOOR_OPEN != 0).await;
+    assert_eq!(door.status & ALARM, ALARM, "{door:?}");
+    drop(c);
+    let log = peer.stop();
+    let reads: Vec<u64> =
+        log.iter().filter(|e| e["fc"] == 3).filter_map(|e| e["addr"].as_u64()).collect();
+    assert!(reads.windows(3).any(|w| w == [1, 5, 1000]), "PV, WSP, status per poll: {reads:?}");
+}

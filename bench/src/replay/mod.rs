@@ -288,6 +288,7 @@ impl ReplayData {
                 info: caps.table,
                 at_end: opts.at_end,
                 checks: checks.clone(),
+                commanded: None,
             },
             chamber: ReplayChamber {
                 data: self.clone(),
@@ -502,6 +503,11 @@ pub struct ReplayTable {
     info: DeviceInfo<TableCapabilities>,
     at_end: AtEnd,
     checks: Arc<ReplayChecks>,
+    /// The mode last commanded: a recording holds no mode, so the replayed axis is in the mode
+    /// it was put in (until then: off where the recording's status says so, stopped where it
+    /// shows no motion and no command, else in rate mode). A recorded drive alarm stays in the
+    /// replayed status.
+    commanded: Option<TableMode>,
 }
 
 impl ReplayTable {
@@ -535,11 +541,13 @@ impl RateTable for ReplayTable {
 
     async fn set_rate(&mut self, rate_rad_s: f64, _accel_rad_s2: f64) -> DeviceResult<()> {
         self.check(rate_rad_s, "commanded");
+        self.commanded = Some(TableMode::Rate);
         Ok(())
     }
 
     async fn stop(&mut self, _decel_rad_s2: f64) -> DeviceResult<()> {
         self.check(0.0, "stop: commanded");
+        self.commanded = Some(TableMode::Stopped);
         Ok(())
     }
 
@@ -549,7 +557,11 @@ impl RateTable for ReplayTable {
         let (Some(m), Some(dt)) = (track.msg.get(i), track.device_time.get(i)) else {
             return Err(ended(&self.data, "/table/state", Duration::ZERO));
         };
-        let mode = if m.rate_command_rad_s == 0.0 && m.rate_rad_s == 0.0 {
+        let mode = if let Some(mode) = self.commanded {
+            mode
+        } else if m.status & bench_recording::status::table::DRIVE_OFF != 0 {
+            TableMode::Off
+        } else if m.rate_command_rad_s == 0.0 && m.rate_rad_s == 0.0 {
             TableMode::Stopped
         } else {
             TableMode::Rate

@@ -138,9 +138,12 @@ pub enum FaultCause {
     /// A step's condition was not met within its time (temperature or ramp end not reached).
     StepTimeout,
     /// A run-time interlock tripped (`[interlocks]`); `name` is one of the names in
-    /// [`interlocks`] (`table_overspeed`, `table_stall`, `rate_disagreement`,
-    /// `chamber_over_temperature`, `chamber_under_temperature`, `setpoint_not_tracked`,
-    /// `gyro_status`) and leads the fault's message.
+    /// [`interlocks`] and leads the fault's message: a threshold (`table_overspeed`,
+    /// `table_stall`, `rate_disagreement`, `chamber_over_temperature`,
+    /// `chamber_under_temperature`, `setpoint_not_tracked`, `gyro_status`) or a device's own
+    /// fault report, tripped by the first reading that shows it (`table_drive_fault`,
+    /// `table_interlock_open`, `table_mode_lost`, `chamber_alarm`, `chamber_door_open`,
+    /// `gyro_bit_fail`).
     Interlock {
         /// The interlock's name.
         name: &'static str,
@@ -303,6 +306,11 @@ impl Ctx {
         if let Some(fault) = fault {
             self.raise_fault(fault);
         }
+    }
+
+    /// Bench commanded the table into `mode`; call it with the table still held.
+    pub fn table_commanded(&self, mode: bench_drivers::TableMode) {
+        self.monitor.lock().unwrap_or_else(|p| p.into_inner()).table_commanded(mode);
     }
 
     pub fn hurried(&self) -> bool {

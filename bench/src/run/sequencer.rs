@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use bench_drivers::TableMode;
 use futures::channel::mpsc;
 use futures::StreamExt;
 
@@ -88,23 +89,27 @@ async fn run_action(action: &Action, ctx: &Ctx, poll: Duration) -> Result<(), Fa
             ctx.live.set_commanded_target(target_c);
         }
         Action::Table { rate_rad_s, accel_rad_s2, settle } => {
-            ctx.table
-                .lock()
-                .await
-                .set_rate(rate_rad_s, accel_rad_s2)
-                .await
-                .map_err(refused("table", format!("table refused rate {rate_rad_s} rad/s")))?;
+            {
+                let mut table = ctx.table.lock().await;
+                table
+                    .set_rate(rate_rad_s, accel_rad_s2)
+                    .await
+                    .map_err(refused("table", format!("table refused rate {rate_rad_s} rad/s")))?;
+                ctx.table_commanded(TableMode::Rate);
+            }
             if settle {
                 wait_table_rate(ctx, rate_rad_s, accel_rad_s2, poll).await?;
             }
         }
         Action::TableStop { decel_rad_s2 } => {
-            ctx.table
-                .lock()
-                .await
-                .stop(decel_rad_s2)
-                .await
-                .map_err(refused("table", "table refused stop".to_string()))?;
+            {
+                let mut table = ctx.table.lock().await;
+                table
+                    .stop(decel_rad_s2)
+                    .await
+                    .map_err(refused("table", "table refused stop".to_string()))?;
+                ctx.table_commanded(TableMode::Stopped);
+            }
             wait_table_rate(ctx, 0.0, decel_rad_s2, poll).await?;
         }
         Action::Wait { duration } => clock.sleep(duration).await,
@@ -269,7 +274,11 @@ pub(super) async fn safe_state(plan: &RunPlan, ctx: &Ctx) {
     let limit = ctx.policy.safe_state_timeout;
     let table = bounded(ctx, async {
         let mut t = ctx.table.lock().await;
-        t.stop(plan.safe_decel_rad_s2).await
+        let stopped = t.stop(plan.safe_decel_rad_s2).await;
+        if stopped.is_ok() {
+            ctx.table_commanded(TableMode::Stopped);
+        }
+        stopped
     });
     let chamber = bounded(ctx, async {
         if plan.safe_chamber_hold {

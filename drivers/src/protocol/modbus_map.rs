@@ -150,6 +150,24 @@ pub struct RegisterWrite {
     pub value: u16,
 }
 
+/// Bits of a status register that report one condition (an alarm, the door open): the
+/// condition holds while any bit of `mask` is set in the register's word.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StatusBits {
+    /// Register address, read (function 3, one word) with every poll.
+    pub register: u16,
+    /// The bits that report the condition.
+    pub mask: u16,
+}
+
+impl StatusBits {
+    /// Whether `word` reports the condition.
+    pub fn set_in(&self, word: u16) -> bool {
+        word & self.mask != 0
+    }
+}
+
 /// A chamber controller's register map.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -179,6 +197,15 @@ pub struct RegisterMap {
     /// (Watlow F4: 901 = 1; 0 means °F, and every temperature register would be in °F).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub celsius_check: Option<RegisterWrite>,
+    /// Where the controller reports an alarm (sensor break, over-temperature cut-out): the
+    /// reading's status then has `ALARM`, and the run aborts (`chamber_alarm`). No preset has
+    /// it: the public facts give no address; a lab adds its controller's to a custom map.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alarm: Option<StatusBits>,
+    /// Where the controller reports the door open (`DOOR_OPEN`, `chamber_door_open`); as
+    /// `alarm`, in custom maps only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub door: Option<StatusBits>,
 }
 
 /// Built-in maps (device-facts.md).
@@ -221,6 +248,8 @@ impl RegisterMap {
                 on_connect: Vec::new(),
                 eeprom_registers: Vec::new(),
                 celsius_check: Some(RegisterWrite { register: 901, value: 1 }),
+                alarm: None,
+                door: None,
             },
             Preset::WatlowF4T => Self {
                 model: "Watlow F4T".into(),
@@ -232,6 +261,8 @@ impl RegisterMap {
                 on_connect: Vec::new(),
                 eeprom_registers: Vec::new(),
                 celsius_check: None,
+                alarm: None,
+                door: None,
             },
             Preset::Eurotherm3216 => Self {
                 model: "Eurotherm 3216".into(),
@@ -243,12 +274,14 @@ impl RegisterMap {
                 on_connect: vec![RegisterWrite { register: 276, value: 1 }],
                 eeprom_registers: vec![2, 24, 25],
                 celsius_check: None,
+                alarm: None,
+                door: None,
             },
         }
     }
 
-    /// Checks the map: the cyclic set-point register must not be an EEPROM register, and fixed
-    /// decimals must be at most [`MAX_DECIMALS`].
+    /// Checks the map: the cyclic set-point register must not be an EEPROM register, fixed
+    /// decimals must be at most [`MAX_DECIMALS`], and a status mask must have a bit.
     pub fn validate(&self) -> Result<(), MapError> {
         let fail = |problem: String| Err(MapError { model: self.model.clone(), problem });
         if self.eeprom_registers.contains(&self.set_point) {
@@ -256,6 +289,11 @@ impl RegisterMap {
                 "set point register {} is in EEPROM; write through a remote/comms set point",
                 self.set_point
             ));
+        }
+        for (name, bits) in [("alarm", self.alarm), ("door", self.door)] {
+            if bits.is_some_and(|b| b.mask == 0) {
+                return fail(format!("{name} mask 0 reports nothing"));
+            }
         }
         if let ValueEncoding::Int16 { decimals: Decimals::Fixed(d) } = self.encoding {
             if d > MAX_DECIMALS {

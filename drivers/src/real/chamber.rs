@@ -799,6 +799,16 @@ impl Chamber for ModbusChamber {
         if ramping {
             st |= status::chamber::RAMPING;
         }
+        for (bits, flag, what) in [
+            (self.map.alarm, status::chamber::ALARM, "alarm status"),
+            (self.map.door, status::chamber::DOOR_OPEN, "door status"),
+        ] {
+            let Some(bits) = bits else { continue };
+            let words = self.transact(&Op::Read { addr: bits.register, count: 1 }, what).await?;
+            if words.first().is_some_and(|w| bits.set_in(*w)) {
+                st |= flag;
+            }
+        }
         Ok(ChamberReading {
             temperature_c,
             setpoint_c,

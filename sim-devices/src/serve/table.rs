@@ -27,7 +27,9 @@
 //! (in the middle of the line, never the terminator) XOR-ed with 0x80, so it is no longer ASCII;
 //! [`Fault::Drop`] — every n-th reply is not sent; [`Fault::Disconnect`] — once, on the next
 //! request: TCP closes the connection, serial goes silent for `seconds` of bench time;
-//! [`Fault::StuckTable`] — rate commands are acknowledged but not forwarded to the table.
+//! [`Fault::StuckTable`] — rate commands are acknowledged but not forwarded to the table;
+//! [`Fault::DriveAlarm`] — the drive drops at the next request as on a missed keep-alive
+//! (once; the fault switches itself off).
 
 use std::io;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -103,6 +105,8 @@ pub struct TableServerStats {
     pub alarm_clears: AtomicU64,
     /// Times the watchdog dropped the drive (Actidyn).
     pub watchdog_trips: AtomicU64,
+    /// Times [`Fault::DriveAlarm`] dropped the drive.
+    pub drive_alarms: AtomicU64,
     /// Connections accepted (TCP) or sessions served.
     pub connections: AtomicU64,
     /// State requests (Actidyn `PRV`, ACUTROL rate reads: one per driver poll) answered with
@@ -249,8 +253,18 @@ impl<T: RateTable> TableController<T> {
             .then(|| self.last_alc + Duration::from_secs_f64(self.opts.watchdog_s.max(0.0)))
     }
 
-    /// Drop the drive if the keep-alive is overdue.
+    /// Drop the drive if the keep-alive is overdue, or on [`Fault::DriveAlarm`] (once).
     async fn check_watchdog(&mut self) {
+        if self.opts.faults.find(|f| matches!(f, Fault::DriveAlarm)).is_some() {
+            self.opts.faults.remove(&Fault::DriveAlarm);
+            if self.drive_on() {
+                tracing::warn!("drive alarm fault: simulated drive dropped");
+                bump(&self.stats.drive_alarms);
+                self.alarm = true;
+                self.halt().await;
+                self.mode = CtlMode::Off;
+            }
+        }
         let Some(deadline) = self.watchdog_deadline() else { return };
         if self.clock.now() < deadline {
             return;
