@@ -262,10 +262,17 @@ async fn dsp3000_case(format: Dsp3000Format, rate_hz: f64, scale: f64) {
     };
     let tol = 0.5 * lsb_deg_s.to_radians() * (1.0 + 1e-9);
     align(&want, &got, |_| tol);
+    let period = 1.0 / rate_hz;
     for (i, s) in got.iter().enumerate() {
-        assert_eq!(s.seq, i as u64, "host-counted sequence");
+        assert_eq!(s.seq, i as u64, "frames counted from the first");
         assert_eq!(s.temperature_c, None);
         assert_eq!(s.status, 0);
+    }
+    // The device's clock: the first arrival plus the frames at the output rate.
+    let t0 = got[0].device_time.expect("a device time");
+    for s in &got {
+        let t = s.device_time.expect("a device time").saturating_sub(t0).as_secs_f64();
+        assert!((t - s.seq as f64 * period).abs() < 1e-9, "{s:?}");
     }
 
     faults.inject(Fault::Corrupt { every: 10 });
@@ -273,12 +280,53 @@ async fn dsp3000_case(format: Dsp3000Format, rate_hz: f64, scale: f64) {
     faults.clear();
     assert!(g.stats().corrupt >= 3, "{:?}", g.stats());
     assert!(got.iter().any(|s| s.status & AFTER_CORRUPT != 0));
+    // A damaged frame is a frame: the count steps over it, and the sample after says so.
+    for w in got.windows(2) {
+        if w[1].status & AFTER_CORRUPT != 0 {
+            assert_eq!((w[1].seq - w[0].seq, w[1].status & SEQ_GAP), (2, SEQ_GAP), "{w:?}");
+        }
+    }
 
     faults.inject(Fault::Silence);
     assert_eq!(until_error(&mut g, 10_000).await, ErrorKind::Timeout);
     faults.clear();
     g.next_sample().await.expect("recovered");
     server.abort();
+}
+
+/// The DSP-3000 has no counter: a line that never arrives is found from the arrival times,
+/// which resolve its 10 ms period at real time (1×). Every 61st line withheld over 8 s: the
+/// count steps over each loss it recognises (`SEQ_GAP`), never over one that did not happen.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn dsp3000_lines_that_never_arrive_are_counted_from_the_arrival_times() {
+    let (gyro, clock) = served_gyro(100.0, 1.0);
+    let pty = Pty::new().expect("pty");
+    let mut cfg = Dsp3000Config::new(pty.path.clone(), Dsp3000Format::Ascii);
+    cfg.watchdog_periods = 50.0;
+    let mut g = Dsp3000Gyro::open(&cfg, clock.clone()).expect("open");
+    let faults = FaultSwitch::new();
+    faults.inject(Fault::Drop { every: 61 });
+    let server = tokio::spawn(serve_dsp3000(
+        gyro,
+        pty.server,
+        Dsp3000Output::Ascii,
+        faults.clone(),
+        clock.clone(),
+    ));
+    let got = take(&mut g, 800).await;
+    server.abort();
+    let frames = got.last().map_or(0, |s| s.seq) + 1;
+    let (withheld, found) = (frames / 61, g.stats().missing);
+    // The first 1.5 s set the host's jitter (up to 3 losses then go unrecognised), and a loss
+    // is recognised within two half-second windows (the last may not be yet).
+    assert!(found <= withheld && found + 4 >= withheld, "{found} of {withheld} found");
+    eprintln!("dsp3000 at 1×: {found} of {withheld} withheld lines found");
+    for w in got.windows(2) {
+        let step = w[1].seq - w[0].seq;
+        assert_eq!(step > 1, w[1].status & SEQ_GAP != 0, "{w:?}");
+        let dt = w[1].device_time.expect("t").saturating_sub(w[0].device_time.expect("t"));
+        assert!((dt.as_secs_f64() - step as f64 * 0.01).abs() < 1e-9);
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -311,6 +311,11 @@ impl BinaryDecoder {
         self.locked
     }
 
+    /// Stream offset of the next byte not yet decoded: just past the word last returned.
+    pub fn offset(&self) -> u64 {
+        self.base
+    }
+
     fn word_at(&self, i: usize) -> Option<u32> {
         let b = self.buf.get(i..i.checked_add(4)?)?;
         Some(u32::from_be_bytes([*b.first()?, *b.get(1)?, *b.get(2)?, *b.get(3)?]))

@@ -5,8 +5,12 @@
 //!   turned into a rate with the configured sample rate. Temperature from the frame (1 °C
 //!   resolution); the 7-bit counter (0..127) gives gap detection modulo 128.
 //! - [`Dsp3000Gyro`]: KVH DSP-3000, 100 Hz ASCII lines (38400 8N1) or 1000 Hz 4-byte binary
-//!   words (115200). No counter and no temperature: `seq` counts samples on the host (a lost
-//!   line cannot be seen) and `temperature_c` is `None`.
+//!   words (115200). No counter, no time stamp and no temperature (`temperature_c` is
+//!   `None`): the device's clock is its fixed output rate, so `seq` counts its frames since the
+//!   first and `device_time` is the first arrival plus `seq` periods ([`FixedRateClock`]).
+//!   Frames that arrived damaged are counted (a garbled line; the bytes between two good
+//!   binary words); frames that never arrived are recognised from the arrival times where the
+//!   host resolves a period. Either makes `seq` jump, with `SEQ_GAP`.
 //!
 //! Both resynchronise on junk and count corrupt frames (CRC, parity, garbled lines) in
 //! [`GyroLinkStats::corrupt`]; the next good sample carries `AFTER_CORRUPT`. No sample within
@@ -18,7 +22,9 @@ use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use tokio::io::AsyncReadExt;
 
-use super::gyro_link::{default_watchdog_periods, GyroLinkStats, SeqTracker, Watchdog};
+use super::gyro_link::{
+    default_watchdog_periods, FixedRateClock, GyroLinkStats, SeqTracker, Watchdog,
+};
 use crate::protocol::kvh1750;
 use crate::protocol::kvh_dsp3000::{AsciiDecoder, BinaryDecoder, DataType};
 use crate::protocol::DecodeError;
@@ -532,7 +538,14 @@ enum DspDecoder {
 pub struct Dsp3000Gyro {
     link: Link,
     dec: DspDecoder,
-    next_seq: u64,
+    /// The device's clock: frames at its fixed output rate.
+    clock: FixedRateClock,
+    /// Frames that arrived damaged since the last sample.
+    damaged: u64,
+    /// Binary: stream offset just past the last good word.
+    word_end: Option<u64>,
+    /// `seq` of the last sample.
+    last_seq: Option<u64>,
     info: DeviceInfo<GyroCapabilities>,
 }
 
@@ -573,7 +586,10 @@ impl Dsp3000Gyro {
             },
             link: Link::new(stream, name, clock, rate_hz, config.watchdog_periods),
             dec,
-            next_seq: 0,
+            clock: FixedRateClock::new(1.0 / rate_hz),
+            damaged: 0,
+            word_end: None,
+            last_seq: None,
         })
     }
 
@@ -582,7 +598,9 @@ impl Dsp3000Gyro {
         self.link.stats
     }
 
-    /// The next decoded (rate rad/s, valid), `None` when more bytes are needed.
+    /// The next decoded (rate rad/s, valid), `None` when more bytes are needed. Frames that
+    /// arrived damaged on the way are added to `damaged`: one per garbled line; the bytes
+    /// between two good binary words, four to a word.
     fn decode(&mut self) -> Option<(f64, bool)> {
         let rate_hz = self.link.rate_hz;
         loop {
@@ -595,24 +613,41 @@ impl Dsp3000Gyro {
                     };
                     (rate, s.valid)
                 }),
-                DspDecoder::Binary(d) => {
-                    d.next_word()?.and_then(|w| match (w.rate_rad_s(), w.delta_angle_rad()) {
-                        (Some(r), _) => Ok((r, w.valid)),
-                        (None, Some(a)) => Ok((a * rate_hz, w.valid)),
-                        (None, None) => Err(DecodeError::new(
-                            0,
-                            format!(
-                                "a rate or incremental-angle word, not {:?}",
-                                DataType::IntegratedAngle
-                            ),
-                            &w.to_u32().to_be_bytes(),
-                        )),
-                    })
-                }
+                DspDecoder::Binary(d) => match d.next_word()? {
+                    Err(e) => Err(e),
+                    Ok(w) => {
+                        let end = d.offset();
+                        let start = end.saturating_sub(4);
+                        if let Some(prev) = self.word_end.replace(end) {
+                            self.damaged += (start.saturating_sub(prev) + 2) / 4;
+                        }
+                        match (w.rate_rad_s(), w.delta_angle_rad()) {
+                            (Some(r), _) => Ok((r, w.valid)),
+                            (None, Some(a)) => Ok((a * rate_hz, w.valid)),
+                            (None, None) => {
+                                self.damaged += 1;
+                                Err(DecodeError::new(
+                                    0,
+                                    format!(
+                                        "a rate or incremental-angle word, not {:?}",
+                                        DataType::IntegratedAngle
+                                    ),
+                                    &w.to_u32().to_be_bytes(),
+                                ))
+                            }
+                        }
+                    }
+                },
             };
             match r {
                 Ok(v) => return Some(v),
-                Err(e) => self.link.corrupt(&e),
+                Err(e) => {
+                    // A binary word's place is counted from the offsets; a line is a frame.
+                    if matches!(self.dec, DspDecoder::Ascii(..)) {
+                        self.damaged += 1;
+                    }
+                    self.link.corrupt(&e)
+                }
             }
         }
     }
@@ -624,21 +659,29 @@ impl Gyro for Dsp3000Gyro {
         &self.info
     }
 
-    /// The next line's or word's sample (`seq` counted on the host). Cancel-safe; `Timeout`
-    /// from the watchdog.
+    /// The next line's or word's sample: `seq` the frames counted since the first (damaged
+    /// and lost ones included), `device_time` from them at the output rate. Cancel-safe;
+    /// `Timeout` from the watchdog.
     async fn next_sample(&mut self) -> DeviceResult<GyroSample> {
         let mut buf = [0u8; 4096];
         loop {
             if let Some((rate, valid)) = self.decode() {
-                let seq = self.next_seq;
-                self.next_seq += 1;
-                let st = if valid { 0 } else { status::gyro::INVALID };
+                self.clock.lost(std::mem::take(&mut self.damaged));
+                let (device_time, _) = self.clock.sample(self.link.clock.now());
+                let seq = self.clock.count();
+                let mut st = if valid { 0 } else { status::gyro::INVALID };
+                let missing = self.last_seq.replace(seq).map_or(0, |last| seq - last - 1);
+                if missing > 0 {
+                    st |= status::gyro::SEQ_GAP;
+                    self.link.stats.seq_gaps += 1;
+                    self.link.stats.missing += missing;
+                }
                 return Ok(self.link.finish(GyroSample {
                     rate_rad_s: rate,
                     temperature_c: None,
                     seq,
                     status: st,
-                    device_time: None,
+                    device_time: Some(device_time),
                 }));
             }
             let n = self.link.read(&mut buf).await?;

@@ -81,6 +81,114 @@ impl SeqTracker {
     }
 }
 
+/// The clock of a device with no counter and no time stamp that sends at a fixed output rate
+/// (KVH DSP-3000): frames counted since the first, at `period_s` each, with the frames the host
+/// never saw counted too.
+///
+/// A frame that arrived damaged is counted by the caller ([`FixedRateClock::lost`]): one
+/// garbled line or word is one frame. A frame that never arrived is recognised from the arrival
+/// times: each sample's lag, arrival − (first arrival + count·period), is latency plus jitter,
+/// and its minimum over a window of [`FixedRateClock::WINDOW_S`] is the latency alone. A host
+/// hiccup delays samples that then arrive in a burst (the next window's minimum is back down);
+/// a lost frame raises every later lag by a period (the minimum steps up and stays). A window
+/// whose minimum stepped up by k periods (within a quarter period) over the last one counts k
+/// lost frames — but only when the minima resolve a period: the steps of the last windows
+/// must lie within a tenth of a period of whole periods (median; host jitter and the device's
+/// drift move them off). The loss is placed at the end of the window that showed it: up to two
+/// windows of samples before it are stamped k periods early.
+#[derive(Debug, Clone)]
+pub(crate) struct FixedRateClock {
+    period_s: f64,
+    /// Bench time of the first sample: the device clock's zero.
+    anchor: Option<Duration>,
+    /// Periods since the first sample, lost frames included.
+    count: u64,
+    /// Frames in the current window so far, and the smallest lag among them, s.
+    in_window: u64,
+    window_min_s: f64,
+    /// The last window's smallest lag, s.
+    last_min_s: Option<f64>,
+    /// How far the last windows' steps of the smallest lag were from whole periods, s (at most
+    /// [`Self::HISTORY`]).
+    steps_s: std::collections::VecDeque<f64>,
+}
+
+impl FixedRateClock {
+    /// Length of a window, s of bench time (at least 10 frames).
+    pub(crate) const WINDOW_S: f64 = 0.5;
+    /// Windows of history judged before a step is believed.
+    const HISTORY: usize = 8;
+    const MIN_HISTORY: usize = 3;
+
+    /// A clock of `period_s` per frame.
+    pub(crate) fn new(period_s: f64) -> Self {
+        Self {
+            period_s,
+            anchor: None,
+            count: 0,
+            in_window: 0,
+            window_min_s: f64::INFINITY,
+            last_min_s: None,
+            steps_s: std::collections::VecDeque::new(),
+        }
+    }
+
+    fn window_frames(&self) -> u64 {
+        ((Self::WINDOW_S / self.period_s).round() as u64).max(10)
+    }
+
+    /// `n` frames the device sent that arrived damaged (counted, never seen as samples).
+    pub(crate) fn lost(&mut self, n: u64) {
+        if self.anchor.is_some() {
+            self.count += n;
+        }
+    }
+
+    /// A sample arrived at bench time `now`: its device time (the first arrival plus the
+    /// periods counted) and the frames found lost before it by their arrival times.
+    pub(crate) fn sample(&mut self, now: Duration) -> (Duration, u64) {
+        let Some(anchor) = self.anchor else {
+            self.anchor = Some(now);
+            return (now, 0);
+        };
+        let p = self.period_s;
+        self.count += 1;
+        let lag = now.as_secs_f64() - anchor.as_secs_f64() - self.count as f64 * p;
+        self.window_min_s = self.window_min_s.min(lag);
+        self.in_window += 1;
+        let mut missing = 0;
+        if self.in_window >= self.window_frames() {
+            let min = self.window_min_s;
+            if let Some(last) = self.last_min_s {
+                let step = min - last;
+                let k = (step / p).round();
+                let off = (step - k * p).abs();
+                let mut sorted: Vec<f64> = self.steps_s.iter().copied().collect();
+                sorted.sort_by(f64::total_cmp);
+                let quiet = sorted.len() >= Self::MIN_HISTORY
+                    && sorted.get(sorted.len() / 2).is_some_and(|m| *m < 0.1 * p);
+                if k >= 1.0 && off <= 0.25 * p && quiet {
+                    missing = k as u64;
+                    self.count += missing;
+                }
+                self.steps_s.push_back(off);
+                if self.steps_s.len() > Self::HISTORY {
+                    self.steps_s.pop_front();
+                }
+            }
+            self.last_min_s = Some(min - missing as f64 * p);
+            self.in_window = 0;
+            self.window_min_s = f64::INFINITY;
+        }
+        (anchor + Duration::from_secs_f64(self.count as f64 * p), missing)
+    }
+
+    /// Periods counted since the first frame (the sample counter `seq`).
+    pub(crate) fn count(&self) -> u64 {
+        self.count
+    }
+}
+
 /// The sample watchdog: no sample within `periods` sample periods (bench time) is a timeout.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Watchdog {
@@ -118,6 +226,80 @@ pub(crate) fn default_watchdog_periods() -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Arrivals of frames `0..n` at 100 Hz (`lost` never sent), each `latency(k)` late, through
+    /// a [`FixedRateClock`]: (count, device time s, missing) per sample.
+    fn arrivals(
+        n: u64,
+        lost: &[u64],
+        drift: f64,
+        latency: impl Fn(u64) -> f64,
+    ) -> Vec<(u64, f64, u64)> {
+        let mut c = FixedRateClock::new(0.01);
+        (0..n)
+            .filter(|k| !lost.contains(k))
+            .map(|k| {
+                let t = 100.0 + k as f64 * 0.01 * (1.0 + drift) + latency(k);
+                let (dev, missing) = c.sample(Duration::from_secs_f64(t));
+                (c.count(), dev.as_secs_f64(), missing)
+            })
+            .collect()
+    }
+
+    /// Host latency: 2 ms, up to 1.5 ms of jitter, and every 3 s a 45 ms hiccup whose samples
+    /// then arrive together.
+    fn busy_host(k: u64) -> f64 {
+        let jitter = 0.0015 * ((k * 7919 % 101) as f64 / 100.0);
+        let hiccup = if k % 300 < 5 { 0.045 - 0.01 * (k % 300) as f64 } else { 0.0 };
+        0.002 + jitter + hiccup
+    }
+
+    #[test]
+    fn a_fixed_rate_clock_counts_no_loss_through_jitter_hiccups_and_drift() {
+        for drift in [0.0, 100e-6, -100e-6] {
+            let got = arrivals(6000, &[], drift, busy_host);
+            assert!(got.iter().all(|g| g.2 == 0), "drift {drift}: a phantom loss");
+            assert_eq!(got.last().map(|g| g.0), Some(5999));
+        }
+    }
+
+    #[test]
+    fn a_fixed_rate_clock_counts_frames_that_never_arrived() {
+        // Frames 1000–1002 and 4000 never arrive.
+        let got = arrivals(6000, &[1000, 1001, 1002, 4000], 0.0, busy_host);
+        let found: Vec<(usize, u64)> =
+            got.iter().enumerate().filter(|(_, g)| g.2 > 0).map(|(i, g)| (i, g.2)).collect();
+        assert_eq!(found.iter().map(|f| f.1).collect::<Vec<_>>(), [3, 1], "{found:?}");
+        // Recognised within two windows (100 samples) of the loss.
+        assert!((1000..1100).contains(&found[0].0) && (3997..4097).contains(&found[1].0));
+        // From there on the count is the device's: sample i (i ≥ 4100) is frame i + 4.
+        let first = got[0].1;
+        for (i, g) in got.iter().enumerate().skip(4100) {
+            assert_eq!(g.0, i as u64 + 4);
+            assert!((g.1 - first - g.0 as f64 * 0.01).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_fixed_rate_clock_does_not_guess_when_the_host_cannot_resolve_a_period() {
+        // A latency floor wandering over 30 ms against a 10 ms period (a simulator run at 10×
+        // on a loaded host): the minima's steps are not whole periods, nothing is counted.
+        let wander = |k: u64| {
+            0.03 * (k as f64 * 0.013).sin().abs() + 0.003 * ((k * 7919 % 101) as f64 / 100.0)
+        };
+        let got = arrivals(6000, &[2000], 0.0, wander);
+        assert!(got.iter().all(|g| g.2 == 0));
+        // 30 ms of jitter over a floor every window touches does resolve the period.
+        let floored = |k: u64| 0.03 * ((k * 7919 % 101) as f64 / 100.0);
+        let got = arrivals(6000, &[2000], 0.0, floored);
+        assert_eq!(got.iter().map(|g| g.2).sum::<u64>(), 1);
+        // Damaged frames the decoder saw are counted whatever the jitter.
+        let mut c = FixedRateClock::new(0.01);
+        c.sample(Duration::from_secs(1));
+        c.lost(2);
+        c.sample(Duration::from_millis(1030));
+        assert_eq!(c.count(), 3);
+    }
 
     #[test]
     fn gaps_are_counted_modulo_the_counter_width() {
