@@ -39,12 +39,13 @@ use crate::simulate::{capabilities, sim_config, SIM_EPOCH_NS};
 /// shared with other work (measured, `docs/soak.md`).
 pub const DEFAULT_TIME_SCALE: f64 = 60.0;
 
-/// Memory growth above which the soak fails, MiB per bench hour (least-squares slope of VmRSS
-/// after the warm-up).
+/// Memory growth above which the soak fails, MiB per bench hour (the slope of VmRSS over the
+/// second half of the soak, judged with its confidence bounds: [`memory_report`]).
 pub const MEMORY_SLOPE_LIMIT_MIB_PER_H: f64 = 1.0;
 
-/// Bench time excluded from the memory slope (allocator pools, first segment's caches).
-pub const MEMORY_WARM_UP: Duration = Duration::from_secs(3600);
+/// Fewest segments with memory samples in the judged half (with the built-in 1 h segments, a
+/// soak of 8 h or more).
+const MEMORY_MIN_SEGMENTS: usize = 4;
 
 /// Wall-clock reply timeout of the table and chamber drivers in a soak.
 pub const WIRE_TIMEOUT: Duration = Duration::from_millis(200);
@@ -115,11 +116,14 @@ pub enum SoakFaultKind {
     TableSilence,
     /// The chamber answering exception 4: aborts by design (chamber device error).
     ChamberException,
+    /// The table controller dropping its drive (a drive alarm): aborts by design at the next
+    /// poll (`table_drive_fault`).
+    TableDriveAlarm,
 }
 
 impl SoakFaultKind {
     /// Every kind.
-    pub const ALL: [SoakFaultKind; 10] = [
+    pub const ALL: [SoakFaultKind; 11] = [
         Self::GyroDrop,
         Self::GyroCorrupt,
         Self::GyroDisconnect,
@@ -130,6 +134,7 @@ impl SoakFaultKind {
         Self::ChamberDisconnect,
         Self::TableSilence,
         Self::ChamberException,
+        Self::TableDriveAlarm,
     ];
 
     /// The device and the served fault.
@@ -145,6 +150,7 @@ impl SoakFaultKind {
             Self::ChamberDisconnect => ("chamber", SimFault::Disconnect { seconds: 3.0 }),
             Self::TableSilence => ("table", SimFault::Silence),
             Self::ChamberException => ("chamber", SimFault::ModbusException { code: 4 }),
+            Self::TableDriveAlarm => ("table", SimFault::DriveAlarm),
         }
     }
 
@@ -173,12 +179,16 @@ impl SoakFaultKind {
             Self::ChamberException => {
                 matches!(cause, FaultCause::Device { device: "chamber", .. })
             }
+            Self::TableDriveAlarm => matches!(
+                cause,
+                FaultCause::Interlock { name: crate::run::interlocks::TABLE_DRIVE_FAULT }
+            ),
             _ => false,
         }
     }
 
     fn must_abort(self) -> bool {
-        matches!(self, Self::TableSilence | Self::ChamberException)
+        matches!(self, Self::TableSilence | Self::ChamberException | Self::TableDriveAlarm)
     }
 }
 
@@ -258,6 +268,8 @@ pub struct MemorySample {
     pub rss_mib: f64,
     /// Peak resident set size so far, MiB.
     pub hwm_mib: f64,
+    /// The segment it was taken in (or at the end of); 0 also for the soak's first sample.
+    pub segment: usize,
 }
 
 /// The memory series and its verdict.
@@ -271,15 +283,24 @@ pub struct MemoryReport {
     pub end_mib: f64,
     /// Peak RSS (VmHWM), MiB.
     pub peak_mib: f64,
-    /// Bench time left out of the slope, h.
-    pub warm_up_h: f64,
-    /// Least-squares slope of RSS after the warm-up, MiB per bench hour (`None`: fewer than 4
-    /// samples after it).
+    /// Start of the window the slope is fitted on (the second half of the soak), bench h.
+    pub judged_from_h: f64,
+    /// End of that window: the bench time the soak covered, h.
+    pub judged_to_h: f64,
+    /// Least-squares slope of the segments' mean RSS over the window, MiB per bench hour
+    /// (`None`: fewer than 2 segments in it).
     pub slope_mib_per_h: Option<f64>,
+    /// Its 95 % bounds, MiB per bench hour (`None`: not judged for want of segments).
+    pub slope_bounds_mib_per_h: Option<(f64, f64)>,
+    /// The scatter of a segment's mean RSS, MiB (from the steps between consecutive
+    /// segments, the first left out).
+    pub segment_scatter_mib: Option<f64>,
     /// The limit on the slope, MiB per bench hour.
     pub limit_mib_per_h: f64,
-    /// `flat`, `grew` or `not judged` (run too short).
+    /// `flat`, `grew` or `not judged`.
     pub verdict: String,
+    /// Why it was not judged (empty when it was).
+    pub note: String,
 }
 
 /// One segment.
@@ -355,8 +376,8 @@ pub fn builtin_segment(minutes: f64, target_c: f64) -> String {
     )
 }
 
-/// Least-squares slope of `y` over `x`; `None` with fewer than 2 distinct `x`.
-fn slope(points: &[(f64, f64)]) -> Option<f64> {
+/// Least-squares slope of `y` over `x` and Σ(x − x̄)²; `None` with fewer than 2 distinct `x`.
+fn slope(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     let n = points.len() as f64;
     if points.len() < 2 {
         return None;
@@ -365,28 +386,100 @@ fn slope(points: &[(f64, f64)]) -> Option<f64> {
     let my = points.iter().map(|p| p.1).sum::<f64>() / n;
     let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
     let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    (sxx > 0.0).then(|| sxy / sxx)
+    (sxx > 0.0).then(|| (sxy / sxx, sxx))
 }
 
-/// The memory verdict over `samples`.
-pub fn memory_report(samples: Vec<MemorySample>) -> MemoryReport {
-    let warm_up_h = MEMORY_WARM_UP.as_secs_f64() / 3600.0;
-    let after: Vec<(f64, f64)> =
-        samples.iter().filter(|s| s.bench_h >= warm_up_h).map(|s| (s.bench_h, s.rss_mib)).collect();
-    let slope_mib_per_h = if after.len() >= 4 { slope(&after) } else { None };
-    let verdict = match slope_mib_per_h {
-        None => "not judged",
-        Some(s) if s < MEMORY_SLOPE_LIMIT_MIB_PER_H => "flat",
-        Some(_) => "grew",
+/// 97.5 % quantile of Student's t with `dof` degrees of freedom (two-sided 95 %).
+fn t975(dof: usize) -> f64 {
+    const T: [f64; 10] = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228];
+    match dof {
+        0 => f64::INFINITY,
+        d if d <= T.len() => T[d - 1],
+        d if d <= 30 => 2.228 - (d - 10) as f64 * (2.228 - 2.042) / 20.0,
+        _ => 1.96,
+    }
+}
+
+/// The mean (bench h, RSS MiB) of each segment's samples from `from_h` on, in order.
+fn segment_means(samples: &[MemorySample], from_h: f64) -> Vec<(f64, f64)> {
+    let mut sums: Vec<(usize, f64, f64, f64)> = Vec::new();
+    for s in samples.iter().filter(|s| s.bench_h >= from_h) {
+        match sums.last_mut() {
+            Some(g) if g.0 == s.segment => {
+                g.1 += s.bench_h;
+                g.2 += s.rss_mib;
+                g.3 += 1.0;
+            }
+            _ => sums.push((s.segment, s.bench_h, s.rss_mib, 1.0)),
+        }
+    }
+    sums.iter().map(|g| (g.1 / g.3, g.2 / g.3)).collect()
+}
+
+/// The memory verdict over `samples` of a soak that covered `covered` of bench time.
+///
+/// The RSS holds still within a segment and steps by several MiB between segments (allocator
+/// arenas taken and given back; the first segments also warm up), so a segment is one
+/// observation: its mean RSS. The slope is fitted on the segments of the second half; a
+/// segment mean's scatter comes from the steps between consecutive segments over the whole
+/// soak (the first left out: the warm-up), σ² = mean(step²)/2, and bounds the slope at 95 %
+/// (Student t). **grew** (fails) when even the lower bound reaches
+/// [`MEMORY_SLOPE_LIMIT_MIB_PER_H`]; **flat** when the upper bound stays below it; **not
+/// judged** otherwise — the window cannot tell growth at the limit from none — or when the
+/// half holds fewer than [`MEMORY_MIN_SEGMENTS`] segments. The note says why.
+pub fn memory_report(samples: Vec<MemorySample>, covered: Duration) -> MemoryReport {
+    let to_h = covered.as_secs_f64() / 3600.0;
+    let from_h = to_h / 2.0;
+    let judged = segment_means(&samples, from_h);
+    let all = segment_means(&samples, 0.0);
+    let steps: Vec<f64> =
+        all.iter().skip(1).collect::<Vec<_>>().windows(2).map(|w| w[1].1 - w[0].1).collect();
+    let scatter = (steps.len() >= 2)
+        .then(|| (steps.iter().map(|d| d * d).sum::<f64>() / steps.len() as f64 / 2.0).sqrt());
+    let fit = slope(&judged);
+    let limit = MEMORY_SLOPE_LIMIT_MIB_PER_H;
+    let bounds = match (fit, scatter) {
+        (Some((b, sxx)), Some(sigma)) if judged.len() >= MEMORY_MIN_SEGMENTS => {
+            let half = t975(steps.len()) * sigma / sxx.sqrt();
+            Some((b - half, b + half))
+        }
+        _ => None,
+    };
+    let (verdict, note) = match bounds {
+        None => (
+            "not judged",
+            format!(
+                "a soak of {to_h:.2} h is too short to judge memory growth: its second half \
+                 holds {} segment(s), at least {MEMORY_MIN_SEGMENTS} needed (the RSS steps by \
+                 MiB between segments; with the built-in 1 h segments, a soak of 8 h or more)",
+                judged.len()
+            ),
+        ),
+        Some((low, _)) if low >= limit => ("grew", String::new()),
+        Some((_, high)) if high < limit => ("flat", String::new()),
+        Some((low, high)) => (
+            "not judged",
+            format!(
+                "the RSS over {from_h:.2}–{to_h:.2} h changed {:+.2} MiB/h, between {low:+.2} \
+                 and {high:+.2} MiB/h (95 %; a segment's mean scatters by {:.1} MiB): this \
+                 window cannot tell growth at the {limit} MiB/h limit from none; a longer soak can",
+                fit.map_or(f64::NAN, |f| f.0),
+                scatter.unwrap_or(f64::NAN)
+            ),
+        ),
     };
     MemoryReport {
         start_mib: samples.first().map_or(0.0, |s| s.rss_mib),
         end_mib: samples.last().map_or(0.0, |s| s.rss_mib),
         peak_mib: samples.iter().map(|s| s.hwm_mib).fold(0.0, f64::max),
-        warm_up_h,
-        slope_mib_per_h,
-        limit_mib_per_h: MEMORY_SLOPE_LIMIT_MIB_PER_H,
+        judged_from_h: from_h,
+        judged_to_h: to_h,
+        slope_mib_per_h: fit.map(|f| f.0),
+        slope_bounds_mib_per_h: bounds,
+        segment_scatter_mib: scatter,
+        limit_mib_per_h: limit,
         verdict: verdict.into(),
+        note,
         samples,
     }
 }
@@ -530,18 +623,19 @@ pub async fn soak(
     let mut covered = Duration::ZERO;
     let mut scenario_name = String::new();
     let mut index = 0usize;
-    let sample_memory = |memory: &Mutex<Vec<MemorySample>>, bench: Duration| {
+    let sample_memory = |memory: &Mutex<Vec<MemorySample>>, bench: Duration, segment: usize| {
         if let Some((rss, hwm)) = memory_mib() {
             let s = MemorySample {
                 bench_h: bench.as_secs_f64() / 3600.0,
                 wall_s: wall.elapsed().as_secs_f64(),
                 rss_mib: rss,
                 hwm_mib: hwm,
+                segment,
             };
             memory.lock().unwrap_or_else(|p| p.into_inner()).push(s);
         }
     };
-    sample_memory(&memory, Duration::ZERO);
+    sample_memory(&memory, Duration::ZERO, 0);
     while covered < opts.bench_time {
         let left = opts.bench_time - covered;
         let (name, text) = match &opts.scenario {
@@ -575,7 +669,7 @@ pub async fn soak(
         .await
         .with_context(|| format!("segment {index}"))?;
         covered += Duration::from_secs_f64(seg.report.bench_time_s);
-        sample_memory(&memory, covered);
+        sample_memory(&memory, covered, index);
         if opts.keep.is_none() {
             let _ = std::fs::remove_file(&out);
         }
@@ -591,7 +685,7 @@ pub async fn soak(
         channels.push(ChannelCount { topic, sent: None, recorded: n, ..ChannelCount::default() });
     }
     let samples = std::mem::take(&mut *memory.lock().unwrap_or_else(|p| p.into_inner()));
-    let memory = memory_report(samples);
+    let memory = memory_report(samples, covered);
     let wall_time_s = wall.elapsed().as_secs_f64();
     let mut problems = Vec::new();
     for c in &channels {
@@ -613,8 +707,12 @@ pub async fn soak(
     }
     if memory.verdict == "grew" {
         problems.push(format!(
-            "memory grew {:.2} MiB per bench hour after the warm-up (limit {})",
+            "memory grew {:.2} MiB per bench hour over the second half ({:.2}–{:.2} h; at least \
+             {:.2} at 95 %; limit {})",
             memory.slope_mib_per_h.unwrap_or(f64::NAN),
+            memory.judged_from_h,
+            memory.judged_to_h,
+            memory.slope_bounds_mib_per_h.map_or(f64::NAN, |b| b.0),
             MEMORY_SLOPE_LIMIT_MIB_PER_H
         ));
     }
@@ -736,6 +834,7 @@ async fn run_segment(
                         wall_s: wall0.elapsed().as_secs_f64(),
                         rss_mib: rss,
                         hwm_mib: hwm,
+                        segment: index,
                     });
                 }
                 next += every;
@@ -888,5 +987,138 @@ mod tests {
         // It outlasts the served bench's stale limit at the soak's scale.
         assert_eq!(t.duration(60.0), Duration::from_secs(600));
         assert_eq!(t.duration(1.0), Duration::from_secs(120));
+    }
+
+    #[test]
+    fn a_drive_alarm_aborts_by_design_with_table_drive_fault_only() {
+        let t = SoakFaultKind::TableDriveAlarm;
+        assert!(t.must_abort());
+        let drive = crate::run::interlocks::TABLE_DRIVE_FAULT;
+        assert!(t.aborts_by_design(&FaultCause::Interlock { name: drive }));
+        let stale = FaultCause::Stale { device: "rate table" };
+        assert!(!t.aborts_by_design(&stale));
+        assert_eq!(t.fault(), ("table", SimFault::DriveAlarm));
+    }
+
+    /// RSS every 10 min of bench time over `hours` of 1 h segments: 18 MiB, a step of up to
+    /// ±`step` MiB per segment (drawn with `seed`), and a leak of `leak` MiB per bench hour.
+    fn series(hours: f64, leak: f64, step: f64, seed: u64) -> (Vec<MemorySample>, Duration) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let steps: Vec<f64> =
+            (0..=hours as usize).map(|_| rng.random_range(-step..=step)).collect();
+        let n = (hours * 6.0).round() as usize;
+        let samples = (0..=n)
+            .map(|k| {
+                let h = k as f64 / 6.0;
+                let segment = (h.floor() as usize).min((hours as usize).saturating_sub(1));
+                let rss = 18.0 + leak * h + steps[segment];
+                MemorySample { bench_h: h, wall_s: h * 30.0, rss_mib: rss, hwm_mib: rss, segment }
+            })
+            .collect();
+        (samples, Duration::from_secs_f64(hours * 3600.0))
+    }
+
+    /// `bench soak --hours 6.08 --time-scale 120 --seed 7` (2026-11-28, before this verdict):
+    /// (bench h, VmRSS MiB, segment). Its hour 1–6 slope, +1.56 MiB/h, failed the soak; the
+    /// second half's, +2.0, would too.
+    const SEED7_6H: [(f64, f64, usize); 41] = [
+        (0.0, 6.0, 0),
+        (0.17, 11.8, 0),
+        (0.33, 12.0, 0),
+        (0.5, 12.2, 0),
+        (0.67, 12.4, 0),
+        (0.83, 12.6, 0),
+        (1.0, 17.2, 0),
+        (1.17, 17.3, 1),
+        (1.33, 17.3, 1),
+        (1.5, 17.3, 1),
+        (1.67, 17.3, 1),
+        (1.83, 17.4, 1),
+        (2.0, 22.7, 1),
+        (2.16, 22.7, 2),
+        (2.18, 23.5, 2),
+        (2.35, 23.5, 3),
+        (2.51, 23.5, 3),
+        (2.68, 23.5, 3),
+        (2.85, 23.5, 3),
+        (3.01, 23.5, 3),
+        (3.18, 15.8, 3),
+        (3.34, 15.8, 4),
+        (3.51, 15.8, 4),
+        (3.57, 22.7, 4),
+        (3.74, 22.7, 5),
+        (3.91, 22.7, 5),
+        (4.07, 22.7, 5),
+        (4.24, 22.7, 5),
+        (4.29, 29.0, 5),
+        (4.46, 29.0, 6),
+        (4.48, 29.0, 6),
+        (4.64, 29.0, 7),
+        (4.81, 29.0, 7),
+        (4.98, 29.0, 7),
+        (5.14, 29.0, 7),
+        (5.31, 29.0, 7),
+        (5.48, 20.9, 7),
+        (5.64, 20.9, 8),
+        (5.81, 20.9, 8),
+        (5.98, 20.9, 8),
+        (6.08, 25.7, 9),
+    ];
+
+    fn seed7(until_h: f64) -> (Vec<MemorySample>, Duration) {
+        let samples = SEED7_6H
+            .iter()
+            .filter(|s| s.0 <= until_h)
+            .map(|&(h, rss, segment)| MemorySample {
+                bench_h: h,
+                wall_s: h * 30.0,
+                rss_mib: rss,
+                hwm_mib: rss,
+                segment,
+            })
+            .collect();
+        (samples, Duration::from_secs_f64(until_h * 3600.0))
+    }
+
+    #[test]
+    fn a_soak_too_short_to_judge_memory_says_so_and_does_not_fail() {
+        // 2 h: its second half holds two segments (the one ending at 1 h by its last sample).
+        let (samples, covered) = seed7(2.0);
+        let m = memory_report(samples, covered);
+        assert_eq!(m.verdict, "not judged");
+        assert!(m.note.starts_with("a soak of 2.00 h is too short to judge memory growth"));
+        assert!(m.note.contains("holds 2 segment(s), at least 4 needed"), "{}", m.note);
+        // 6 h: six segments in the half, but their steps (±8 MiB) bound the slope only to
+        // -0.3..+6.3 MiB/h: not judged either, and said why.
+        let (samples, covered) = seed7(6.08);
+        let m = memory_report(samples, covered);
+        assert_eq!(m.verdict, "not judged", "{m:?}");
+        assert!(m.note.contains("this window cannot tell growth at the 1 MiB/h limit"));
+        let (low, high) = m.slope_bounds_mib_per_h.expect("bounds");
+        assert!(low < 1.0 && high > 1.0, "{low} {high}");
+        // The same series over a longer soak of small steps is judged.
+        let (samples, covered) = series(6.0, 0.0, 8.0, 1);
+        assert_eq!(memory_report(samples, covered).verdict, "not judged");
+    }
+
+    #[test]
+    fn no_leak_is_never_called_growth_and_a_real_one_is_caught() {
+        // 50 soaks each of 8, 12 and 24 h with ±8 MiB segment steps: no leak is never "grew";
+        // a leak of 3 MiB/h over 24 h is always caught.
+        for hours in [8.0, 12.0, 24.0] {
+            for seed in 0..50 {
+                let (samples, covered) = series(hours, 0.0, 8.0, seed);
+                let m = memory_report(samples, covered);
+                assert_ne!(m.verdict, "grew", "{hours} h seed {seed}: {m:?}");
+            }
+        }
+        for seed in 0..50 {
+            let (samples, covered) = series(24.0, 3.0, 8.0, seed);
+            let m = memory_report(samples, covered);
+            assert_eq!(m.verdict, "grew", "seed {seed}: {:?}", m.slope_bounds_mib_per_h);
+        }
+        // Steps of ±1 MiB: 24 h without a leak is flat.
+        let (samples, covered) = series(24.0, 0.0, 1.0, 3);
+        assert_eq!(memory_report(samples, covered).verdict, "flat");
     }
 }

@@ -38,8 +38,8 @@ pub enum Fault {
     /// The table acknowledges rate commands but its rate does not follow.
     StuckTable,
     /// The table controller drops its drive with an alarm (an amplifier fault), once, at the
-    /// next request: the axis decelerates to rest, the mode reads off, and mode and motion
-    /// commands are refused with a drive alarm until the alarms are cleared.
+    /// next request with the drive on: the axis decelerates to rest, the mode reads off, and
+    /// mode and motion commands are refused with a drive alarm until the alarms are cleared.
     DriveAlarm,
     /// The chamber overshoots new set points by this much, °C.
     ChamberOvershoot {

@@ -32,6 +32,21 @@ pub fn workspace_root() -> PathBuf {
 
 pub mod peer;
 
+/// Among `readings` taken after `after_ns` (by `time`, ns), the first that is `flagged` and
+/// the one before it (itself when it is the first): where a stream shows a fault begin, e.g.
+/// the first table reading with the drive off and the last one before it. `None` when none is
+/// flagged.
+pub fn first_flagged<T>(
+    readings: &[T],
+    after_ns: u64,
+    time: impl Fn(&T) -> u64,
+    flagged: impl Fn(&T) -> bool,
+) -> Option<(&T, &T)> {
+    let after: Vec<&T> = readings.iter().filter(|r| time(r) > after_ns).collect();
+    let i = after.iter().position(|r| flagged(r))?;
+    Some((after[i.saturating_sub(1)], after[i]))
+}
+
 /// A recording written by the independent lab writer (`tests/fixtures/lab/labwriter.py`, see
 /// `tests/fixtures/lab/README.md`): `preset` (e.g. `short-lab-null`), `seed`, and `--set`
 /// overrides `("traits.lost_frames.rate", "1e-3")` (values are JSON, else strings). Its truth is

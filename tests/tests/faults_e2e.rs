@@ -232,12 +232,13 @@ async fn a_drive_alarm_mid_window_aborts_at_the_next_poll_with_table_drive_fault
     // second of bench time (a 60× run), and the reading before was at speed.
     let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
     let spin_ns = rec.steps.first().map_or(0, |s| s.log_time_ns);
-    let spinning: Vec<_> = rec.table.iter().filter(|t| t.log_time_ns > spin_ns).collect();
-    let off = spinning
-        .iter()
-        .position(|t| t.msg.status & status::table::DRIVE_OFF != 0)
-        .expect("a reading with the drive off");
-    let (before, first_off) = (spinning[off.saturating_sub(1)], spinning[off]);
+    let (before, first_off) = bench_tests::first_flagged(
+        &rec.table,
+        spin_ns,
+        |t| t.log_time_ns,
+        |t| t.msg.status & status::table::DRIVE_OFF != 0,
+    )
+    .expect("a reading with the drive off");
     let to_abort = Duration::from_nanos(abort_ns.saturating_sub(first_off.log_time_ns));
     assert!(to_abort <= Duration::from_secs(1), "abort {to_abort:?} after the reading");
     assert!((before.msg.rate_rad_s.abs().to_degrees() * 60.0 - 10.0).abs() < 0.01);

@@ -147,12 +147,13 @@ fn assert_dropped_drive_aborts_at_once(run: &Run, event: &str) {
     let rec = &run.rec;
     let abort_ns = rec.steps.last().map_or(0, |s| s.log_time_ns);
     let spin_ns = rec.steps.first().map_or(0, |s| s.log_time_ns);
-    let spinning: Vec<_> = rec.table.iter().filter(|t| t.log_time_ns > spin_ns).collect();
-    let off = spinning
-        .iter()
-        .position(|t| t.msg.status & status::table::DRIVE_OFF != 0)
-        .expect("a reading with the drive off");
-    let (last_on, first_off) = (spinning[off.saturating_sub(1)], spinning[off]);
+    let (last_on, first_off) = bench_tests::first_flagged(
+        &rec.table,
+        spin_ns,
+        |t| t.log_time_ns,
+        |t| t.msg.status & status::table::DRIVE_OFF != 0,
+    )
+    .expect("a reading with the drive off");
     assert!(first_off.log_time_ns <= abort_ns, "the reading that showed it is recorded");
     let to_abort = Duration::from_nanos(abort_ns - first_off.log_time_ns);
     assert!(to_abort <= Duration::from_secs(1), "abort {to_abort:?} after the reading");

@@ -164,16 +164,24 @@ fn print_summary(r: &SoakReport) {
         count(FaultOutcome::Unexpected)
     );
     let m = &r.memory;
+    let bounds = m
+        .slope_bounds_mib_per_h
+        .map_or(String::new(), |(lo, hi)| format!(" [{lo:+.2}, {hi:+.2}] at 95 %"));
     println!(
-        "  memory: RSS {:.1} → {:.1} MiB, peak {:.1} MiB, slope after {:.0} h {} (limit {} MiB/h): {}",
+        "  memory: RSS {:.1} → {:.1} MiB, peak {:.1} MiB, slope over {:.2}–{:.2} h {}{bounds} \
+         (limit {} MiB/h): {}",
         m.start_mib,
         m.end_mib,
         m.peak_mib,
-        m.warm_up_h,
+        m.judged_from_h,
+        m.judged_to_h,
         m.slope_mib_per_h.map_or("n/a".to_string(), |s| format!("{s:+.3} MiB/h")),
         m.limit_mib_per_h,
         m.verdict
     );
+    if !m.note.is_empty() {
+        println!("    ({})", m.note);
+    }
     if r.passed {
         println!("  passed");
     } else {

@@ -28,8 +28,8 @@
 //! [`Fault::Drop`] — every n-th reply is not sent; [`Fault::Disconnect`] — once, on the next
 //! request: TCP closes the connection, serial goes silent for `seconds` of bench time;
 //! [`Fault::StuckTable`] — rate commands are acknowledged but not forwarded to the table;
-//! [`Fault::DriveAlarm`] — the drive drops at the next request as on a missed keep-alive
-//! (once; the fault switches itself off).
+//! [`Fault::DriveAlarm`] — the drive drops at the next request with the drive on, as on a
+//! missed keep-alive (once; the fault then switches itself off).
 
 use std::io;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -253,17 +253,16 @@ impl<T: RateTable> TableController<T> {
             .then(|| self.last_alc + Duration::from_secs_f64(self.opts.watchdog_s.max(0.0)))
     }
 
-    /// Drop the drive if the keep-alive is overdue, or on [`Fault::DriveAlarm`] (once).
+    /// Drop the drive if the keep-alive is overdue, or on [`Fault::DriveAlarm`] (once, the
+    /// first time the drive is on).
     async fn check_watchdog(&mut self) {
-        if self.opts.faults.find(|f| matches!(f, Fault::DriveAlarm)).is_some() {
+        if self.drive_on() && self.opts.faults.find(|f| matches!(f, Fault::DriveAlarm)).is_some() {
             self.opts.faults.remove(&Fault::DriveAlarm);
-            if self.drive_on() {
-                tracing::warn!("drive alarm fault: simulated drive dropped");
-                bump(&self.stats.drive_alarms);
-                self.alarm = true;
-                self.halt().await;
-                self.mode = CtlMode::Off;
-            }
+            tracing::warn!("drive alarm fault: simulated drive dropped");
+            bump(&self.stats.drive_alarms);
+            self.alarm = true;
+            self.halt().await;
+            self.mode = CtlMode::Off;
         }
         let Some(deadline) = self.watchdog_deadline() else { return };
         if self.clock.now() < deadline {
