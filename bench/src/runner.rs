@@ -123,27 +123,46 @@ pub struct RunOptions {
     pub stop: Option<StopSignal>,
     /// Limits of the fault handling.
     pub policy: FaultPolicy,
-    /// Kill-safety: at most this much bench time of data is lost if the process is killed
-    /// (SIGKILL) mid-run; `None`: [`DEFAULT_FLUSH_INTERVAL`]. See [`kill_safe_split`].
+    /// Kill-safety: what a kill (SIGKILL) mid-run may lose at most — of bench time in a paced
+    /// run (real or scaled time), of wall-clock work in a virtual-time run (a deterministic
+    /// function of scenario and seed: run it again); `None`: [`DEFAULT_FLUSH_INTERVAL`]. See
+    /// [`recorder_options`].
     pub flush_interval: Option<Duration>,
     /// Print a time mark on stderr every this much bench time (`bench run --time-marks-s`).
     pub time_marks: Option<Duration>,
 }
 
-/// Default of [`RunOptions::flush_interval`]: 1 s of bench time.
+/// Default of [`RunOptions::flush_interval`]: 1 s.
 pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 
-/// A flush interval for runs recorded into memory (the studies): long, so chunks fill and the
-/// run is not held to the recorder thread (a kill loses such a run whole anyway).
+/// A kill-safety bound for runs recorded into memory (the studies): long, so the recorder
+/// never flushes early (a kill loses such a run whole anyway).
 pub const IN_MEMORY_FLUSH_INTERVAL: Duration = Duration::from_secs(3600);
 
-/// How a kill-safety bound `loss` of bench time is split: the recorder flushes every ¾ of
-/// it, and in virtual time the run may run ahead of the recorder thread by at most ¼ of it
-/// (in real time the hand-over is immediate, one event at a time). Returns (flush interval,
-/// lag limit).
-pub fn kill_safe_split(loss: Duration) -> (Duration, Duration) {
+/// The recorder's options for a kill-safety bound `loss`.
+///
+/// - Paced (real or scaled time): the recorder flushes every ¾ of `loss` of bench time and at
+///   every step end, and events reach it one by one. Each flush closes a chunk; the file is
+///   compacted into full chunks when the run ends (`bench run` does it).
+/// - Virtual time: chunks close only when full (1 MiB), which takes milliseconds; the recorder
+///   also flushes every ¾ of `loss` of wall-clock time, and the run hands events over at
+///   least every ⅛ of it ([`ThreadedSink::hold_limit`]), two batches of 4096 at most waiting
+///   for the writer. The run never waits for the writer beyond that.
+///
+/// Returns the options and the hold limit for the hand-over (virtual time only).
+pub fn recorder_options(loss: Duration, paced: bool) -> (RecorderOptions, Option<Duration>) {
     let flush = loss * 3 / 4;
-    (flush, loss - flush)
+    if paced {
+        (RecorderOptions { flush_interval: Some(flush), ..RecorderOptions::default() }, None)
+    } else {
+        let options = RecorderOptions {
+            flush_interval: None,
+            flush_wall: Some(flush),
+            flush_on_step_end: false,
+            ..RecorderOptions::default()
+        };
+        (options, Some(loss / 8))
+    }
 }
 
 /// The recording side of a run: started before the devices move, finished after.
@@ -155,7 +174,7 @@ struct Session<W: Write + Seek + Send + 'static> {
 }
 
 /// Start the recording of `plan` into `writer` with `info`. `batch`: events per hand-over to
-/// the recorder thread (large in virtual time, where it amortises, bounded by the lag limit;
+/// the recorder thread (large in virtual time, where it amortises, bounded by the hold limit;
 /// 1 in real time, so a crash loses no more than the recorder's unflushed tail).
 fn start<W: Write + Seek + Send + 'static>(
     plan: &RunPlan,
@@ -165,15 +184,15 @@ fn start<W: Write + Seek + Send + 'static>(
     batch: usize,
 ) -> anyhow::Result<Session<W>> {
     let epoch_ns = info.epoch_ns;
-    let (flush, lag) = kill_safe_split(opts.flush_interval.unwrap_or(DEFAULT_FLUSH_INTERVAL));
-    let options = RecorderOptions { flush_interval: Some(flush), ..RecorderOptions::default() };
+    let loss = opts.flush_interval.unwrap_or(DEFAULT_FLUSH_INTERVAL);
+    let (options, hold) = recorder_options(loss, batch == 1);
     let recorder =
         Recorder::with_options(writer, info, options).context("cannot start the recording")?;
     // Serialising and compressing run on the second core.
     let mut sink =
         ThreadedSink::new(recorder, batch).context("cannot start the recorder thread")?;
-    if batch > 1 {
-        sink = sink.lag_limit(lag);
+    if let Some(hold) = hold {
+        sink = sink.hold_limit(hold);
     }
     if let Some(every) = opts.time_marks {
         sink = sink.time_marks(every, epoch_ns);

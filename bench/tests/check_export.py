@@ -74,7 +74,8 @@ for t, s in msgs["/bench/step"]:
         windows.append((a, t, label))
 
 def window(t):
-    return next((label for a, b, label in windows if a <= t < b), "")
+    """The record window's label, None (Parquet null) outside every window."""
+    return next((label for a, b, label in windows if a <= t < b), None)
 
 n = len(rows)
 picks = sorted({0, 1, 2, 3, 7, n // 7, n // 3, n // 2 + 1, (2 * n) // 3, n - 1})

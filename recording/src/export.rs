@@ -1,19 +1,25 @@
 //! `bench export REC.mcap --format csv|parquet`: one table per channel, for pandas and Polars.
 //!
-//! Columns: `log_time_ns`, `publish_time_ns`, `sequence`, then the message's JSON fields in the
-//! order they first appear, nested objects flattened with dots (`timestamp.sec`). A column whose
-//! values are all integers is an integer column (i64; u64 above `i64::MAX` make it a float
-//! column), all numbers a float column (f64), all booleans a boolean column; anything else is
-//! text (arrays and mixed values as JSON text). A missing field or `null` is an empty CSV cell
-//! or a Parquet NULL. Channels whose message encoding is not `json` are skipped and reported.
-//! Any readable recording exports, a cut one up to its cut.
+//! Columns: `timestamp` (the log time: TIMESTAMP(NANOS, UTC) in Parquet, RFC 3339 UTC text
+//! with nanoseconds in CSV), `log_time_ns`, `publish_time_ns`, `sequence`, then the message's
+//! JSON fields in the order they first appear, nested objects flattened with dots
+//! (`timestamp.sec`; a channel with a field `timestamp` gets `log_timestamp` instead). A field
+//! the recording contract defines has the contract's type whatever the values
+//! ([`contract_type`]: a gyro without a temperature sensor still has a DOUBLE
+//! `temperature` column, all null). Other columns take the narrowest type of their values: all
+//! integers an integer column (i64; u64 above `i64::MAX` make it a float column), all numbers a
+//! float column (f64), all booleans a boolean column; anything else is text (arrays and mixed
+//! values as JSON text). A missing field or `null` is an empty CSV cell or a Parquet NULL.
+//! Channels whose message encoding is not `json` are skipped and reported. Any readable
+//! recording exports, a cut one up to its cut.
 //!
-//! Parquet tables start with `timestamp`, the log time as TIMESTAMP(NANOS, UTC), and carry the
-//! unit of every column that has one in the file's key-value metadata (`unit.<column>` =
-//! `rad/s`, and all of them as one JSON object under `bench.units`). With `merged`, one more
-//! table, `merged`: every gyro sample with the latest table and chamber readings logged at or
-//! before it (an as-of join: nothing from the future, nothing interpolated) and the label of
-//! the record window it falls in ([`MERGED`]).
+//! Units: every table carries the unit of each column that has one — Parquet in the file's
+//! key-value metadata (`unit.<column>` = `rad/s`, and all of them as one JSON object under
+//! `bench.units`), CSV in a sidecar `NAME.units.csv` (`column,unit`, one row per column, the
+//! unit empty where there is none). With `merged`, one more table, `merged`: every gyro sample
+//! with the latest table and chamber readings logged at or before it (an as-of join: nothing
+//! from the future, nothing interpolated) and the label of the record window it falls in, null
+//! outside ([`MERGED`]).
 //!
 //! ```no_run
 //! use bench_recording::export::{export_file, Format};
@@ -101,6 +107,9 @@ pub struct Table {
     pub rows: usize,
     /// Column names.
     pub columns: Vec<String>,
+    /// The CSV table's units sidecar (`NAME.units.csv`); `None` for Parquet, which carries
+    /// them in its metadata.
+    pub units: Option<PathBuf>,
 }
 
 /// What an export wrote.
@@ -137,6 +146,34 @@ pub fn column_unit(topic: &str, column: &str) -> Option<&'static str> {
         ("/table/state", "angle") => Some("rad"),
         ("/gyro/rate" | "/chamber/state", "temperature") => Some("°C"),
         ("/chamber/state", "setpoint") => Some("°C"),
+        _ => None,
+    }
+}
+
+/// The type the recording contract gives a column of a contract channel (or of the merged
+/// table), whatever the values in a file; `None` for a column it does not define.
+pub fn contract_type(topic: &str, column: &str) -> Option<ColumnType> {
+    use ColumnType::{Float, Int, Text};
+    let (topic, column) = match (topic, column) {
+        (MERGED, "bench_time_s") => return Some(Float),
+        (MERGED, "record_window") => return Some(Text),
+        (MERGED, c) => match c.split_once('_') {
+            Some(("gyro", rest)) => ("/gyro/rate", rest),
+            Some(("table", rest)) => ("/table/state", rest),
+            Some(("chamber", rest)) => ("/chamber/state", rest),
+            _ => return None,
+        },
+        other => other,
+    };
+    match (topic, column) {
+        ("/gyro/rate" | "/table/state" | "/chamber/state", "log_time_ns") => Some(Int),
+        ("/gyro/rate", "rate" | "temperature") => Some(Float),
+        ("/gyro/rate", "seq") => Some(Int),
+        ("/table/state", "angle" | "rate" | "rate_command") => Some(Float),
+        ("/chamber/state", "temperature" | "setpoint") => Some(Float),
+        ("/gyro/rate" | "/table/state" | "/chamber/state", "status") => Some(Int),
+        ("/bench/step", "index") => Some(Int),
+        ("/bench/step", "name" | "event" | "label") => Some(Text),
         _ => None,
     }
 }
@@ -348,31 +385,87 @@ pub fn export_with<R: std::io::Read>(
             continue;
         }
         let path = out_dir.join(format!("{name}.{}", format.extension()));
-        let types = column_types(ch);
+        let types = column_types(topic, ch);
         let mut columns: Vec<String> =
-            ["log_time_ns", "publish_time_ns", "sequence"].map(String::from).to_vec();
-        match format {
-            Format::Csv => write_csv(&path, ch, &types)?,
+            [timestamp_name(ch), "log_time_ns", "publish_time_ns", "sequence"]
+                .map(String::from)
+                .to_vec();
+        columns.extend(ch.columns.iter().cloned());
+        let units = match format {
+            Format::Csv => {
+                write_csv(&path, ch)?;
+                let units = out_dir.join(format!("{name}.units.csv"));
+                write_units(&units, topic, &columns)?;
+                Some(units)
+            }
             Format::Parquet => {
                 write_parquet(&path, topic, ch, &types)?;
-                columns.insert(0, timestamp_name(ch).to_owned());
+                None
             }
-        }
-        columns.extend(ch.columns.iter().cloned());
-        report.tables.push(Table { topic: topic.to_owned(), path, rows: ch.rows.len(), columns });
+        };
+        let rows = ch.rows.len();
+        report.tables.push(Table { topic: topic.to_owned(), path, rows, columns, units });
     }
     Ok(report)
 }
 
-/// Each column's type: the narrowest that holds all its values.
-fn column_types(ch: &Channel) -> Vec<ColumnType> {
+/// Each column's type: the contract's where it defines one and the values fit it, else the
+/// narrowest that holds all its values.
+fn column_types(topic: &str, ch: &Channel) -> Vec<ColumnType> {
     let mut types = vec![ColumnType::Null; ch.columns.len()];
     for (c, v) in ch.rows.iter().flatten() {
         if let Some(t) = types.get_mut(*c) {
             *t = t.widen(v);
         }
     }
+    for (t, name) in types.iter_mut().zip(&ch.columns) {
+        if let Some(want) = contract_type(topic, name) {
+            *t = match (*t, want) {
+                (ColumnType::Null, w) => w,
+                (ColumnType::Int, ColumnType::Float) => ColumnType::Float,
+                (got, _) => got,
+            };
+        }
+    }
     types
+}
+
+/// The unit of a table's column as the units sidecar gives it.
+fn sidecar_unit(topic: &str, column: &str) -> &'static str {
+    match column {
+        "timestamp" | "log_timestamp" => "RFC 3339, UTC",
+        c => column_unit(topic, c).unwrap_or(""),
+    }
+}
+
+/// `NAME.units.csv`: `column,unit`, one row per column of the table.
+fn write_units(path: &Path, topic: &str, columns: &[String]) -> Result<(), ExportError> {
+    let io = |source| ExportError::Write { path: path.to_path_buf(), source };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut rows = vec![["column", "unit"]];
+    rows.extend(columns.iter().map(|c| [c.as_str(), sidecar_unit(topic, c)]));
+    for r in rows {
+        w.write_record(r).map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    }
+    let bytes = w.into_inner().map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    std::fs::write(path, bytes).map_err(io)
+}
+
+/// A log time as RFC 3339 UTC text with nanoseconds: `2026-11-27T10:00:00.050000000Z`.
+fn rfc3339_ns(ns: i64) -> String {
+    match time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ns)) {
+        Ok(t) => format!(
+            "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:09}Z",
+            t.year(),
+            u8::from(t.month()),
+            t.day(),
+            t.hour(),
+            t.minute(),
+            t.second(),
+            t.nanosecond()
+        ),
+        Err(_) => String::new(),
+    }
 }
 
 /// The Parquet timestamp column's name: `timestamp`, or `log_timestamp` when the channel has
@@ -398,7 +491,7 @@ fn by_time(ch: &Channel) -> Vec<usize> {
 /// `/chamber/state` messages logged at or before the sample as `table_<field>` and
 /// `chamber_<field>` with their `table_log_time_ns` / `chamber_log_time_ns` (null before the
 /// first), and `record_window`: the label of the `record…` step whose start ≤ t < end (its
-/// abort, or the end of the recording when it has none), empty outside.
+/// abort, or the end of the recording when it has none), null outside.
 fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
     let empty = Channel {
         encoding: "json".into(),
@@ -449,11 +542,8 @@ fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
             row.push((*log_col, Value::from(ch.log[src])));
             row.extend(ch.rows[src].iter().map(|(c, v)| (cols[*c], v.clone())));
         }
-        let label = windows
-            .iter()
-            .find(|(a, b, _)| *a <= t && t < *b)
-            .map_or(String::new(), |(_, _, l)| l.clone());
-        row.push((window_col, Value::from(label)));
+        let label = windows.iter().find(|(a, b, _)| *a <= t && t < *b);
+        row.push((window_col, label.map_or(Value::Null, |(_, _, l)| Value::from(l.as_str()))));
         out.log.push(t);
         out.publish.push(gyro.publish[r]);
         out.sequence.push(gyro.sequence[r]);
@@ -524,7 +614,7 @@ fn cell(v: &Value) -> String {
     }
 }
 
-fn write_csv(path: &Path, ch: &Channel, _types: &[ColumnType]) -> Result<(), ExportError> {
+fn write_csv(path: &Path, ch: &Channel) -> Result<(), ExportError> {
     let io = |source| ExportError::Write { path: path.to_path_buf(), source };
     let file = File::create(path).map_err(io)?;
     let mut w = csv::Writer::from_writer(BufWriter::new(file));
@@ -532,7 +622,8 @@ fn write_csv(path: &Path, ch: &Channel, _types: &[ColumnType]) -> Result<(), Exp
         path: path.to_path_buf(),
         source: std::io::Error::other(e.to_string()),
     };
-    let mut header: Vec<&str> = vec!["log_time_ns", "publish_time_ns", "sequence"];
+    let mut header: Vec<&str> =
+        vec![timestamp_name(ch), "log_time_ns", "publish_time_ns", "sequence"];
     header.extend(ch.columns.iter().map(String::as_str));
     w.write_record(&header).map_err(csv_err)?;
     let mut cells = vec![String::new(); ch.columns.len()];
@@ -543,8 +634,10 @@ fn write_csv(path: &Path, ch: &Channel, _types: &[ColumnType]) -> Result<(), Exp
                 *slot = cell(v);
             }
         }
+        let log = ch.log.get(r).copied().unwrap_or_default();
         let fixed = [
-            ch.log.get(r).copied().unwrap_or_default().to_string(),
+            rfc3339_ns(log),
+            log.to_string(),
             ch.publish.get(r).copied().unwrap_or_default().to_string(),
             ch.sequence.get(r).copied().unwrap_or_default().to_string(),
         ];

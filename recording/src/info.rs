@@ -9,7 +9,7 @@ use std::{
 
 use crate::message::StepEvent;
 use crate::reader::{seconds_since, time_zero_ns};
-use crate::reader::{End, Item, RecordingError, RecordingReader};
+use crate::reader::{DamageReport, End, Item, RecordingError, RecordingReader};
 use crate::schema::{META_RUN, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_STEP, TOPIC_TABLE};
 
 /// A gap in a channel: an interval between consecutive messages longer than 1.5 × the
@@ -108,6 +108,10 @@ pub struct RecordingInfo {
     pub end: End,
     /// The container's own description (header, summary), when read from a file.
     pub container: Option<ContainerInfo>,
+    /// What was damaged and skipped (empty for an intact file).
+    pub damage: DamageReport,
+    /// Chunks read, and how many of them had a CRC, checked.
+    pub chunks: (u64, u64),
 }
 
 /// Report on a recording file.
@@ -183,7 +187,7 @@ pub fn info_from_reader<R: Read>(
     let t0 = start_ns.unwrap_or(0);
     let rel = |t: u64| seconds_since(t0, t);
 
-    let mut channels: Vec<_> = reader.channels().cloned().collect();
+    let mut channels: Vec<_> = reader.channels();
     channels.sort_by_key(|c| c.id);
     let channels = channels
         .into_iter()
@@ -237,6 +241,8 @@ pub fn info_from_reader<R: Read>(
         outcome,
         end: reader.end().clone(),
         container: None,
+        damage: reader.damage().clone(),
+        chunks: reader.chunks_read(),
     })
 }
 
@@ -428,6 +434,55 @@ fn channel_report(
     }
 }
 
+impl RecordingInfo {
+    /// Chunks and their CRCs, and every damaged part with its bench time.
+    fn fmt_damage(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (chunks, checked) = self.chunks;
+        if chunks > 0 {
+            writeln!(
+                f,
+                "  chunks: {chunks} read, {checked} CRC-checked, {} damaged",
+                self.damage.chunks_damaged()
+            )?;
+        }
+        if self.damage.is_empty() {
+            return Ok(());
+        }
+        let t0 = self.start_ns.unwrap_or(0);
+        let rel = |t: u64| seconds_since(t0, t);
+        writeln!(f, "  DAMAGED: {}; the rest was read", self.damage.summary())?;
+        let read: u64 = self.channels.iter().map(|c| c.count).sum();
+        if let Some(n) = self.container.as_ref().and_then(|c| c.message_count) {
+            if n > read {
+                writeln!(
+                    f,
+                    "    the summary counts {n} messages; {read} were read ({} lost)",
+                    n - read
+                )?;
+            }
+        }
+        let covered: f64 =
+            self.damage.spans_ns().iter().map(|(a, b)| b.saturating_sub(*a) as f64 * 1e-9).sum();
+        if covered > 0.0 {
+            writeln!(f, "    the damage covers {} of bench time", human_duration(covered))?;
+        }
+        const SHOWN: usize = 20;
+        for d in self.damage.entries.iter().take(SHOWN) {
+            write!(f, "    {d}")?;
+            if let Some((a, b)) = d.span_ns {
+                write!(f, "; bench time {:.3} s .. {:.3} s", rel(a), rel(b))?;
+            }
+            writeln!(f)?;
+        }
+        let more =
+            self.damage.entries.len().saturating_sub(SHOWN) as u64 + self.damage.unlisted_messages;
+        if more > 0 {
+            writeln!(f, "    ... {more} more")?;
+        }
+        Ok(())
+    }
+}
+
 fn opt_s(v: Option<f64>) -> String {
     v.map(|s| format!("{s:.3} s")).unwrap_or_else(|| "-".to_string())
 }
@@ -492,6 +547,7 @@ impl fmt::Display for RecordingInfo {
             )?,
             End::Reading => {}
         }
+        self.fmt_damage(f)?;
         match &self.outcome {
             Some(o) => writeln!(f, "  outcome: {o}")?,
             None => writeln!(f, "  outcome: unknown (no bench.run record: the run did not end)")?,

@@ -64,8 +64,8 @@ pub use message::{
     ChamberMsg, GyroMsg, LogLevel, ModelRole, Outcome, StepEvent, StepMsg, TableMsg,
 };
 pub use reader::{
-    read_summary, summary_counts, AttachmentRecord, ChannelInfo, End, Item, MetadataRecord,
-    OtherMessage, Recording, RecordingError, RecordingReader, Stamped,
+    read_summary, summary_counts, AttachmentRecord, ChannelInfo, Damage, DamageKind, DamageReport,
+    End, Item, MetadataRecord, OtherMessage, Recording, RecordingError, RecordingReader, Stamped,
 };
 pub use site::{Axis, MetadataError, Site, SiteNumber};
 pub use writer::{RecordError, Recorder, RecorderOptions, RunInfo, TomlAttachment};

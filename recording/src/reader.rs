@@ -1,38 +1,46 @@
 //! The reader: accepts any conforming MCAP file, whoever wrote it — with or without a summary
-//! section (a crashed run), chunked or not, chunks compressed with zstd, lz4 or not at all.
+//! section (a crashed run), chunked or not, chunks compressed with zstd, lz4 or not at all — and
+//! loses only what is damaged.
 //!
-//! [`RecordingReader`] streams a file in one linear pass (built on the sans-IO
-//! `mcap::sans_io::LinearReader`, so memory stays at about one chunk) and decodes the four
-//! required channels into typed messages, ignoring unknown channels and unknown fields.
+//! [`RecordingReader`] streams a file in one linear pass and decodes the four required
+//! channels into typed messages, ignoring unknown channels and unknown fields. The top level is
+//! framed on the caller's thread; chunks are decompressed, CRC-checked and decoded on worker
+//! threads, several at once, and handed out in file order (memory stays at a few chunks). A
+//! chunk that fails its CRC or does not decompress, bytes that do not frame as records, a
+//! message that does not match the contract or whose channel no record defines: each is skipped
+//! and listed with its byte offset, channel and time span ([`DamageReport`]), and reading goes
+//! on after it. A file that stops part-way is read up to where it stops ([`End::Cut`]).
 //! [`Recording::load`] collects everything; [`crate::info`] computes the `bench info` report;
 //! [`summary_counts`] reads the message counts of the summary section, an independent path.
 
+pub(crate) mod chunk;
+mod damage;
+mod engine;
+mod notes;
+pub(crate) mod scan;
+
 use std::{
-    collections::{BTreeMap, HashMap},
+    collections::BTreeMap,
     fs::File,
     io::{BufReader, Read, Seek, SeekFrom},
     path::{Path, PathBuf},
-    sync::{
-        mpsc::{sync_channel, Receiver, SyncSender},
-        Arc,
-    },
+    sync::Arc,
 };
 
 use mcap::{
-    records::Record,
-    sans_io::{
-        LinearReadEvent, LinearReader, LinearReaderOptions, SummaryReadEvent, SummaryReader,
-    },
+    records::{op, Record},
+    sans_io::{SummaryReadEvent, SummaryReader},
 };
+
+pub use damage::{Damage, DamageKind, DamageReport};
+use engine::{Chan, Decode, Engine, Kind, Msg, Unit};
 
 use crate::message::{ChamberMsg, GyroMsg, Outcome, StepMsg, TableMsg};
-use crate::schema::{
-    MESSAGE_ENCODING, META_RUN, META_SITE, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_STEP, TOPIC_TABLE,
-};
+use crate::schema::{MESSAGE_ENCODING, META_RUN, META_SITE};
 use crate::site::{MetadataError, Site};
 
-/// What went wrong reading a recording. Damage at the end of a file (a crashed run) is not an
-/// error: see [`End`].
+/// What stops a recording from being read at all. Damage inside a file is not an error (it is
+/// skipped and listed: [`DamageReport`]), nor is a file that stops part-way (see [`End`]).
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
     /// The file could not be opened or read.
@@ -61,26 +69,6 @@ pub enum RecordingError {
         /// What the MCAP reader saw.
         reason: String,
     },
-    /// A message on a required channel does not decode as its contract schema says.
-    #[error(
-        "{topic} message sequence {sequence} (log_time {log_time_ns} ns, before byte {at_byte}): \
-         body does not match the contract: {detail}"
-    )]
-    BadMessage {
-        /// Channel.
-        topic: String,
-        /// Channel sequence number.
-        sequence: u32,
-        /// Log time.
-        log_time_ns: u64,
-        /// Bytes read so far.
-        at_byte: u64,
-        /// Which field is wrong and how (or the JSON syntax error with its column).
-        detail: String,
-        /// The JSON decoder's error.
-        #[source]
-        source: serde_json::Error,
-    },
     /// A required channel uses a message encoding other than `json`.
     #[error("{topic}: message encoding `{encoding}` is not `json`")]
     UnsupportedEncoding {
@@ -88,16 +76,6 @@ pub enum RecordingError {
         topic: String,
         /// Its message encoding.
         encoding: String,
-    },
-    /// A message refers to a channel that no earlier Channel record defined.
-    #[error("message sequence {sequence} (before byte {at_byte}) refers to unknown channel id {channel_id}")]
-    UnknownChannel {
-        /// Channel id.
-        channel_id: u16,
-        /// Sequence number.
-        sequence: u32,
-        /// Bytes read so far.
-        at_byte: u64,
     },
     /// The summary section is present but unreadable.
     #[error("{}: summary section: {source}", path.display())]
@@ -211,209 +189,276 @@ pub enum End {
     },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    Gyro,
-    Table,
-    Chamber,
-    Step,
-    Other,
+/// One decoded item, a damaged part, or an error, as the workers hand them on.
+enum Slot {
+    Item(Item),
+    Damage(Damage),
+    Error(RecordingError),
 }
 
-struct Chan {
-    info: Arc<ChannelInfo>,
-    kind: Kind,
+/// Decodes the contract's channels into [`Item`]s; other channels stay raw.
+struct Items;
+
+impl Decode for Items {
+    type Out = Vec<Slot>;
+
+    fn start(&self) -> Vec<Slot> {
+        Vec::new()
+    }
+
+    fn message(&self, out: &mut Vec<Slot>, chan: &Chan, m: Msg<'_>) {
+        let h = &m.header;
+        let slot = if chan.kind == Kind::Other {
+            Slot::Item(Item::Other(OtherMessage {
+                channel: chan.info.clone(),
+                log_time_ns: h.log_time,
+                publish_time_ns: h.publish_time,
+                sequence: h.sequence,
+                data: m.data.to_vec(),
+            }))
+        } else {
+            match decode_body(chan.kind, &m) {
+                Ok(item) => Slot::Item(item),
+                Err(detail) => Slot::Damage(Damage {
+                    at_byte: m.at,
+                    bytes: 0,
+                    kind: DamageKind::Message {
+                        topic: chan.info.topic.clone(),
+                        sequence: h.sequence,
+                        log_time_ns: h.log_time,
+                        detail,
+                    },
+                    span_ns: Some((h.log_time, h.log_time)),
+                    lost: BTreeMap::new(),
+                    in_summary: false,
+                }),
+            }
+        };
+        out.push(slot);
+    }
+
+    fn orphan(&self, out: &mut Vec<Slot>, m: Msg<'_>) {
+        let h = &m.header;
+        out.push(Slot::Damage(Damage {
+            at_byte: m.at,
+            bytes: 0,
+            kind: DamageKind::Orphan {
+                channel_id: h.channel_id,
+                sequence: h.sequence,
+                log_time_ns: h.log_time,
+            },
+            span_ns: Some((h.log_time, h.log_time)),
+            lost: BTreeMap::new(),
+            in_summary: false,
+        }));
+    }
+
+    fn channel(&self, out: &mut Vec<Slot>, chan: &Chan) {
+        if chan.kind != Kind::Other && chan.info.message_encoding != MESSAGE_ENCODING {
+            out.push(Slot::Error(RecordingError::UnsupportedEncoding {
+                topic: chan.info.topic.clone(),
+                encoding: chan.info.message_encoding.clone(),
+            }));
+        }
+    }
 }
 
-/// Streams one recording from any byte source, in file order.
-///
-/// Framing (reading, chunk decompression and CRC checks) runs on the caller's thread; once a file
-/// holds more than one batch of messages, the JSON bodies of the contract's channels are decoded
-/// on a second thread, a batch behind, so the two overlap. Items, errors and their order are the
-/// same either way.
-pub struct RecordingReader<R> {
-    framer: Framer<R>,
-    /// Items ready to hand out, in file order.
-    ready: std::vec::IntoIter<Result<Item, RecordingError>>,
-    decoder: Decoder,
-}
-
-/// The single-threaded half: bytes in, records framed, message bodies batched.
-struct Framer<R> {
+/// A reader not started yet (options may still change).
+struct Start<R> {
     source: R,
-    reader: LinearReader,
-    state: FrameState,
-}
-
-struct FrameState {
-    at_byte: u64,
-    records: u64,
-    schemas: HashMap<u16, (String, String)>,
-    /// Indexed by channel id.
-    channels: Vec<Option<Chan>>,
-    end: End,
-    /// No more input: the file ended, was cut, or failed.
-    done: bool,
+    limit: u64,
+    file_len: Option<u64>,
+    summary: Vec<(u8, Vec<u8>)>,
     raw: bool,
 }
 
-/// Where message bodies are decoded.
-enum Decoder {
-    /// Nothing framed yet.
-    Unstarted,
-    /// On the caller's thread (a file of one batch, or no thread could be started).
-    Inline,
-    /// On a worker thread, `in_flight` batches behind the framing.
-    Worker {
-        to: SyncSender<Batch>,
-        from: Receiver<Vec<Result<Item, RecordingError>>>,
-        in_flight: usize,
-    },
-}
-
-/// Messages framed per batch handed to the decoder.
-const BATCH_MESSAGES: usize = 2048;
-/// Batches the framing may run ahead of the decoding.
-const MAX_IN_FLIGHT: usize = 2;
-
-/// Framed records in file order; message bodies still to decode are slices of `bytes`.
-#[derive(Default)]
-struct Batch {
-    bytes: Vec<u8>,
-    slots: Vec<Slot>,
-}
-
-enum Slot {
-    Ready(Result<Item, RecordingError>),
-    Body(Body),
-}
-
-/// A message on one of the contract's channels, framed but not decoded.
-struct Body {
-    kind: Kind,
-    log_time_ns: u64,
-    publish_time_ns: u64,
-    sequence: u32,
-    at_byte: u64,
-    range: std::ops::Range<usize>,
+/// Streams one recording from any byte source, in file order (module docs). Damaged parts are
+/// skipped and listed in [`RecordingReader::damage`]; items, their order and the damage are the
+/// same however many threads decode.
+pub struct RecordingReader<R> {
+    start: Option<Start<R>>,
+    engine: Option<Engine<R, Items>>,
+    /// Items ready to hand out, in file order.
+    ready: std::vec::IntoIter<Slot>,
+    damage: DamageReport,
+    /// Latest log time handed out, and the skipped spans waiting for the next one.
+    last_log_ns: Option<u64>,
+    open_spans: Vec<usize>,
+    end: End,
+    done: bool,
 }
 
 /// Largest record or chunk accepted when the file size is unknown.
 pub(crate) const MAX_RECORD: usize = 1 << 30;
 
 impl RecordingReader<BufReader<File>> {
-    /// Open a file.
+    /// Open a file (its summary's channel definitions, where it has a readable one, stand in for
+    /// definitions lost to damage).
     pub fn open(path: &Path) -> Result<Self, RecordingError> {
-        let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
-        let file = File::open(path).map_err(open)?;
-        let len = file.metadata().map_err(open)?.len();
-        let limit = usize::try_from(len).unwrap_or(MAX_RECORD).min(MAX_RECORD);
-        Ok(Self::with_limit(BufReader::with_capacity(256 * 1024, file), limit))
+        Self::open_through(path, |file| file)
     }
 }
 
 impl<R: Read> RecordingReader<R> {
     /// Read from any source (records larger than 1 GiB are refused as damage).
     pub fn new(source: R) -> Self {
-        Self::with_limit(source, MAX_RECORD)
+        Self::with_limit(source, MAX_RECORD as u64, None)
     }
 
-    fn with_limit(source: R, record_length_limit: usize) -> Self {
-        let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(record_length_limit.max(4096));
+    /// Read the file at `path` through `wrap` (e.g. a progress counter around the file).
+    pub fn open_through(
+        path: &Path,
+        wrap: impl FnOnce(BufReader<File>) -> R,
+    ) -> Result<Self, RecordingError> {
+        let open = |source| RecordingError::Open { path: path.to_path_buf(), source };
+        let mut file = File::open(path).map_err(open)?;
+        let len = file.metadata().map_err(open)?.len();
+        let summary = summary_records(&mut file, len).unwrap_or_default();
+        file.seek(SeekFrom::Start(0)).map_err(open)?;
+        let limit = len.min(MAX_RECORD as u64);
+        let mut reader =
+            Self::with_limit(wrap(BufReader::with_capacity(256 * 1024, file)), limit, Some(len));
+        if let Some(s) = reader.start.as_mut() {
+            s.summary = summary;
+        }
+        Ok(reader)
+    }
+
+    fn with_limit(source: R, limit: u64, file_len: Option<u64>) -> Self {
         Self {
-            framer: Framer {
+            start: Some(Start {
                 source,
-                reader: LinearReader::new_with_options(options),
-                state: FrameState {
-                    at_byte: 0,
-                    records: 0,
-                    schemas: HashMap::new(),
-                    channels: Vec::new(),
-                    end: End::Reading,
-                    done: false,
-                    raw: false,
-                },
-            },
+                limit: limit.max(4096),
+                file_len,
+                summary: Vec::new(),
+                raw: false,
+            }),
+            engine: None,
             ready: Vec::new().into_iter(),
-            decoder: Decoder::Unstarted,
+            damage: DamageReport::default(),
+            last_log_ns: None,
+            open_spans: Vec::new(),
+            end: End::Reading,
+            done: false,
         }
     }
 
     /// Decode nothing: every message, on every channel, comes as [`Item::Other`] with its raw
     /// body (for tools that copy or export any channel).
     pub fn raw(mut self) -> Self {
-        self.framer.state.raw = true;
+        if let Some(s) = self.start.as_mut() {
+            s.raw = true;
+        }
         self
     }
 
     /// How the file ended (meaningful once the iterator returned `None`).
     pub fn end(&self) -> &End {
-        &self.framer.state.end
+        &self.end
     }
 
-    /// Channels seen so far, by id (framing may run a few thousand messages ahead of the items
-    /// handed out).
-    pub fn channels(&self) -> impl Iterator<Item = &ChannelInfo> {
-        self.framer.state.channels.iter().flatten().map(|c| c.info.as_ref())
+    /// What was damaged and skipped so far.
+    pub fn damage(&self) -> &DamageReport {
+        &self.damage
+    }
+
+    /// Chunks read so far (damaged ones included), and how many of them had their CRC checked
+    /// (a writer may leave a chunk's CRC 0: not computed).
+    pub fn chunks_read(&self) -> (u64, u64) {
+        self.engine.as_ref().map_or((0, 0), |e| (e.chunks_read, e.chunks_crc_checked))
+    }
+
+    /// Channels seen so far, by id (framing may run a few chunks ahead of the items handed
+    /// out).
+    pub fn channels(&self) -> Vec<ChannelInfo> {
+        self.engine
+            .as_ref()
+            .map(|e| e.channels().iter().map(|c| c.as_ref().clone()).collect())
+            .unwrap_or_default()
     }
 
     /// Bytes read so far (framing may run ahead of the items handed out).
     pub fn bytes_read(&self) -> u64 {
-        self.framer.state.at_byte
+        self.engine.as_ref().map_or(0, |e| e.bytes_read())
+    }
+
+    fn engine(&mut self) -> &mut Engine<R, Items> {
+        if let Some(s) = self.start.take() {
+            let mut e = Engine::new(s.source, s.limit, s.file_len, Items, s.raw);
+            e.predefine(&s.summary);
+            self.engine = Some(e);
+        }
+        self.engine.as_mut().expect("started above")
+    }
+
+    fn note_damage(&mut self, mut d: Damage) {
+        if let DamageKind::Bytes { .. } = d.kind {
+            // Between the messages before and after it.
+            if let Some(t) = self.last_log_ns {
+                d.span_ns = Some((t, t));
+                self.open_spans.push(self.damage.entries.len());
+            }
+        }
+        self.damage.push(d);
+    }
+
+    fn note_time(&mut self, t: u64) {
+        for i in self.open_spans.drain(..) {
+            if let Some(Some(span)) = self.damage.entries.get_mut(i).map(|d| d.span_ns.as_mut()) {
+                span.1 = span.1.max(t);
+            }
+        }
+        self.last_log_ns = Some(self.last_log_ns.map_or(t, |l| l.max(t)));
     }
 }
 
-impl<R: Read> Framer<R> {
-    /// Frame records until a batch is full or the input ends.
-    fn batch(&mut self) -> Batch {
-        let mut batch = Batch {
-            bytes: Vec::with_capacity(BATCH_MESSAGES * 128),
-            slots: Vec::with_capacity(BATCH_MESSAGES),
-        };
-        let state = &mut self.state;
-        while !state.done && batch.slots.len() < BATCH_MESSAGES {
-            let Some(event) = self.reader.next_event() else {
-                state.done = true;
-                break;
-            };
-            let parsed = match event {
-                Err(e) => {
-                    state.stop(e.to_string(), &mut batch);
-                    break;
-                }
-                Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let n = loop {
-                        match self.source.read(self.reader.insert(need)) {
-                            Ok(n) => break Ok(n),
-                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                            Err(source) => break Err(source),
-                        }
+impl<R: Read> Iterator for RecordingReader<R> {
+    type Item = Result<Item, RecordingError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            match self.ready.next() {
+                Some(Slot::Item(item)) => {
+                    let t = match &item {
+                        Item::Gyro(m) => Some(m.log_time_ns),
+                        Item::Table(m) => Some(m.log_time_ns),
+                        Item::Chamber(m) => Some(m.log_time_ns),
+                        Item::Step(m) => Some(m.log_time_ns),
+                        Item::Other(m) => Some(m.log_time_ns),
+                        _ => None,
                     };
-                    match n {
-                        Ok(n) => {
-                            self.reader.notify_read(n);
-                            state.at_byte += n as u64;
-                        }
-                        Err(source) => {
-                            state.done = true;
-                            let at_byte = state.at_byte;
-                            batch
-                                .slots
-                                .push(Slot::Ready(Err(RecordingError::Io { at_byte, source })));
-                        }
+                    if let Some(t) = t {
+                        self.note_time(t);
                     }
+                    return Some(Ok(item));
+                }
+                Some(Slot::Damage(d)) => {
+                    self.note_damage(d);
                     continue;
                 }
-                Ok(LinearReadEvent::Record { opcode, data }) => parse_record(opcode, data),
+                Some(Slot::Error(e)) => return Some(Err(e)),
+                None => {}
+            }
+            if self.done {
+                return None;
+            }
+            let unit = self.engine().next_unit();
+            let Some(unit) = unit else {
+                self.end = self.engine().end().clone();
+                self.done = true;
+                return None;
             };
-            match parsed {
-                Err(e) => state.stop(format!("bad record: {e}"), &mut batch),
-                Ok(record) => state.on_record(record, &mut batch),
+            match unit {
+                Unit::Out(slots) => self.ready = slots.into_iter(),
+                Unit::Metadata(m) => return Some(Ok(Item::Metadata(m))),
+                Unit::Attachment(a) => return Some(Ok(Item::Attachment(a))),
+                Unit::Damage(d) => self.note_damage(d),
+                Unit::Error(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
             }
         }
-        batch
     }
 }
 
@@ -448,237 +493,79 @@ fn attachment_fits(body: &[u8]) -> bool {
     at.checked_add(12).is_some_and(|end| end <= body.len()) // data length, CRC
 }
 
-impl FrameState {
-    /// The MCAP reader gave up: a file that never looked like MCAP is an error, anything after
-    /// the first record is a cut file.
-    fn stop(&mut self, reason: String, batch: &mut Batch) {
-        self.done = true;
-        if self.records == 0 {
-            let at_byte = self.at_byte;
-            batch.slots.push(Slot::Ready(Err(RecordingError::NotMcap { at_byte, reason })));
-        } else {
-            self.end = End::Cut { at_byte: self.at_byte, reason };
-        }
-    }
-
-    fn on_record(&mut self, record: Record<'_>, batch: &mut Batch) {
-        self.records += 1;
-        let ready = |batch: &mut Batch, item| batch.slots.push(Slot::Ready(item));
-        match record {
-            Record::Schema { header, .. } => {
-                self.schemas.insert(header.id, (header.name, header.encoding));
-            }
-            Record::Channel(c) => {
-                let (schema_name, schema_encoding) =
-                    self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let kind = match c.topic.as_str() {
-                    _ if self.raw => Kind::Other,
-                    TOPIC_GYRO => Kind::Gyro,
-                    TOPIC_TABLE => Kind::Table,
-                    TOPIC_CHAMBER => Kind::Chamber,
-                    TOPIC_STEP => Kind::Step,
-                    _ => Kind::Other,
-                };
-                if kind != Kind::Other && c.message_encoding != MESSAGE_ENCODING {
-                    let error = RecordingError::UnsupportedEncoding {
-                        topic: c.topic,
-                        encoding: c.message_encoding,
-                    };
-                    return ready(batch, Err(error));
-                }
-                let info = ChannelInfo {
-                    id: c.id,
-                    topic: c.topic,
-                    schema_name,
-                    schema_encoding,
-                    message_encoding: c.message_encoding,
-                };
-                // The summary repeats channels; keep the first definition.
-                let id = usize::from(c.id);
-                if self.channels.len() <= id {
-                    self.channels.resize_with(id + 1, || None);
-                }
-                self.channels[id].get_or_insert(Chan { info: Arc::new(info), kind });
-            }
-            Record::Message { header, data } => {
-                let Some(Some(chan)) = self.channels.get(usize::from(header.channel_id)) else {
-                    let error = RecordingError::UnknownChannel {
-                        channel_id: header.channel_id,
-                        sequence: header.sequence,
-                        at_byte: self.at_byte,
-                    };
-                    return ready(batch, Err(error));
-                };
-                if chan.kind == Kind::Other {
-                    let item = Item::Other(OtherMessage {
-                        channel: chan.info.clone(),
-                        log_time_ns: header.log_time,
-                        publish_time_ns: header.publish_time,
-                        sequence: header.sequence,
-                        data: data.into_owned(),
-                    });
-                    return ready(batch, Ok(item));
-                }
-                let start = batch.bytes.len();
-                batch.bytes.extend_from_slice(&data);
-                batch.slots.push(Slot::Body(Body {
-                    kind: chan.kind,
-                    log_time_ns: header.log_time,
-                    publish_time_ns: header.publish_time,
-                    sequence: header.sequence,
-                    at_byte: self.at_byte,
-                    range: start..batch.bytes.len(),
-                }));
-            }
-            Record::Metadata(m) => ready(
-                batch,
-                Ok(Item::Metadata(MetadataRecord { name: m.name, entries: m.metadata })),
-            ),
-            Record::Attachment { header, data, .. } => ready(
-                batch,
-                Ok(Item::Attachment(AttachmentRecord {
-                    name: header.name,
-                    media_type: header.media_type,
-                    log_time_ns: header.log_time,
-                    data: data.into_owned(),
-                })),
-            ),
-            Record::Footer(_) => self.end = End::Complete,
-            _ => {}
-        }
-    }
-}
-
-/// Decode a batch's message bodies, keeping file order.
-fn decode(batch: Batch) -> Vec<Result<Item, RecordingError>> {
-    let Batch { bytes, slots } = batch;
-    slots
-        .into_iter()
-        .map(|slot| match slot {
-            Slot::Ready(item) => item,
-            Slot::Body(b) => decode_body(&b, &bytes[b.range.clone()]),
-        })
-        .collect()
-}
-
-fn decode_body(b: &Body, data: &[u8]) -> Result<Item, RecordingError> {
-    let topic = match b.kind {
-        Kind::Gyro => TOPIC_GYRO,
-        Kind::Table => TOPIC_TABLE,
-        Kind::Chamber => TOPIC_CHAMBER,
-        Kind::Step => TOPIC_STEP,
-        Kind::Other => "",
-    };
-    let bad = |source| RecordingError::BadMessage {
-        topic: topic.to_string(),
-        sequence: b.sequence,
-        log_time_ns: b.log_time_ns,
-        at_byte: b.at_byte,
-        detail: diagnose(b.kind, data, &source),
-        source,
-    };
+/// Decode one message of a contract channel, or say which field is wrong.
+fn decode_body(kind: Kind, m: &Msg<'_>) -> Result<Item, String> {
+    let h = &m.header;
     macro_rules! stamped {
         ($variant:ident) => {
             Item::$variant(Stamped {
-                log_time_ns: b.log_time_ns,
-                publish_time_ns: b.publish_time_ns,
-                sequence: b.sequence,
-                msg: serde_json::from_slice(data).map_err(bad)?,
+                log_time_ns: h.log_time,
+                publish_time_ns: h.publish_time,
+                sequence: h.sequence,
+                msg: serde_json::from_slice(m.data).map_err(|e| diagnose(kind, m.data, &e))?,
             })
         };
     }
-    Ok(match b.kind {
+    Ok(match kind {
         Kind::Gyro => stamped!(Gyro),
         Kind::Table => stamped!(Table),
         Kind::Chamber => stamped!(Chamber),
         Kind::Step => stamped!(Step),
-        // Framing hands out other channels' messages as they are.
-        Kind::Other => return Err(bad(serde::de::Error::custom("not a contract channel"))),
+        Kind::Other => return Err("not a contract channel".into()),
     })
 }
 
-/// A thread decoding batches in the order they are sent; `None` if it cannot be started.
-fn spawn_decoder() -> Option<Decoder> {
-    let (to, batches) = sync_channel::<Batch>(MAX_IN_FLIGHT);
-    let (decoded, from) = sync_channel(MAX_IN_FLIGHT);
-    std::thread::Builder::new()
-        .name("recording-decode".into())
-        .spawn(move || {
-            // Ends when the reader is dropped (either channel closes).
-            for batch in batches {
-                if decoded.send(decode(batch)).is_err() {
-                    break;
-                }
-            }
-        })
-        .map_err(|e| tracing::debug!("decoding recordings on the reading thread: {e}"))
-        .ok()?;
-    Some(Decoder::Worker { to, from, in_flight: 0 })
+/// The summary section's records (opcode, body) of a finished file, every one framing and
+/// parsing; empty without a footer or where any of them is damaged.
+pub(crate) fn summary_records<S: Read + Seek>(src: &mut S, len: u64) -> Option<Vec<(u8, Vec<u8>)>> {
+    let bytes = summary_section(src, len)?;
+    let mut out = Vec::new();
+    let mut at = 0usize;
+    while at < bytes.len() {
+        let opcode = *bytes.get(at)?;
+        let n = u64::from_le_bytes(bytes.get(at + 1..at + 9)?.try_into().ok()?);
+        let end = (at + 9).checked_add(usize::try_from(n).ok()?)?;
+        let body = bytes.get(at + 9..end)?;
+        let allowed = [
+            op::SCHEMA,
+            op::CHANNEL,
+            op::CHUNK_INDEX,
+            op::ATTACHMENT_INDEX,
+            op::METADATA_INDEX,
+            op::STATISTICS,
+            op::SUMMARY_OFFSET,
+        ];
+        if !allowed.contains(&opcode) || parse_record(opcode, body).is_err() {
+            return None;
+        }
+        out.push((opcode, body.to_vec()));
+        at = end;
+    }
+    Some(out)
 }
 
-impl<R: Read> Iterator for RecordingReader<R> {
-    type Item = Result<Item, RecordingError>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            if let Some(item) = self.ready.next() {
-                return Some(item);
-            }
-            match &mut self.decoder {
-                Decoder::Unstarted => {
-                    let batch = self.framer.batch();
-                    let worker = if self.framer.state.done { None } else { spawn_decoder() };
-                    let unsent = match worker {
-                        Some(Decoder::Worker { to, from, .. }) => match to.send(batch) {
-                            Ok(()) => {
-                                self.decoder = Decoder::Worker { to, from, in_flight: 1 };
-                                continue;
-                            }
-                            Err(std::sync::mpsc::SendError(batch)) => batch,
-                        },
-                        _ => batch,
-                    };
-                    // One batch, or no thread: decode here.
-                    self.decoder = Decoder::Inline;
-                    self.ready = decode(unsent).into_iter();
-                }
-                Decoder::Inline => {
-                    if self.framer.state.done {
-                        return None;
-                    }
-                    self.ready = decode(self.framer.batch()).into_iter();
-                }
-                Decoder::Worker { to, from, in_flight } => {
-                    while *in_flight < MAX_IN_FLIGHT && !self.framer.state.done {
-                        if to.send(self.framer.batch()).is_err() {
-                            break;
-                        }
-                        *in_flight += 1;
-                    }
-                    if *in_flight == 0 {
-                        return None;
-                    }
-                    match from.recv() {
-                        Ok(items) => {
-                            *in_flight -= 1;
-                            self.ready = items.into_iter();
-                        }
-                        Err(_) => {
-                            // The decoding thread is gone (it cannot panic on input, so this
-                            // is a resource failure): report it where reading stopped.
-                            let at_byte = self.framer.state.at_byte;
-                            self.framer.state.done = true;
-                            self.decoder = Decoder::Inline;
-                            return Some(Err(RecordingError::Io {
-                                at_byte,
-                                source: std::io::Error::other("the decoding thread stopped"),
-                            }));
-                        }
-                    }
-                }
-            }
-        }
+/// The bytes of the summary section, by the footer at the end of the file.
+fn summary_section<S: Read + Seek>(src: &mut S, len: u64) -> Option<Vec<u8>> {
+    // Footer record (opcode, length 20, summary start, summary offset start, CRC) + magic.
+    const TAIL: u64 = 9 + 20 + 8;
+    if len < 8 + TAIL {
+        return None;
     }
+    src.seek(SeekFrom::Start(len - TAIL)).ok()?;
+    let mut tail = [0u8; TAIL as usize];
+    src.read_exact(&mut tail).ok()?;
+    if tail[29..] != mcap::MAGIC[..] || tail[0] != op::FOOTER || tail[1..9] != 20u64.to_le_bytes() {
+        return None;
+    }
+    let start = u64::from_le_bytes(tail[9..17].try_into().ok()?);
+    let footer_at = len - TAIL;
+    if start == 0 || start < 8 || start > footer_at || footer_at - start > 64 << 20 {
+        return None;
+    }
+    src.seek(SeekFrom::Start(start)).ok()?;
+    let mut bytes = vec![0u8; usize::try_from(footer_at - start).ok()?];
+    src.read_exact(&mut bytes).ok()?;
+    Some(bytes)
 }
 
 /// JSON types of the contract's fields.
@@ -767,6 +654,8 @@ pub struct Recording {
     pub complete: bool,
     /// Where and why reading stopped, for a file without a footer.
     pub cut: Option<(u64, String)>,
+    /// What was damaged and skipped (empty for an intact file).
+    pub damage: DamageReport,
 }
 
 impl Recording {
@@ -775,14 +664,29 @@ impl Recording {
         Self::from_items(RecordingReader::open(path)?)
     }
 
+    /// Read a recording file through `wrap` (e.g. a progress counter around the file).
+    pub fn load_through<R: Read>(
+        path: &Path,
+        wrap: impl FnOnce(BufReader<File>) -> R,
+    ) -> Result<Self, RecordingError> {
+        Self::from_items(RecordingReader::open_through(path, wrap)?)
+    }
+
     /// Read a recording from any reader, e.g. one that counts the bytes for a progress bar.
     pub fn from_reader<R: Read>(source: R) -> Result<Self, RecordingError> {
         Self::from_items(RecordingReader::new(source))
     }
 
-    /// Read a recording from memory.
+    /// Read a recording from memory (its summary's channel definitions, where it has a
+    /// readable one, stand in for definitions lost to damage).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, RecordingError> {
-        Self::from_items(RecordingReader::with_limit(bytes, bytes.len()))
+        let len = bytes.len() as u64;
+        let summary = summary_records(&mut std::io::Cursor::new(bytes), len).unwrap_or_default();
+        let mut reader = RecordingReader::with_limit(bytes, len, Some(len));
+        if let Some(s) = reader.start.as_mut() {
+            s.summary = summary;
+        }
+        Self::from_items(reader)
     }
 
     fn from_items<R: Read>(mut reader: RecordingReader<R>) -> Result<Self, RecordingError> {
@@ -805,6 +709,7 @@ impl Recording {
             End::Cut { at_byte, reason } => rec.cut = Some((*at_byte, reason.clone())),
             End::Reading => {}
         }
+        rec.damage = reader.damage().clone();
         Ok(rec)
     }
 
@@ -883,6 +788,13 @@ pub fn read_summary(path: &Path) -> Result<Option<mcap::Summary>, RecordingError
     if tail != mcap::MAGIC {
         return Ok(None);
     }
+    // mcap's summary reader parses every record it meets (and panics on some damaged ones):
+    // each is checked here first.
+    if summary_records(&mut file, len).is_none() {
+        let source = mcap::McapError::BadFooter;
+        return Err(RecordingError::Summary { path: path.to_path_buf(), source });
+    }
+    file.seek(SeekFrom::Start(0)).map_err(open)?;
     let summary_err = |source| RecordingError::Summary { path: path.to_path_buf(), source };
     let mut reader = SummaryReader::new_with_options(
         mcap::sans_io::SummaryReaderOptions::default().with_file_size(len),

@@ -1,11 +1,13 @@
 //! `bench recover IN OUT`: rebuild a readable, indexed MCAP file from a truncated or damaged one
 //! (a crashed run, a copy that stopped half-way).
 //!
-//! Every complete record before the damage is read in one linear pass (chunk CRCs checked: a
-//! chunk that fails its CRC ends the pass) and written to a fresh file with the same header
-//! profile, schema and channel ids, messages (headers and bodies as they were), metadata and
-//! attachments, plus a summary section (statistics, chunk, metadata and attachment indexes).
-//! Nothing is decoded: any MCAP file recovers, not only bench recordings.
+//! Every intact record is read in one linear pass and written to a fresh file with the same
+//! header profile, schema and channel ids, messages (headers and bodies as they were), metadata
+//! and attachments, plus a summary section (statistics, chunk, metadata and attachment
+//! indexes). Damage costs only itself, as in every reader of bench ([`crate::reader`]): a chunk
+//! that fails its CRC or does not decompress is left out whole, bytes that do not frame as
+//! records are skipped to the next valid record, and the pass ends where the file does (or at
+//! its data end). Nothing is decoded: any MCAP file recovers, not only bench recordings.
 //!
 //! ```no_run
 //! let report = bench_recording::recover::recover_file("crashed.mcap".as_ref(), "fixed.mcap".as_ref())?;
@@ -20,7 +22,9 @@ use std::io::{BufReader, BufWriter, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
 use mcap::records::{op, Record};
-use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+
+use crate::reader::scan::{kind, Scanner, Top};
+use crate::reader::{End, RecordingError};
 
 /// Why nothing could be recovered.
 #[derive(Debug, thiserror::Error)]
@@ -77,6 +81,20 @@ pub struct RecoverReport {
     pub complete: bool,
     /// Where the input breaks: the end of the last complete record, and what came after.
     pub break_at: Option<Break>,
+    /// Damaged parts left out (chunks, unreadable spans), in file order; reading went on after
+    /// each.
+    pub skipped: Vec<Skipped>,
+}
+
+/// A damaged part of the input that was left out.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Skipped {
+    /// Its first byte.
+    pub at_byte: u64,
+    /// Its length, bytes.
+    pub bytes: u64,
+    /// What is wrong with it.
+    pub reason: String,
 }
 
 /// Where and why the input stops being readable.
@@ -125,6 +143,16 @@ impl fmt::Display for RecoverReport {
         for (topic, n) in &self.messages {
             writeln!(f, "  {topic}: {n}")?;
         }
+        for x in &self.skipped {
+            writeln!(
+                f,
+                "left out bytes {}..{} ({} bytes): {}",
+                x.at_byte,
+                x.at_byte + x.bytes,
+                x.bytes,
+                x.reason
+            )?;
+        }
         if self.orphans > 0 {
             writeln!(f, "dropped {} message(s) of undefined channels", self.orphans)?;
         }
@@ -141,139 +169,176 @@ pub fn recover_file(input: &Path, output: &Path) -> Result<RecoverReport, Recove
     let file = File::open(input).map_err(file_err(input))?;
     let len = file.metadata().map_err(file_err(input))?.len();
     let out = File::create(output).map_err(file_err(output))?;
-    let mut report = recover(BufReader::with_capacity(256 * 1024, file), BufWriter::new(out))
-        .and_then(|(r, w)| {
-            let f = w.into_inner().map_err(|e| RecoverError::File {
-                path: output.to_path_buf(),
-                source: e.into_error(),
-            })?;
-            f.sync_all().map_err(file_err(output))?;
-            Ok(r)
+    let source = BufReader::with_capacity(256 * 1024, file);
+    let mut report = recover_seekable(source, BufWriter::new(out)).and_then(|(r, w)| {
+        let f = w.into_inner().map_err(|e| RecoverError::File {
+            path: output.to_path_buf(),
+            source: e.into_error(),
         })?;
+        f.sync_all().map_err(file_err(output))?;
+        Ok(r)
+    })?;
     report.input_bytes = len;
     Ok(report)
 }
 
-fn kind(opcode: u8) -> String {
-    match opcode {
-        op::HEADER => "Header".into(),
-        op::FOOTER => "Footer".into(),
-        op::SCHEMA => "Schema".into(),
-        op::CHANNEL => "Channel".into(),
-        op::MESSAGE => "Message".into(),
-        op::CHUNK => "Chunk".into(),
-        op::MESSAGE_INDEX => "MessageIndex".into(),
-        op::CHUNK_INDEX => "ChunkIndex".into(),
-        op::ATTACHMENT => "Attachment".into(),
-        op::ATTACHMENT_INDEX => "AttachmentIndex".into(),
-        op::STATISTICS => "Statistics".into(),
-        op::METADATA => "Metadata".into(),
-        op::METADATA_INDEX => "MetadataIndex".into(),
-        op::SUMMARY_OFFSET => "SummaryOffset".into(),
-        op::DATA_END => "DataEnd".into(),
-        other => format!("opcode 0x{other:02x}"),
+/// Rewrite the finished recording at `path` in full chunks, in place: a paced run closes a
+/// chunk at every flush (to bound what a kill loses), so its file is made of small ones. The
+/// copy is written beside the file and renamed over it once complete, so a kill during the
+/// compaction leaves the original. Returns whether the file was replaced: a file that is not
+/// complete, or has damage, is left as it is.
+pub fn compact_file(path: &Path) -> Result<bool, RecoverError> {
+    let tmp = path.with_extension("mcap.compacting");
+    let file_err = |p: &Path| {
+        let p = p.to_path_buf();
+        move |source| RecoverError::File { path: p, source }
+    };
+    let (report, written) = {
+        let file = File::open(path).map_err(file_err(path))?;
+        let out = File::create(&tmp).map_err(file_err(&tmp))?;
+        let source = BufReader::with_capacity(256 * 1024, file);
+        let (report, w) = recover_with(source, BufWriter::new(out), write_options(), &[])?;
+        let f = w
+            .into_inner()
+            .map_err(|e| RecoverError::File { path: tmp.clone(), source: e.into_error() })?;
+        f.sync_all().map_err(file_err(&tmp))?;
+        (report, f)
+    };
+    drop(written);
+    let intact = report.complete
+        && report.break_at.is_none()
+        && report.skipped.is_empty()
+        && report.orphans == 0;
+    if !intact {
+        let _ = std::fs::remove_file(&tmp);
+        return Ok(false);
     }
+    std::fs::rename(&tmp, path).map_err(file_err(path))?;
+    Ok(true)
 }
 
 /// Recover from any byte source into `sink` (zstd chunks, full summary). Returns the report
 /// (its `input_bytes` is the bytes read) and the finished sink.
 pub fn recover<R: Read, W: Write + Seek>(
+    source: R,
+    sink: W,
+) -> Result<(RecoverReport, W), RecoverError> {
+    recover_with(source, sink, write_options(), &[])
+}
+
+/// [`recover`] from a source that can seek: the channel definitions of its summary section,
+/// where it has a readable one, stand in for those lost to damage (as `bench recover` does).
+pub fn recover_seekable<R: Read + Seek, W: Write + Seek>(
     mut source: R,
     sink: W,
 ) -> Result<(RecoverReport, W), RecoverError> {
-    // Emit chunks whole, so that each event is one top-level record and its end is a byte
-    // position of the file; their messages are read with a second reader.
-    // A record longer than the reader's limit is damage, not a size to allocate: a killed
-    // writer leaves its last chunk's length a placeholder (u64::MAX), and a corrupt one (7e18,
-    // found by fuzzing) would abort the process on allocation. Both end the input.
-    let options = LinearReaderOptions::default()
-        .with_emit_chunks(true)
-        .with_record_length_limit(crate::reader::MAX_RECORD);
-    let mut reader = LinearReader::new_with_options(options);
-    let mut at_byte: u64 = 0;
-    let mut end_of_last: u64 = 0;
-    let mut last_kind = String::new();
+    let read = |source| RecoverError::Read { at_byte: 0, source };
+    let len = source.seek(std::io::SeekFrom::End(0)).map_err(read)?;
+    let fallback = crate::reader::summary_records(&mut source, len).unwrap_or_default();
+    source.seek(std::io::SeekFrom::Start(0)).map_err(read)?;
+    recover_with(source, sink, write_options(), &fallback)
+}
+
+/// zstd level 1 chunks of the recorder's size.
+fn write_options() -> mcap::WriteOptions {
+    crate::writer::RecorderOptions::default().write_options()
+}
+
+/// [`recover`], writing with `options` (their profile is replaced by the input's), with the
+/// Schema and Channel records `fallback` (opcode, body; a file's summary section) defining the
+/// channels whose own records are lost to damage.
+pub fn recover_with<R: Read, W: Write + Seek>(
+    source: R,
+    sink: W,
+    options: mcap::WriteOptions,
+    fallback: &[(u8, Vec<u8>)],
+) -> Result<(RecoverReport, W), RecoverError> {
+    let mut scan = Scanner::new(source, crate::reader::MAX_RECORD as u64, None);
     let mut report = RecoverReport::default();
     let mut out: Option<Rebuild<W>> = None;
     let mut sink = Some(sink);
-    let mut failure: Option<String> = None;
-    loop {
-        let event = match reader.next_event() {
-            None => break,
-            Some(Err(e)) => {
-                failure = Some(e.to_string());
-                break;
+    let mut last_kind = String::new();
+    while let Some(top) = scan.next_top() {
+        match top {
+            Top::Failed(RecordingError::Io { at_byte, source }) => {
+                return Err(RecoverError::Read { at_byte, source })
             }
-            Some(Ok(ev)) => ev,
-        };
-        match event {
-            LinearReadEvent::ReadRequest(need) => {
-                let n = loop {
-                    match source.read(reader.insert(need)) {
-                        Ok(n) => break n,
-                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                        Err(source) => return Err(RecoverError::Read { at_byte, source }),
-                    }
+            Top::Failed(e) => {
+                let (at_byte, reason) = match e {
+                    RecordingError::NotMcap { at_byte, reason } => (at_byte, reason),
+                    other => (scan.offset(), other.to_string()),
                 };
-                reader.notify_read(n);
-                at_byte += n as u64;
+                return Err(RecoverError::NotMcap { at_byte, reason });
             }
-            LinearReadEvent::Record { opcode, data } => {
-                // Opcode (1) + length (8) + body: where this record ends. The start magic (8
-                // bytes) precedes the first record.
-                let start = if end_of_last == 0 { 8 } else { end_of_last };
-                let end = start + 9 + data.len() as u64;
-                let parsed = crate::reader::parse_record(opcode, data);
-                let record = match parsed {
+            Top::Skipped { at, to, reason } => {
+                report.skipped.push(Skipped { at_byte: at, bytes: to - at, reason })
+            }
+            Top::End(End::Cut { at_byte, reason }) => {
+                report.break_at = Some(Break { at_byte, after_record: last_kind.clone(), reason });
+            }
+            Top::End(_) => {}
+            Top::Record { at, opcode, body } => {
+                // The summary section repeats schemas and channels (kept once) and indexes (the
+                // writer makes its own): reading on costs nothing and survives a false data end.
+                if opcode == op::DATA_END || opcode == op::FOOTER {
+                    report.complete = true;
+                    continue;
+                }
+                let record = match crate::reader::parse_record(opcode, &body) {
                     Ok(r) => r,
                     Err(e) => {
-                        failure = Some(format!("bad {} record at byte {start}: {e}", kind(opcode)));
-                        break;
+                        let reason = format!("bad {} record: {e}", kind(opcode));
+                        report.skipped.push(Skipped {
+                            at_byte: at,
+                            bytes: 9 + body.len() as u64,
+                            reason,
+                        });
+                        continue;
                     }
                 };
-                if opcode == op::DATA_END {
-                    end_of_last = end;
-                    last_kind = kind(opcode);
-                    report.complete = true;
-                    break;
-                }
-                if let Record::Header(h) = &record {
-                    let Some(s) = sink.take() else {
-                        failure = Some(format!("a second Header record at byte {start}"));
-                        break;
-                    };
-                    out = Some(Rebuild::new(s, &h.profile)?);
-                } else if let Some(o) = out.as_mut() {
-                    if let Err(reason) = o.take(record, &mut report) {
-                        failure =
-                            Some(format!("{} record at byte {start}: {reason}", kind(opcode)));
-                        break;
+                let rebuild = match (&mut out, &record) {
+                    (Some(o), _) => o,
+                    (None, r) => {
+                        let profile = match r {
+                            Record::Header(h) => h.profile.clone(),
+                            _ => String::new(),
+                        };
+                        let Some(s) = sink.take() else { break };
+                        let mut r = Rebuild::new(s, options.clone().profile(profile))?;
+                        r.fallback(fallback);
+                        out.insert(r)
                     }
-                } else {
-                    return Err(RecoverError::NotMcap {
-                        at_byte,
-                        reason: format!("the first record is a {}, not a Header", kind(opcode)),
-                    });
+                };
+                let taken = match record {
+                    // Opened whole (decompressed, its CRC checked) before any of its records is
+                    // copied: a damaged chunk contributes nothing.
+                    Record::Chunk { .. } => chunk_records(&body).and_then(|records| {
+                        records.into_iter().try_for_each(|r| rebuild.take(r, &mut report))
+                    }),
+                    other => rebuild.take(other, &mut report),
+                };
+                if let Err(reason) = taken {
+                    let bytes = 9 + body.len() as u64;
+                    report.skipped.push(Skipped { at_byte: at, bytes, reason });
                 }
-                end_of_last = end;
                 last_kind = kind(opcode);
             }
         }
     }
     let Some(out) = out else {
         return Err(RecoverError::NotMcap {
-            at_byte,
-            reason: failure.unwrap_or_else(|| "no Header record".into()),
+            at_byte: scan.offset(),
+            reason: "no MCAP record".into(),
         });
     };
-    if !report.complete {
+    if !report.complete && report.break_at.is_none() {
         report.break_at = Some(Break {
-            at_byte: end_of_last,
+            at_byte: scan.offset(),
             after_record: last_kind,
-            reason: failure.unwrap_or_else(|| "the file ends before its DataEnd record".into()),
+            reason: "the file ends before its DataEnd record".into(),
         });
     }
-    report.input_bytes = at_byte;
+    report.input_bytes = scan.offset();
     let (counts, sink) = out.finish()?;
     report.messages = counts;
     Ok((report, sink))
@@ -285,43 +350,52 @@ struct Rebuild<W: Write + Seek> {
     schemas: HashSet<u16>,
     channels: HashMap<u16, String>,
     counts: BTreeMap<String, u64>,
+    /// Definitions to use where the file's own are lost (its summary's).
+    spare: HashMap<u16, Record<'static>>,
+    spare_schemas: HashMap<u16, Record<'static>>,
 }
 
 impl<W: Write + Seek> Rebuild<W> {
-    fn new(sink: W, profile: &str) -> Result<Self, RecoverError> {
-        let opts = mcap::WriteOptions::new()
-            .profile(profile)
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_level(1);
+    fn new(sink: W, opts: mcap::WriteOptions) -> Result<Self, RecoverError> {
         Ok(Self {
             writer: opts.create(sink)?,
             schemas: HashSet::new(),
             channels: HashMap::new(),
             counts: BTreeMap::new(),
+            spare: HashMap::new(),
+            spare_schemas: HashMap::new(),
         })
+    }
+
+    fn fallback(&mut self, records: &[(u8, Vec<u8>)]) {
+        for (opcode, body) in records {
+            match crate::reader::parse_record(*opcode, body).map(Record::into_owned) {
+                Ok(Record::Schema { header, data }) => {
+                    self.spare_schemas.insert(header.id, Record::Schema { header, data });
+                }
+                Ok(Record::Channel(c)) => {
+                    self.spare.insert(c.id, Record::Channel(c));
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Define channel `id` (and its schema) from the spare definitions; whether it now is.
+    fn define_spare(&mut self, id: u16, report: &mut RecoverReport) -> Result<bool, String> {
+        let Some(Record::Channel(c)) = self.spare.remove(&id) else { return Ok(false) };
+        if c.schema_id != 0 && !self.schemas.contains(&c.schema_id) {
+            if let Some(schema) = self.spare_schemas.remove(&c.schema_id) {
+                self.take(schema, report)?;
+            }
+        }
+        self.take(Record::Channel(c), report)?;
+        Ok(self.channels.contains_key(&id))
     }
 
     /// Copy one top-level record (a chunk is opened and its records copied).
     fn take(&mut self, record: Record<'_>, report: &mut RecoverReport) -> Result<(), String> {
         match record {
-            Record::Chunk { header, data } => {
-                // mcap's chunk reader sizes its buffer from the header's uncompressed size: a
-                // corrupt one (8e18) aborts the process on allocation (found by fuzzing).
-                if header.uncompressed_size > MAX_CHUNK {
-                    return Err(format!(
-                        "chunk unreadable: its header claims {} uncompressed bytes (at most {} \
-                         read)",
-                        header.uncompressed_size, MAX_CHUNK
-                    ));
-                }
-                // Decode the whole chunk first (its CRC is checked at its end): a damaged chunk
-                // contributes nothing.
-                let records =
-                    chunk_records(&header, &data).map_err(|e| format!("chunk unreadable: {e}"))?;
-                for inner in records {
-                    self.take(inner, report)?;
-                }
-            }
             Record::Schema { header, data } if self.schemas.insert(header.id) => {
                 self.writer
                     .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
@@ -349,8 +423,13 @@ impl<W: Write + Seek> Rebuild<W> {
                 report.channels += 1;
             }
             Record::Message { header, data } => {
-                let Some(topic) = self.channels.get(&header.channel_id) else {
+                if !self.channels.contains_key(&header.channel_id)
+                    && !self.define_spare(header.channel_id, report)?
+                {
                     report.orphans += 1;
+                    return Ok(());
+                }
+                let Some(topic) = self.channels.get(&header.channel_id) else {
                     return Ok(());
                 };
                 *self.counts.entry(topic.clone()).or_default() += 1;
@@ -384,54 +463,14 @@ impl<W: Write + Seek> Rebuild<W> {
     }
 }
 
-/// The records of a chunk, read with the reader's record length limit: `mcap::read::
-/// ChunkReader` has none, and reserved a corrupt inner record's length (8e18) and aborted
-/// (found by fuzzing). The chunk is read as a one-record file by the sans-IO reader.
-fn chunk_records(
-    header: &mcap::records::ChunkHeader,
-    data: &[u8],
-) -> Result<Vec<Record<'static>>, String> {
-    let mut body = Vec::with_capacity(data.len() + 64);
-    body.extend_from_slice(&header.message_start_time.to_le_bytes());
-    body.extend_from_slice(&header.message_end_time.to_le_bytes());
-    body.extend_from_slice(&header.uncompressed_size.to_le_bytes());
-    body.extend_from_slice(&header.uncompressed_crc.to_le_bytes());
-    let name = header.compression.as_bytes();
-    body.extend_from_slice(&u32::try_from(name.len()).map_err(|e| e.to_string())?.to_le_bytes());
-    body.extend_from_slice(name);
-    body.extend_from_slice(&(data.len() as u64).to_le_bytes());
-    body.extend_from_slice(data);
-    let mut file = Vec::with_capacity(body.len() + 17);
-    file.extend_from_slice(mcap::MAGIC);
-    file.push(mcap::records::op::CHUNK);
-    file.extend_from_slice(&(body.len() as u64).to_le_bytes());
-    file.extend_from_slice(&body);
-    let options = LinearReaderOptions::default()
-        .with_skip_end_magic(true)
-        .with_validate_chunk_crcs(true)
-        .with_record_length_limit(MAX_CHUNK as usize);
-    let mut reader = LinearReader::new_with_options(options);
-    let mut at: usize = 0;
-    let mut out = Vec::new();
-    while let Some(event) = reader.next_event() {
-        match event.map_err(|e| e.to_string())? {
-            LinearReadEvent::ReadRequest(n) => {
-                let src = file.get(at..at.saturating_add(n).min(file.len())).unwrap_or(&[]);
-                let buf = reader.insert(n);
-                buf[..src.len()].copy_from_slice(src);
-                reader.notify_read(src.len());
-                at += src.len();
-            }
-            LinearReadEvent::Record { opcode, data } => {
-                out.push(
-                    crate::reader::parse_record(opcode, data)
-                        .map_err(|e| e.to_string())?
-                        .into_owned(),
-                );
-            }
-        }
-    }
-    Ok(out)
+/// The records of a chunk record's `body`, all of them, or why the chunk is unreadable.
+fn chunk_records(body: &[u8]) -> Result<Vec<Record<'static>>, String> {
+    let mut records = Vec::new();
+    let opened = crate::reader::chunk::for_each_record(body, MAX_CHUNK, |op, data| {
+        records.push(crate::reader::parse_record(op, data).map(Record::into_owned))
+    });
+    opened.map_err(|e| format!("chunk unreadable: {}", e.reason))?;
+    records.into_iter().map(|r| r.map_err(|e| format!("chunk unreadable: {e}"))).collect()
 }
 
 /// The largest chunk (uncompressed) `recover` decodes, as the reader's largest record.
@@ -477,49 +516,60 @@ mod tests {
         r.finish(&Outcome::Completed).expect("finish").into_inner()
     }
 
+    /// Recovered as `recover_file` does: the summary's channels stand in for lost ones.
     fn recover_bytes(bytes: &[u8]) -> (RecoverReport, Vec<u8>) {
-        let (report, out) = recover(bytes, Cursor::new(Vec::new())).expect("recovers");
+        let (report, out) =
+            recover_seekable(Cursor::new(bytes), Cursor::new(Vec::new())).expect("recovers");
         (report, out.into_inner())
     }
 
     #[test]
-    fn a_chunk_claiming_an_impossible_size_is_a_break_not_an_abort() {
+    fn a_chunk_claiming_an_impossible_size_is_left_out_not_an_abort() {
         // Found by the `recover` fuzz target: the chunk reader allocated the claimed
         // 8243118308127416885 bytes and the process aborted.
         let mut bytes = original(Some(mcap::Compression::Zstd));
+        // The second chunk (the first holds the schemas and channels).
         let mut pos = 8;
-        while bytes[pos] != 0x06 {
+        let mut chunks = 0;
+        while bytes[pos] != 0x06 || chunks < 1 {
+            chunks += usize::from(bytes[pos] == 0x06);
             let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().expect("8 bytes"));
             pos += 9 + usize::try_from(len).expect("small");
         }
         // Chunk body: message start and end time, then the uncompressed size.
         bytes[pos + 25..pos + 33].copy_from_slice(&8_243_118_308_127_416_885u64.to_le_bytes());
-        let (report, _) = recover_bytes(&bytes);
-        let b = report.break_at.expect("breaks at the chunk");
-        assert!(b.at_byte <= pos as u64, "{b:?}");
-        assert!(b.reason.contains("8243118308127416885 uncompressed bytes"), "{b:?}");
+        let (report, out) = recover_bytes(&bytes);
+        let x = report.skipped.first().expect("the chunk is left out");
+        assert_eq!(x.at_byte, pos as u64, "{x:?}");
+        assert!(x.reason.contains("8243118308127416885 uncompressed bytes"), "{x:?}");
+        // The rest is kept: the file is complete, later chunks' messages recovered.
+        assert!(report.complete && report.break_at.is_none(), "{report}");
+        let full = Recording::from_bytes(&original(Some(mcap::Compression::Zstd))).expect("full");
+        let got = Recording::from_bytes(&out).expect("recovered");
+        assert!(!got.gyro.is_empty() && got.gyro.len() < full.gyro.len());
+        assert_eq!(got.gyro.last(), full.gyro.last());
     }
 
     #[test]
-    fn a_record_claiming_an_impossible_length_is_a_break_not_an_abort() {
+    fn a_record_claiming_an_impossible_length_is_skipped_not_an_abort() {
         // Found by the `recover` fuzz target: the reader allocated the claimed length.
         let mut bytes = original(Some(mcap::Compression::Zstd));
         let len = u64::from_le_bytes(bytes[9..17].try_into().expect("8 bytes"));
         let second = 17 + usize::try_from(len).expect("small");
         bytes[second + 1..second + 9].copy_from_slice(&7_308_324_466_015_219_617u64.to_le_bytes());
         let (report, _) = recover_bytes(&bytes);
-        let b = report.break_at.expect("breaks at the record");
-        assert!(b.at_byte <= second as u64, "{b:?}");
+        let x = report.skipped.first().expect("skipped");
+        assert_eq!(x.at_byte, second as u64, "{x:?}");
+        assert!(x.reason.contains("7308324466015219617"), "{x:?}");
     }
 
     #[test]
-    fn a_chunk_whose_record_claims_an_impossible_length_is_a_break_not_an_abort() {
+    fn a_chunk_whose_record_claims_an_impossible_length_is_left_out_not_an_abort() {
         // Found by the `recover` fuzz target: mcap's chunk reader reserved the length.
         let bytes =
             include_bytes!("../../fuzz/regressions/recover-chunk-inner-record-length-abort");
         let (report, _) = recover_bytes(bytes);
-        let b = report.break_at.expect("breaks at the chunk");
-        assert!(b.reason.contains("chunk unreadable"), "{b:?}");
+        assert!(report.skipped.iter().any(|x| x.reason.contains("chunk unreadable")), "{report}");
     }
 
     #[test]
@@ -610,9 +660,52 @@ mod tests {
         drop(r);
         let (report, out) = recover_bytes(&killed);
         assert!(!report.complete);
-        // Flushed at 1, 2, …, 6 s: samples 0..=120 are kept, the open chunk is not.
-        assert_eq!(report.messages.get("/gyro/rate"), Some(&121));
+        // Flushed at 1, 2, …, 6 s: samples 0..=120 are in closed chunks; the open chunk is
+        // uncompressed, so its records are in the file too, after a header that does not
+        // frame (its lengths are placeholders), and are kept as well.
+        assert_eq!(report.messages.get("/gyro/rate"), Some(&130));
+        assert_eq!(report.skipped.len(), 1, "{report}");
         assert!(Recording::from_bytes(&out).expect("recovered").complete);
+    }
+
+    #[test]
+    fn compaction_rewrites_a_paced_runs_small_chunks_into_full_ones_losing_nothing() {
+        // A paced run's file: a chunk closed every 0.75 s of bench time.
+        let info = RunInfo::new(1_000, "t", "x = 1\n", Site::at_latitude(1.0), BTreeMap::new());
+        let opts = RecorderOptions {
+            flush_interval: Some(Duration::from_millis(750)),
+            ..RecorderOptions::default()
+        };
+        let mut r = Recorder::with_options(Cursor::new(Vec::new()), info, opts).expect("start");
+        r.step(Duration::ZERO, 0, "w", StepEvent::Start, "").expect("step");
+        for i in 0..2_400u64 {
+            let s = GyroMsg { rate_rad_s: i as f64, temperature_c: None, seq: i, status: 0 };
+            r.gyro(Duration::from_millis(50 * i), None, &s).expect("gyro");
+        }
+        r.step(Duration::from_secs(120), 0, "w", StepEvent::End, "").expect("step");
+        let small = r.finish(&Outcome::Completed).expect("finish").into_inner();
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("paced.mcap");
+        std::fs::write(&path, &small).expect("write");
+        assert!(compact_file(&path).expect("compacts"), "an intact file is replaced");
+        let full = std::fs::read(&path).expect("read");
+        let chunks = |b: &[u8]| {
+            let summary = mcap::Summary::read(b).expect("summary").expect("has one");
+            summary.chunk_indexes.len()
+        };
+        assert!(chunks(&small) >= 150, "{} chunks before", chunks(&small));
+        assert!(chunks(&full) <= 2, "{} chunks after", chunks(&full));
+        assert!(full.len() < small.len(), "{} → {} bytes", small.len(), full.len());
+        let (a, b) =
+            (Recording::from_bytes(&small).expect("a"), Recording::from_bytes(&full).expect("b"));
+        assert_eq!(a.gyro, b.gyro);
+        assert_eq!(a.steps, b.steps);
+        assert_eq!(a.outcome(), b.outcome());
+        assert!(!dir.path().join("paced.mcap.compacting").exists(), "no copy left behind");
+        // A cut file is left as it is.
+        std::fs::write(&path, &small[..small.len() / 2]).expect("write");
+        assert!(!compact_file(&path).expect("reads"), "a cut file is not replaced");
+        assert_eq!(std::fs::read(&path).expect("read").len(), small.len() / 2);
     }
 
     #[test]

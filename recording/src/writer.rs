@@ -21,7 +21,7 @@ use std::{
     fs::File,
     io::{BufWriter, Seek, Write},
     path::Path,
-    time::Duration,
+    time::{Duration, Instant},
 };
 
 use mcap::{records::MessageHeader, Compression, WriteOptions};
@@ -201,6 +201,11 @@ pub struct RecorderOptions {
     /// The flush hands the data to the operating system (it survives the process, not a power
     /// loss before the OS writes it back).
     pub flush_interval: Option<Duration>,
+    /// Also close the chunk and flush the sink whenever this much **wall-clock** time has
+    /// passed since the last flush (checked every 64 messages): for a virtual-time run, which
+    /// fills a chunk in milliseconds, this bounds what a kill loses in wall-clock work without
+    /// closing chunks early. Default `None`.
+    pub flush_wall: Option<Duration>,
     /// Also close the chunk and flush at every step end or abort. Default true.
     pub flush_on_step_end: bool,
     /// zstd worker threads (0: compress on the calling thread). Default 0: with 1 worker the
@@ -218,6 +223,7 @@ impl Default for RecorderOptions {
             chunk_size: 1024 * 1024,
             gyro_seq_bits: 64,
             flush_interval: Some(Duration::from_secs(1)),
+            flush_wall: None,
             flush_on_step_end: true,
             compression_threads: 0,
             compression_level: 1,
@@ -293,7 +299,8 @@ fn finite(topic: &'static str, field: &'static str, value: f64) -> Result<f64, R
 /// call serialises into a reused buffer and appends to the current compressed chunk. Nothing
 /// recorded is lost on an abort as long as [`Recorder::finish`] runs; on a crash, everything up
 /// to the last closed chunk stays readable (chunks close when full, every
-/// [`RecorderOptions::flush_interval`], at step ends and on [`Recorder::flush`]). If the
+/// [`RecorderOptions::flush_interval`] of bench time or [`RecorderOptions::flush_wall`] of
+/// wall-clock time, at step ends and on [`Recorder::flush`]). If the
 /// recorder is dropped without `finish`, the mcap writer still writes the summary, but no
 /// `bench.run` record.
 pub struct Recorder<W: Write + Seek> {
@@ -311,9 +318,13 @@ pub struct Recorder<W: Write + Seek> {
     last_gyro_seq: Option<u64>,
     gyro_seq_gaps: u64,
     flush_interval: Option<Duration>,
+    flush_wall: Option<Duration>,
     flush_on_step_end: bool,
     /// Bench time of the last flush (the latest message time then).
     last_flush_t: Duration,
+    /// Wall-clock time of the last flush, and messages since the clock was last read.
+    last_flush_wall: Instant,
+    unchecked: u32,
     /// Latest message time seen, any channel.
     latest_t: Duration,
 }
@@ -418,8 +429,11 @@ impl<W: Write + Seek> Recorder<W> {
             last_gyro_seq: None,
             gyro_seq_gaps: 0,
             flush_interval: options.flush_interval,
+            flush_wall: options.flush_wall,
             flush_on_step_end: options.flush_on_step_end,
             last_flush_t: Duration::ZERO,
+            last_flush_wall: Instant::now(),
+            unchecked: 0,
             latest_t: Duration::ZERO,
         })
     }
@@ -552,6 +566,7 @@ impl<W: Write + Seek> Recorder<W> {
     pub fn flush(&mut self) -> Result<(), RecordError> {
         self.writer.flush().map_err(mcap_err("flushing"))?;
         self.last_flush_t = self.latest_t;
+        self.last_flush_wall = Instant::now();
         Ok(())
     }
 
@@ -610,9 +625,19 @@ impl<W: Write + Seek> Recorder<W> {
         ch.last_t = t;
         self.latest_t = self.latest_t.max(t);
         match self.flush_interval {
-            Some(interval) if self.latest_t >= self.last_flush_t + interval => self.flush(),
-            _ => Ok(()),
+            Some(interval) if self.latest_t >= self.last_flush_t + interval => return self.flush(),
+            _ => {}
         }
+        if let Some(wall) = self.flush_wall {
+            self.unchecked += 1;
+            if self.unchecked >= 64 {
+                self.unchecked = 0;
+                if self.last_flush_wall.elapsed() >= wall {
+                    return self.flush();
+                }
+            }
+        }
+        Ok(())
     }
 }
 

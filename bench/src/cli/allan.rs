@@ -48,7 +48,7 @@ fn term(t: &NoiseTerm) -> serde_json::Value {
 pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
     let rec = super::load_recording(&args.recording, args.quiet)?;
     let data = bench_report::load::load(&rec)
-        .with_context(|| format!("cannot read {}", args.recording.display()))?;
+        .with_context(|| super::analysis_context(&rec, "read", &args.recording))?;
     let s = &data.series;
     let (from, to, what) = match &args.window {
         Some(label) => {

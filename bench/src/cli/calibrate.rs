@@ -57,7 +57,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         !args.quiet && bench::progress::stderr_is_styled(),
     );
     let out = calibrate_recording(&rec, &settings)
-        .with_context(|| format!("cannot calibrate {}", args.recording.display()))?;
+        .with_context(|| super::analysis_context(&rec, "calibrate", &args.recording))?;
     drop(working);
     let name = args
         .recording
@@ -116,6 +116,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             "  `bench diagnose {}` looks for the physics the model leaves out.",
             args.recording.display()
         );
+    } else if out.quality.checks.is_empty() || !out.quality.block_threshold.is_finite() {
+        println!("fit: not checked (the joint fit gave nothing to check)");
     } else {
         println!(
             "fit: sound ({} checks passed; no residual block beyond {:.2}σ)",
@@ -207,6 +209,9 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     } else {
         eprintln!("no calibration file: the joint fit failed (see the notes above)");
+        for note in rec.cut_note().into_iter().chain(rec.damage_note()) {
+            eprintln!("  {note}: `bench recover` keeps the intact part in a new indexed file");
+        }
     }
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;

@@ -172,7 +172,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         !args.quiet && bench::progress::stderr_is_styled(),
     );
     let out = diagnose_recording(&rec, nominal, &opts)
-        .with_context(|| format!("cannot diagnose {}", args.recording.display()))?;
+        .with_context(|| super::analysis_context(&rec, "diagnose", &args.recording))?;
     drop(working);
     let name = args
         .recording
@@ -302,7 +302,7 @@ fn scan_only(
     let read_s = started.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
     let data = bench_report::load::load(rec)
-        .with_context(|| format!("cannot load {}", args.recording.display()))?;
+        .with_context(|| super::analysis_context(rec, "load", &args.recording))?;
     let load_s = t.elapsed().as_secs_f64();
     let (model, effects, source) = match nominal {
         Some(n) => n,
@@ -313,7 +313,7 @@ fn scan_only(
     };
     let cpu0 = bench::process::cpu_time_s();
     let scan = bench_analysis::diagnose::residual_scan(&data.series, &model, &effects, opts)
-        .with_context(|| format!("cannot scan {}", args.recording.display()))?;
+        .with_context(|| super::analysis_context(rec, "scan", &args.recording))?;
     let cpu_s = bench::process::cpu_time_s().zip(cpu0).map(|(b, a)| b - a);
     let best: Vec<serde_json::Value> = scan
         .best

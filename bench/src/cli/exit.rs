@@ -37,6 +37,12 @@ pub enum Exit {
     SoakFailed = 10,
 }
 
+/// A command line that clap accepts but that asks for something impossible (e.g. the same
+/// file as input and output): [`Exit::Usage`].
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
 /// An error and its causes as one line, each piece of context once: a cause whose text the
 /// line already holds (a device error that quotes its I/O error, a config error that quotes its
 /// device error) is not repeated.
@@ -62,11 +68,15 @@ impl From<Exit> for ExitCode {
 }
 
 impl Exit {
-    /// The code of a command that failed with `e`: [`Exit::Invalid`] for a scenario, bench
-    /// config or model file that failed validation, else [`Exit::Error`].
+    /// The code of a command that failed with `e`: [`Exit::Usage`] for a [`UsageError`],
+    /// [`Exit::Invalid`] for a scenario, bench config or model file that failed validation,
+    /// else [`Exit::Error`].
     pub fn of_error(e: &anyhow::Error) -> Exit {
         use bench_recording::model_file::ModelFileError;
         for cause in e.chain() {
+            if cause.downcast_ref::<UsageError>().is_some() {
+                return Exit::Usage;
+            }
             if let Some(c) = cause.downcast_ref::<bench::bench_config::ConfigError>() {
                 use bench::bench_config::ConfigError as C;
                 if matches!(c, C::Invalid { .. } | C::Several(_)) {

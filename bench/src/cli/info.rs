@@ -46,6 +46,36 @@ fn channel(c: &ChannelReport) -> Value {
     })
 }
 
+/// The damaged parts skipped, times in s from the first message.
+fn damage(info: &RecordingInfo) -> Value {
+    let t0 = info.start_ns.unwrap_or(0);
+    let s = |t: u64| bench_recording::reader::seconds_since(t0, t);
+    let parts: Vec<Value> = info
+        .damage
+        .entries
+        .iter()
+        .map(|d| {
+            json!({
+                "at_byte": d.at_byte,
+                "bytes": d.bytes,
+                "what": d.to_string(),
+                "span_s": d.span_ns.map(|(a, b)| [s(a), s(b)]),
+                "messages_lost": d.lost,
+                "in_summary": d.in_summary,
+            })
+        })
+        .collect();
+    json!({
+        "damaged": !info.damage.is_empty(),
+        "summary": info.damage.summary(),
+        "chunks_damaged": info.damage.chunks_damaged(),
+        "bytes_skipped": info.damage.bytes_skipped(),
+        "bad_messages": info.damage.bad_messages,
+        "parts": parts,
+        "parts_unlisted": info.damage.unlisted_messages,
+    })
+}
+
 /// `bench info` as JSON (times in s from the first message, SI).
 pub fn to_json(info: &RecordingInfo) -> Value {
     let end = match &info.end {
@@ -83,6 +113,8 @@ pub fn to_json(info: &RecordingInfo) -> Value {
             "message_start_ns": c.message_start_ns,
             "message_end_ns": c.message_end_ns,
         })),
+        "chunks": {"read": info.chunks.0, "crc_checked": info.chunks.1},
+        "damage": damage(info),
         "channels": info.channels.iter().map(channel).collect::<Vec<_>>(),
         "steps": info.steps.iter().map(|s| json!({
             "index": s.index, "name": s.name, "label": s.label,

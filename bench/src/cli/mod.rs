@@ -99,25 +99,48 @@ pub(crate) fn write_json(
 }
 
 /// Load the recording at `path`, showing how much of it has been read on a terminal (not with
-/// `quiet`, `NO_COLOR` or stderr not a terminal): reading is the long part on long files.
+/// `quiet`, `NO_COLOR` or stderr not a terminal): reading is the long part on long files. Damage
+/// skipped on the way is named on stderr (`warning: the recording is damaged: …`).
 pub(crate) fn load_recording(
     path: &std::path::Path,
     quiet: bool,
 ) -> anyhow::Result<bench_recording::Recording> {
     use anyhow::Context as _;
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     let name = path
         .file_name()
         .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     let show = !quiet && bench::progress::stderr_is_styled();
-    let reader = bench::progress::ReadProgress::new(
-        std::io::BufReader::with_capacity(1 << 20, file),
-        size,
-        &name,
-        show,
-    );
-    bench_recording::Recording::from_reader(reader)
-        .with_context(|| format!("cannot read {}", path.display()))
+    let rec = bench_recording::Recording::load_through(path, |file| {
+        bench::progress::ReadProgress::new(file, size, &name, show)
+    })
+    .with_context(|| format!("cannot read {}", path.display()))?;
+    if let Some(note) = rec.damage_note() {
+        eprintln!("warning: {note}; the analysis uses the intact data");
+    }
+    if let Some(note) = rec.cut_note() {
+        eprintln!("note: {note}");
+    }
+    Ok(rec)
+}
+
+/// The context of an analysis error on `rec`: `cannot VERB PATH`, after the cut or the damage
+/// when the file has them (they are why an analysis finds too little), with how to keep the
+/// intact part.
+pub(crate) fn analysis_context(
+    rec: &bench_recording::Recording,
+    verb: &str,
+    path: &std::path::Path,
+) -> String {
+    let notes: Vec<String> = rec.cut_note().into_iter().chain(rec.damage_note()).collect();
+    if notes.is_empty() {
+        return format!("cannot {verb} {}", path.display());
+    }
+    format!(
+        "{}; too little intact data is left (`bench recover {} NEW.mcap` keeps the intact part \
+         in a new indexed file): cannot {verb} {}",
+        notes.join("; "),
+        path.display(),
+        path.display()
+    )
 }

@@ -26,10 +26,13 @@ pub struct RecoverArgs {
 /// Copy every complete record into a fresh indexed file; say how much was kept and where the
 /// input broke.
 pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(
-        args.input.canonicalize().ok() != args.output.canonicalize().ok() || !args.output.exists(),
-        "the output must be a new file, not the input"
-    );
+    if args.output.exists() && args.input.canonicalize().ok() == args.output.canonicalize().ok() {
+        let e = super::exit::UsageError(format!(
+            "{} is both the input and the output: recover into a new file",
+            args.input.display()
+        ));
+        return Err(e.into());
+    }
     anyhow::ensure!(
         args.force || !args.output.exists(),
         "{} exists: recover into a new file, or pass --force to overwrite it",

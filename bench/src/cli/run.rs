@@ -68,7 +68,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub gyro_model: Option<PathBuf>,
     /// Kill-safety: the recording is flushed so that a SIGKILL or crash loses at most this
-    /// many seconds of bench time of data (`bench recover` restores the rest). Overrides the
+    /// many seconds of bench time in a paced run, of wall-clock work in a virtual-time run
+    /// (`bench recover` restores the rest). Overrides the
     /// scenario's `[recording] flush_interval`; default 1 s.
     #[arg(long, value_name = "SECONDS")]
     pub flush_interval_s: Option<f64>,
@@ -302,7 +303,7 @@ fn run_simulated(
     };
     let bench = Bench::Simulated(bench::simulate::sim_config(&plan, args.seed));
     let (report, writer) = bench::runner::run(&plan, bench, std::io::BufWriter::new(file), opts)?;
-    finish_file(writer, out)?;
+    finish_file(writer, out, args.time_scale.is_some())?;
     Ok(Some(report))
 }
 
@@ -315,12 +316,25 @@ pub fn apply_sim_config(plan: &mut RunPlan, config: &BenchConfig) {
     plan.sim.truth_effects = plan.sim.truth_effects.overridden_by(&config.sim_effects());
 }
 
-fn finish_file(writer: std::io::BufWriter<std::fs::File>, out: &Path) -> anyhow::Result<()> {
+/// Flush the recording to disk; a `paced` run's (real or scaled time), which closed a chunk at
+/// every flush, is then compacted into full chunks (`bench_recording::recover::compact_file`).
+fn finish_file(
+    writer: std::io::BufWriter<std::fs::File>,
+    out: &Path,
+    paced: bool,
+) -> anyhow::Result<()> {
     writer
         .into_inner()
         .map_err(|e| e.into_error())
         .and_then(|f| f.sync_all())
-        .with_context(|| format!("cannot write recording {}", out.display()))
+        .with_context(|| format!("cannot write recording {}", out.display()))?;
+    if paced {
+        match bench_recording::recover::compact_file(out) {
+            Ok(_) => {}
+            Err(e) => tracing::warn!("{}: left in small chunks: {e}", out.display()),
+        }
+    }
+    Ok(())
 }
 
 /// Real time on tokio: connect every device (failing before anything moves), validate the
@@ -397,7 +411,7 @@ fn run_on_bench(
             time_marks,
         },
     )?;
-    finish_file(writer, out)?;
+    finish_file(writer, out, true)?;
     Ok(Some(report))
 }
 
@@ -433,8 +447,9 @@ fn run_on_replay(
         flush_interval: flush_interval_of(args.recording_options()?.0, &plan),
         time_marks: args.recording_options()?.1,
     };
+    let paced = matches!(opts.pace, Pace::RealTime(_));
     let (report, writer) = bench::runner::run(&plan, Bench::Replay(data), writer, opts)?;
-    finish_file(writer, out)?;
+    finish_file(writer, out, paced)?;
     if let Some(c) = report.replay {
         println!(
             "replay of {}: {} table command(s), {} disagreeing with the recording; {} chamber \

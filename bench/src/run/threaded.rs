@@ -3,39 +3,27 @@
 //! the simulated bench it uses the second core, on a real bench it keeps compression stalls
 //! away from the pollers.
 //!
-//! Kill-safety: with a lag limit ([`ThreadedSink::lag_limit`]) the run may not get further
-//! ahead of the writer thread than that much bench time (the producer waits, which costs
-//! nothing in virtual time), so what a SIGKILL loses is bounded by the recorder's flush
-//! interval plus this lag, however fast the run goes.
+//! Kill-safety in virtual time: a batch is handed over when it is full or, with a hold limit
+//! ([`ThreadedSink::hold_limit`]), once its first event has waited that long in wall-clock time,
+//! and at most two batches wait for the writer thread; so the work a SIGKILL loses is what the
+//! recorder had not flushed (it flushes by wall-clock time, `RecorderOptions::flush_wall`) plus
+//! this hold. The run never waits on the writer beyond the two batches in flight.
 
-use std::sync::{mpsc, Arc, Condvar, Mutex};
+use std::sync::mpsc;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::{Event, EventSink};
-
-/// What the writer thread has recorded so far.
-#[derive(Default)]
-struct Done {
-    /// Bench time of the last event recorded.
-    t: Duration,
-    /// Events recorded (or skipped after an error).
-    n: u64,
-    /// The thread has ended.
-    ended: bool,
-}
-
-type Shared = Arc<(Mutex<Done>, Condvar)>;
 
 /// Forwards events in batches to `S` on a writer thread.
 pub struct ThreadedSink<S: EventSink> {
     batch: Vec<Event>,
     batch_len: usize,
+    /// When the first event of the current batch was taken.
+    batch_started: Option<Instant>,
+    hold_limit: Option<Duration>,
     tx: Option<mpsc::SyncSender<Vec<Event>>>,
     thread: Option<JoinHandle<(S, Option<String>)>>,
-    done: Shared,
-    sent: u64,
-    lag_limit: Option<Duration>,
     marks: Option<(Duration, u64)>,
     next_mark: Duration,
 }
@@ -52,57 +40,45 @@ impl Event {
 
 impl<S: EventSink> ThreadedSink<S> {
     /// Start the writer thread. Events are passed on in batches of `batch_len` (1 = at once;
-    /// larger batches cost less per event but hold events back until the batch is full or
-    /// [`ThreadedSink::finish`]).
+    /// larger batches cost less per event but hold events back until the batch is full, the
+    /// hold limit passes, or [`ThreadedSink::finish`]). At most two batches (eight single
+    /// events) wait for the writer: then the run waits.
     pub fn new(sink: S, batch_len: usize) -> std::io::Result<Self> {
         let batch_len = batch_len.max(1);
-        // A few batches in flight: enough to decouple, bounded so memory stays flat.
-        let (tx, rx) = mpsc::sync_channel::<Vec<Event>>(8);
-        let done: Shared = Arc::default();
-        let thread_done = done.clone();
+        let (tx, rx) = mpsc::sync_channel::<Vec<Event>>(if batch_len > 1 { 2 } else { 8 });
         let thread =
             std::thread::Builder::new().name("bench-recorder".into()).spawn(move || {
                 let mut sink = sink;
                 let mut error = None;
-                let (lock, cvar) = &*thread_done;
                 for batch in rx {
-                    if error.is_none() {
-                        for ev in &batch {
-                            if let Err(e) = sink.record(ev) {
-                                error = Some(format!("{e:#}"));
-                                break;
-                            }
+                    if error.is_some() {
+                        continue;
+                    }
+                    for ev in &batch {
+                        if let Err(e) = sink.record(ev) {
+                            error = Some(format!("{e:#}"));
+                            break;
                         }
                     }
-                    let mut d = lock.lock().unwrap_or_else(|p| p.into_inner());
-                    d.n += batch.len() as u64;
-                    if let Some(last) = batch.last() {
-                        d.t = d.t.max(last.t());
-                    }
-                    cvar.notify_all();
                 }
-                lock.lock().unwrap_or_else(|p| p.into_inner()).ended = true;
-                cvar.notify_all();
                 (sink, error)
             })?;
         Ok(Self {
             batch: Vec::with_capacity(batch_len),
             batch_len,
+            batch_started: None,
+            hold_limit: None,
             tx: Some(tx),
             thread: Some(thread),
-            done,
-            sent: 0,
-            lag_limit: None,
             marks: None,
             next_mark: Duration::ZERO,
         })
     }
 
-    /// Keep the run within `lag` of bench time of what the writer thread has recorded: a batch
-    /// is handed over once it spans half of `lag`, and `record` waits while the thread is
-    /// further behind. Only for virtual time, where waiting stops no clock.
-    pub fn lag_limit(mut self, lag: Duration) -> Self {
-        self.lag_limit = Some(lag);
+    /// Hand a batch over once its first event has waited `hold` of wall-clock time, full or not
+    /// (checked every 256 events), so a slow stretch of a run cannot hold events back.
+    pub fn hold_limit(mut self, hold: Duration) -> Self {
+        self.hold_limit = Some(hold);
         self
     }
 
@@ -118,28 +94,16 @@ impl<S: EventSink> ThreadedSink<S> {
     }
 
     fn send_batch(&mut self) -> anyhow::Result<()> {
+        self.batch_started = None;
         if self.batch.is_empty() {
             return Ok(());
         }
         let batch = std::mem::replace(&mut self.batch, Vec::with_capacity(self.batch_len));
-        let n = batch.len() as u64;
         match &self.tx {
             Some(tx) => {
-                tx.send(batch).map_err(|_| anyhow::anyhow!("the recorder thread has stopped"))?;
-                self.sent += n;
-                Ok(())
+                tx.send(batch).map_err(|_| anyhow::anyhow!("the recorder thread has stopped"))
             }
             None => Err(anyhow::anyhow!("the recorder has finished")),
-        }
-    }
-
-    /// Wait until the writer thread has recorded every event more than `lag` before `t`, or
-    /// everything handed over, or has ended.
-    fn wait_for_writer(&self, t: Duration, lag: Duration) {
-        let (lock, cvar) = &*self.done;
-        let mut d = lock.lock().unwrap_or_else(|p| p.into_inner());
-        while !d.ended && d.n < self.sent && d.t + lag < t {
-            d = cvar.wait(d).unwrap_or_else(|p| p.into_inner());
         }
     }
 
@@ -171,17 +135,16 @@ impl<S: EventSink> EventSink for ThreadedSink<S> {
                 self.next_mark = mark + every;
             }
         }
-        let first_t = self.batch.first().map(Event::t);
+        if self.batch.is_empty() && self.hold_limit.is_some() {
+            self.batch_started = Some(Instant::now());
+        }
         self.batch.push(event.clone());
-        let spans = match (self.lag_limit, first_t) {
-            (Some(lag), Some(t0)) => t.saturating_sub(t0) * 2 >= lag,
+        let held = match (self.hold_limit, self.batch_started) {
+            (Some(hold), Some(t0)) => self.batch.len().is_multiple_of(256) && t0.elapsed() >= hold,
             _ => false,
         };
-        if self.batch.len() >= self.batch_len || spans {
+        if self.batch.len() >= self.batch_len || held {
             self.send_batch()?;
-        }
-        if let Some(lag) = self.lag_limit {
-            self.wait_for_writer(t, lag);
         }
         Ok(())
     }
@@ -202,6 +165,7 @@ impl<S: EventSink> Drop for ThreadedSink<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::{Arc, Mutex};
     use std::time::Duration;
 
     #[derive(Default)]
@@ -237,41 +201,33 @@ mod tests {
         assert_eq!(err.as_deref(), Some("disk full"));
     }
 
-    /// Records slowly, noting how far behind the producer it was at each event.
+    /// Records slowly.
     struct Slow(Arc<Mutex<Vec<Duration>>>);
     impl EventSink for Slow {
         fn record(&mut self, event: &Event) -> anyhow::Result<()> {
-            std::thread::sleep(Duration::from_micros(200));
+            std::thread::sleep(Duration::from_micros(20));
             self.0.lock().expect("lock").push(event.t());
             Ok(())
         }
     }
 
     #[test]
-    fn with_a_lag_limit_the_producer_never_runs_further_ahead() {
+    fn a_held_batch_is_handed_over_by_wall_clock_time_not_only_when_full() {
         let seen = Arc::new(Mutex::new(Vec::new()));
-        let lag = Duration::from_millis(500);
-        let mut s = ThreadedSink::new(Slow(seen.clone()), 4096).expect("thread").lag_limit(lag);
-        let mut worst = Duration::ZERO;
-        for i in 0..400u64 {
-            let t = Duration::from_millis(50 * i);
-            s.record(&Event::Step {
-                t,
-                index: i as usize,
-                name: "wait".into(),
-                event: super::super::StepEvent::Start,
-                label: String::new(),
-            })
-            .expect("queued");
-            // After `record` returns, the writer has recorded everything older than t - lag.
-            let recorded = seen.lock().expect("lock").last().copied().unwrap_or_default();
-            if t > lag {
-                worst = worst.max(t - recorded);
-            }
+        let mut s = ThreadedSink::new(Slow(seen.clone()), 1 << 20)
+            .expect("thread")
+            .hold_limit(Duration::from_millis(20));
+        for i in 0..512u64 {
+            s.record(&step(i as usize)).expect("queued");
+            std::thread::sleep(Duration::from_micros(100));
         }
+        // 512 events over ≥ 51 ms with a 20 ms hold: the writer has at least the first 256
+        // (5 ms of writing) well before the finish, though a batch holds 2^20.
+        std::thread::sleep(Duration::from_millis(500));
+        let before_finish = seen.lock().expect("lock").len();
+        assert!(before_finish >= 256, "{before_finish} events reached the writer");
         let (sink, err) = s.finish().expect("joined");
         assert!(err.is_none());
-        assert_eq!(sink.0.lock().expect("lock").len(), 400);
-        assert!(worst <= lag, "the producer ran {worst:?} ahead (limit {lag:?})");
+        assert_eq!(sink.0.lock().expect("lock").len(), 512);
     }
 }

@@ -50,23 +50,40 @@ fn csv_tables_read_back() {
     let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
     assert_eq!(
         header,
-        ["log_time_ns", "publish_time_ns", "sequence", "rate", "temperature", "seq", "status"]
+        [
+            "timestamp",
+            "log_time_ns",
+            "publish_time_ns",
+            "sequence",
+            "rate",
+            "temperature",
+            "seq",
+            "status"
+        ]
     );
+    assert_eq!(gyro.columns, header);
     let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.expect("row")).collect();
     assert_eq!(rows.len(), 50);
+    // The time stamp: the log time as RFC 3339 UTC text, to the nanosecond (EPOCH is
+    // 2027-01-15T08:00:00 UTC).
+    assert_eq!(&rows[7][0], "2027-01-15T08:00:00.350000000Z");
+    let rows: Vec<Vec<String>> =
+        rows.iter().map(|r| r.iter().skip(1).map(String::from).collect()).collect();
     let r7 = &rows[7];
     assert_eq!(r7[0].parse::<u64>().ok(), Some(EPOCH + 350_000_000));
     assert_eq!(r7[1].parse::<u64>().ok(), Some(EPOCH + 350_000_003));
     assert_eq!(&r7[2], "7");
     assert_eq!(r7[3].parse::<f64>().ok(), Some(0.5 + 7.0 / 1024.0));
     assert_eq!(&r7[4], "-12.5");
-    assert_eq!((&r7[5], &r7[6]), ("1007", "1"));
+    assert_eq!((r7[5].as_str(), r7[6].as_str()), ("1007", "1"));
     // A gyro without a temperature reading: an empty cell.
     assert_eq!(&rows[6][4], "");
     // Nested fields are flattened; text with commas and quotes survives.
     let mut rd = csv::Reader::from_path(dir.path().join("log.csv")).expect("csv");
     let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
     assert!(header.contains(&"timestamp.sec".to_string()), "{header:?}");
+    // `timestamp.sec` does not clash with the time stamp column.
+    assert_eq!(header[0], "timestamp");
     let mut rd = csv::Reader::from_path(dir.path().join("bench_step.csv")).expect("csv");
     let row = rd.records().next().expect("a row").expect("row");
     assert_eq!(row.iter().next_back(), Some("record, \"quoted\""));
@@ -140,6 +157,114 @@ fn parquet_tables_read_back_with_types_and_nulls() {
     assert_eq!(cols.get("message"), Some(&Field::Str("hot".into())));
     assert_eq!(cols.get("level"), Some(&Field::Long(3)));
     assert_eq!(cols.get("timestamp.sec"), Some(&Field::Long(1_800_000_001)));
+}
+
+/// Units sidecar of a CSV table: column → unit.
+fn units_of(path: &Path) -> BTreeMap<String, String> {
+    let mut rd = csv::Reader::from_path(path).expect("units csv");
+    let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
+    assert_eq!(header, ["column", "unit"]);
+    rd.records().map(|r| r.expect("row")).map(|r| (r[0].to_owned(), r[1].to_owned())).collect()
+}
+
+#[test]
+fn csv_tables_have_a_units_sidecar_naming_every_column() {
+    let (dir, report) = export_to(Format::Csv);
+    let gyro = report.tables.iter().find(|t| t.topic == "/gyro/rate").expect("gyro");
+    let path = gyro.units.clone().expect("a sidecar");
+    assert_eq!(path, dir.path().join("gyro_rate.units.csv"));
+    let units = units_of(&path);
+    assert_eq!(units.keys().count(), gyro.columns.len(), "{units:?}");
+    assert_eq!(units["rate"], "rad/s");
+    assert_eq!(units["temperature"], "°C");
+    assert_eq!(units["log_time_ns"], "ns");
+    assert_eq!(units["timestamp"], "RFC 3339, UTC");
+    assert_eq!(units["seq"], "");
+    let chamber = report.tables.iter().find(|t| t.topic == "/chamber/state").expect("chamber");
+    assert_eq!(units_of(chamber.units.as_deref().expect("sidecar"))["setpoint"], "°C");
+}
+
+/// A gyro with no temperature sensor, a record window from 0.5 s to 1.5 s of a 2.5 s run.
+fn no_temperature_file() -> Vec<u8> {
+    let info = RunInfo::new(EPOCH, "t", "", Site::at_latitude(1.0), BTreeMap::new());
+    let mut r = Recorder::new(Cursor::new(Vec::new()), info).expect("start");
+    for i in 0..50u64 {
+        let t = Duration::from_millis(50 * i);
+        if i == 10 {
+            r.step(t, 0, "record", StepEvent::Start, "record cw").expect("step");
+        }
+        if i == 30 {
+            r.step(t, 0, "record", StepEvent::End, "record cw").expect("step");
+        }
+        // Whole numbers in a float field: still a float column.
+        let g = GyroMsg { rate_rad_s: 1.0, temperature_c: None, seq: i, status: 0 };
+        r.gyro(t, None, &g).expect("gyro");
+        let c = ChamberMsg { temperature_c: 20.0, setpoint_c: 20.0, status: 0 };
+        r.chamber(t, None, &c).expect("chamber");
+    }
+    r.finish(&Outcome::Completed).expect("finish").into_inner()
+}
+
+#[test]
+fn parquet_columns_have_the_contracts_types_whatever_the_values() {
+    use parquet::basic::Type as Physical;
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::Field;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bytes = no_temperature_file();
+    let report = export_with(RecordingReader::new(&bytes[..]), dir.path(), Format::Parquet, true)
+        .expect("exports");
+    let physical = |path: &Path| -> BTreeMap<String, Physical> {
+        let r = SerializedFileReader::new(std::fs::File::open(path).expect("file")).expect("pq");
+        let schema = r.metadata().file_metadata().schema_descr_ptr();
+        (0..schema.num_columns())
+            .map(|i| (schema.column(i).name().to_owned(), schema.column(i).physical_type()))
+            .collect()
+    };
+    let gyro = report.tables.iter().find(|t| t.topic == "/gyro/rate").expect("gyro");
+    let types = physical(&gyro.path);
+    assert_eq!(types["temperature"], Physical::DOUBLE, "{types:?}");
+    assert_eq!(types["rate"], Physical::DOUBLE, "{types:?}");
+    assert_eq!(types["seq"], Physical::INT64, "{types:?}");
+    let merged = report.tables.iter().find(|t| t.topic == MERGED).expect("merged");
+    let types = physical(&merged.path);
+    assert_eq!(types["gyro_temperature"], Physical::DOUBLE, "{types:?}");
+    assert_eq!(types["chamber_setpoint"], Physical::DOUBLE, "{types:?}");
+    assert_eq!(types["record_window"], Physical::BYTE_ARRAY, "{types:?}");
+    // Read back: temperature null everywhere, the record window null outside [0.5 s, 1.5 s).
+    let r = SerializedFileReader::new(std::fs::File::open(&merged.path).expect("f")).expect("pq");
+    let rows: Vec<BTreeMap<String, Field>> = r
+        .get_row_iter(None)
+        .expect("rows")
+        .map(|row| row.expect("row").into_columns().into_iter().collect())
+        .collect();
+    assert_eq!(rows.len(), 50);
+    for (i, row) in rows.iter().enumerate() {
+        assert_eq!(row["gyro_temperature"], Field::Null, "row {i}");
+        assert_eq!(row["gyro_rate"], Field::Double(1.0), "row {i}");
+        let want = if (10..30).contains(&i) { Field::Str("record cw".into()) } else { Field::Null };
+        assert_eq!(row["record_window"], want, "row {i}");
+    }
+}
+
+#[test]
+fn csv_merged_leaves_the_record_window_empty_outside_windows() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bytes = no_temperature_file();
+    let report = export_with(RecordingReader::new(&bytes[..]), dir.path(), Format::Csv, true)
+        .expect("exports");
+    let merged = report.tables.iter().find(|t| t.topic == MERGED).expect("merged");
+    let mut rd = csv::Reader::from_path(&merged.path).expect("csv");
+    let header: Vec<String> = rd.headers().expect("header").iter().map(String::from).collect();
+    let w = header.iter().position(|h| h == "record_window").expect("column");
+    let t = header.iter().position(|h| h == "gyro_temperature").expect("column");
+    let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.expect("row")).collect();
+    assert_eq!((&rows[9][w], &rows[10][w], &rows[30][w]), ("", "record cw", ""));
+    assert!(rows.iter().all(|r| r[t].is_empty()));
+    let units = units_of(merged.units.as_deref().expect("sidecar"));
+    assert_eq!(units["gyro_temperature"], "°C");
+    assert_eq!(units["bench_time_s"], "s");
+    assert_eq!(units["record_window"], "");
 }
 
 #[test]
