@@ -80,6 +80,7 @@ impl TableReadings {
             table_angle_rad: &self.angle_rad,
             reading_sigma_rad: self.sigma_rad,
             drift_sigma_rad_s: self.drift_sigma_rad_s,
+            nuisance: None,
         }
     }
 }
@@ -98,6 +99,10 @@ pub struct AngleWindow<'a> {
     pub reading_sigma_rad: f64,
     /// σ of the reference's rate error over the stretch, rad/s.
     pub drift_sigma_rad_s: f64,
+    /// The rate-domain nuisance regressor at the window's samples
+    /// ([`crate::joint_fit::Nuisance`]), when one is fitted: its integral over the stretch is
+    /// fitted beside the coefficients ([`AngleFitOptions::nuisance`]).
+    pub nuisance: Option<&'a [f64]>,
 }
 
 /// Settings of [`angle_fit`].
@@ -113,6 +118,10 @@ pub struct AngleFitOptions {
     pub noise: NoiseSpec,
     /// Window of the temperature's smoothing, s (the rate domain's dT/dt window).
     pub temp_window_s: f64,
+    /// Coefficients held at a value (`ModelKey::CALIBRATED` order), as in the rate domain.
+    pub held: [Option<f64>; 4],
+    /// Fit the windows' nuisance regressor ([`AngleWindow::nuisance`]) beside the coefficients.
+    pub nuisance: bool,
 }
 
 /// One coefficient of the angle-domain fit.
@@ -124,6 +133,8 @@ pub struct AngleEstimate {
     pub std_err: f64,
     /// The Cramér–Rao bound under the noise model.
     pub bound: f64,
+    /// Held at `value`, not estimated (`std_err` and `bound` NaN).
+    pub held: bool,
 }
 
 /// The angle misclosure of one stretch, for plots: times, before calibration (only Earth's
@@ -196,7 +207,8 @@ struct Stretch {
     ref_s: f64,
     time_s: Vec<f64>,
     y: Vec<f64>,
-    x: Vec<[f64; 4]>,
+    /// The four coefficients' columns and the nuisance's (0 without one).
+    x: Vec<[f64; 5]>,
     reading_var: f64,
     /// Prior variance of the reference's rate error `u`, (rad/s)².
     drift_var: f64,
@@ -254,16 +266,22 @@ fn stretch(aw: &AngleWindow<'_>, earth: f64, t0: f64, temp_window_s: f64) -> Opt
     let ts = w.time_s();
     let temp = &w.smoothed_temperature_c(temp_window_s).ok()?;
     let mut temp_int = Vec::with_capacity(ts.len());
-    let mut acc = 0.0;
+    let mut nu_int = Vec::with_capacity(ts.len());
+    let (mut acc, mut acc_nu) = (0.0, 0.0);
     for k in 0..ts.len() {
         if k > 0 {
             acc += 0.5 * (temp[k] + temp[k - 1] - 2.0 * t0) * (ts[k] - ts[k - 1]);
+            if let Some(nu) = aw.nuisance {
+                acc_nu += 0.5 * (nu[k] + nu[k - 1]) * (ts[k] - ts[k - 1]);
+            }
         }
         temp_int.push(acc);
+        nu_int.push(acc_nu);
     }
     let j0 = idx[0];
     let (tau0, theta0) = (aw.table_time_s[j0], aw.table_angle_rad[j0]);
     let (i0, temp0, int0) = (at(&gt, &gi, tau0), at(ts, temp, tau0), at(ts, &temp_int, tau0));
+    let nu0 = at(ts, &nu_int, tau0);
     let mut s = Stretch {
         label: w.label().to_owned(),
         ref_s: tau0,
@@ -281,7 +299,13 @@ fn stretch(aw: &AngleWindow<'_>, earth: f64, t0: f64, temp_window_s: f64) -> Opt
         let input = dtheta + earth * dtau;
         s.time_s.push(tau);
         s.y.push(at(&gt, &gi, tau) - i0 - input);
-        s.x.push([dtau, input, at(ts, &temp_int, tau) - int0, at(ts, temp, tau) - temp0]);
+        s.x.push([
+            dtau,
+            input,
+            at(ts, &temp_int, tau) - int0,
+            at(ts, temp, tau) - temp0,
+            at(ts, &nu_int, tau) - nu0,
+        ]);
     }
     Some(s)
 }
@@ -417,6 +441,53 @@ fn whiten_rows(
     }
 }
 
+/// The normal equations of the whitened problem over `cols` (free columns of a stretch's `x`,
+/// each divided by its `scale`) and one offset per stretch: (XᵀX, Xᵀy, yᵀy), `y` with the held
+/// coefficients' terms taken out.
+fn normal_equations(
+    stretches: &[Stretch],
+    rows: &[(usize, usize)],
+    opts: &AngleFitOptions,
+    cols: &[usize],
+    scale: &[f64],
+) -> (DMatrix<f64>, DVector<f64>, f64) {
+    let (nc, ns) = (cols.len(), stretches.len());
+    let p = nc + ns;
+    let value = |k: usize, col: usize| {
+        let (si, r) = rows[k];
+        let s = &stretches[si];
+        if col < nc {
+            s.x[r][cols[col]] / scale[col]
+        } else if col < p {
+            f64::from(u8::from(col - nc == si))
+        } else {
+            let held: f64 = (0..4).filter_map(|j| opts.held[j].map(|h| h * s.x[r][j])).sum();
+            s.y[r] - held
+        }
+    };
+    let mut xtx = DMatrix::<f64>::zeros(p, p);
+    let mut xty = DVector::<f64>::zeros(p);
+    let mut yty = 0.0;
+    whiten_rows(stretches, &opts.noise, p + 1, value, |w| {
+        let y = w[p];
+        for i in 0..p {
+            if w[i] != 0.0 {
+                xty[i] += w[i] * y;
+                for j in i..p {
+                    xtx[(i, j)] += w[i] * w[j];
+                }
+            }
+        }
+        yty += y * y;
+    });
+    for i in 0..p {
+        for j in 0..i {
+            xtx[(i, j)] = xtx[(j, i)];
+        }
+    }
+    (xtx, xty, yty)
+}
+
 /// Fit the thermal model to the angle misclosures of `windows` (module docs).
 pub fn angle_fit(
     windows: &[AngleWindow<'_>],
@@ -446,54 +517,28 @@ pub fn angle_fit(
     for (si, s) in stretches.iter().enumerate() {
         rows.extend((0..s.y.len()).map(|k| (si, k)));
     }
-    // Columns: the four coefficients (scaled to unit RMS), one offset per stretch; then y.
-    let mut scale = [0.0; 4];
+    // Free columns (the coefficients not held, the nuisance), scaled to unit RMS.
+    let mut cols: Vec<usize> = (0..4).filter(|&j| opts.held[j].is_none()).collect();
+    if opts.nuisance {
+        cols.push(4);
+    }
+    let mut scale = vec![0.0; cols.len()];
     for &(si, k) in &rows {
-        for (j, sc) in scale.iter_mut().enumerate() {
-            *sc += stretches[si].x[k][j] * stretches[si].x[k][j];
+        for (c, sc) in scale.iter_mut().enumerate() {
+            *sc += stretches[si].x[k][cols[c]] * stretches[si].x[k][cols[c]];
         }
     }
-    for (j, sc) in scale.iter_mut().enumerate() {
+    for (c, sc) in scale.iter_mut().enumerate() {
         *sc = (*sc / n as f64).sqrt();
         if *sc == 0.0 {
             return Err(AnalysisError::Insufficient(format!(
-                "angle-domain fit: the data never excite coefficient {j} (its regressor is zero)"
+                "angle-domain fit: the data never excite coefficient {} (its regressor is zero)",
+                cols[c]
             )));
         }
     }
-    let p = 4 + ns;
-    let value = |k: usize, col: usize| {
-        let (si, r) = rows[k];
-        let s = &stretches[si];
-        if col < 4 {
-            s.x[r][col] / scale[col]
-        } else if col < p {
-            f64::from(u8::from(col - 4 == si))
-        } else {
-            s.y[r]
-        }
-    };
-    let mut xtx = DMatrix::<f64>::zeros(p, p);
-    let mut xty = DVector::<f64>::zeros(p);
-    let mut yty = 0.0;
-    whiten_rows(&stretches, &opts.noise, p + 1, value, |w| {
-        let y = w[p];
-        for i in 0..p {
-            if w[i] != 0.0 {
-                xty[i] += w[i] * y;
-                for j in i..p {
-                    xtx[(i, j)] += w[i] * w[j];
-                }
-            }
-        }
-        yty += y * y;
-    });
-    for i in 0..p {
-        for j in 0..i {
-            xtx[(i, j)] = xtx[(j, i)];
-        }
-    }
-    let cov_s = xtx.clone().try_inverse().ok_or_else(|| {
+    let (xtx, xty, yty) = normal_equations(&stretches, &rows, opts, &cols, &scale);
+    let cov_s = xtx.try_inverse().ok_or_else(|| {
         AnalysisError::Insufficient(
             "angle-domain fit: the stretches cannot separate bias, scale factor, temperature and \
              temperature-rate terms"
@@ -503,17 +548,50 @@ pub fn angle_fit(
     let beta = &cov_s * &xty;
     let rss = (yty - beta.dot(&xty)).max(0.0);
     let rms = (rss / n as f64).sqrt();
+    Ok(assemble(&stretches, opts, &cols, &scale, &cov_s, &beta, rms, n))
+}
+
+/// The [`AngleFit`] from the solved normal equations.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    stretches: &[Stretch],
+    opts: &AngleFitOptions,
+    cols: &[usize],
+    scale: &[f64],
+    cov_s: &DMatrix<f64>,
+    beta: &DVector<f64>,
+    rms: f64,
+    n: usize,
+) -> AngleFit {
+    let nc = cols.len();
     let mut covariance = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for j in 0..4 {
-            covariance[i][j] = cov_s[(i, j)] / (scale[i] * scale[j]);
+    let mut coef: [AngleEstimate; 4] = std::array::from_fn(|j| AngleEstimate {
+        value: opts.held[j].unwrap_or(f64::NAN),
+        std_err: f64::NAN,
+        bound: f64::NAN,
+        held: true,
+    });
+    let mut fitted = [0.0; 5];
+    for (a, &i) in cols.iter().enumerate() {
+        fitted[i] = beta[a] / scale[a];
+        if i < 4 {
+            for (b, &j) in cols.iter().enumerate().filter(|(_, &j)| j < 4) {
+                covariance[i][j] = cov_s[(a, b)] / (scale[a] * scale[b]);
+            }
+            let bound = covariance[i][i].max(0.0).sqrt();
+            coef[i] = AngleEstimate {
+                value: fitted[i],
+                std_err: bound * rms.max(1.0),
+                bound,
+                held: false,
+            };
         }
     }
-    let est = |j: usize| {
-        let bound = covariance[j][j].max(0.0).sqrt();
-        AngleEstimate { value: beta[j] / scale[j], std_err: bound * rms.max(1.0), bound }
-    };
-    let coef = [est(0), est(1), est(2), est(3)];
+    for (j, h) in opts.held.iter().enumerate() {
+        if let Some(h) = h {
+            fitted[j] = *h;
+        }
+    }
     // Misclosures before and after (the fitted model and the stretch's offset removed).
     let misclosure = stretches
         .iter()
@@ -526,23 +604,23 @@ pub fn angle_fit(
                 .y
                 .iter()
                 .zip(&s.x)
-                .map(|(y, x)| y - (0..4).map(|j| coef[j].value * x[j]).sum::<f64>() - beta[4 + si])
+                .map(|(y, x)| y - (0..5).map(|j| fitted[j] * x[j]).sum::<f64>() - beta[nc + si])
                 .collect(),
         })
         .collect();
-    Ok(AngleFit {
+    AngleFit {
         bias: coef[0],
         scale_factor_error: coef[1],
         temp_coeff: coef[2],
         temp_rate_coeff: coef[3],
-        reference_temperature_c: t0,
+        reference_temperature_c: opts.reference_temperature_c,
         covariance,
         whitened_residual_rms: rms,
         readings: n,
-        stretches: ns,
+        stretches: stretches.len(),
         bridged_samples: stretches.iter().map(|s| s.bridged).sum(),
         misclosure,
-    })
+    }
 }
 
 #[cfg(test)]
@@ -638,6 +716,7 @@ mod tests {
                     reading_sigma_rad: (ARCSEC * ARCSEC / 12.0 + (2.909e-3 * 1e-3f64).powi(2))
                         .sqrt(),
                     drift_sigma_rad_s: ARCSEC / 600.0,
+                    nuisance: None,
                 })
                 .collect();
             let opts = AngleFitOptions {
@@ -646,6 +725,8 @@ mod tests {
                 axis_up: true,
                 noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
                 temp_window_s: 60.0,
+                held: [None; 4],
+                nuisance: false,
             };
             let f = angle_fit(&aws, &opts).expect("fits");
             assert_eq!(f.stretches, 8);

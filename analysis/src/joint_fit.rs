@@ -102,6 +102,34 @@ pub struct JointFitOptions {
     /// Noise model (e.g. from the Allan deviation of the plateaus) whose covariance is carried
     /// into the coefficients; `None` leaves the block bootstrap alone. Default `None`.
     pub noise: Option<NoiseSpec>,
+    /// Coefficients held at a value instead of estimated (`ModelKey::CALIBRATED` order): a
+    /// procedure that does not determine one ([`crate::information`]). Default none.
+    pub held: [Option<Held>; 4],
+    /// A regressor estimated beside the coefficients so that their σ carry its uncertainty
+    /// (a fitted thermal lag's sensitivity). Default `None`.
+    pub nuisance: Option<Nuisance>,
+}
+
+/// A coefficient held at a value instead of estimated: its column leaves the design and its
+/// term `value·x_j` is taken out of `y`; `sigma` (1σ of the held value, e.g. a prior's; 0 when
+/// taken as exact) goes through the estimator into the other coefficients' covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Held {
+    /// The value, the contract's unit.
+    pub value: f64,
+    /// Its 1σ; 0 when it is taken as exact.
+    pub sigma: f64,
+}
+
+/// A regressor estimated beside the four coefficients so that their σ carry its uncertainty:
+/// the linearised effect of a fitted non-linear parameter (the thermal lag: `k_t·∂T/∂τ +
+/// k_dt·∂Ṫ/∂τ`, [`crate::calibrate`]), one value per sample of each window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Nuisance {
+    /// What it is, for messages.
+    pub name: String,
+    /// Per window, per sample.
+    pub values: Vec<Vec<f64>>,
 }
 
 /// A gyro noise model in the terms of IEEE Std 952, for the coefficient covariance.
@@ -126,6 +154,8 @@ impl Default for JointFitOptions {
             block_len: None,
             seed: 0,
             noise: None,
+            held: [None; 4],
+            nuisance: None,
         }
     }
 }
@@ -170,6 +200,26 @@ pub struct Estimate {
     pub ols_value: f64,
     /// The OLS value's standard error under the noise model, for comparison; NaN without one.
     pub ols_noise_model_std_err: f64,
+    /// Held at a value, not estimated ([`JointFitOptions::held`]): `value` is the held value,
+    /// `std_err` its σ (NaN when taken as exact), every other σ NaN.
+    pub held: bool,
+}
+
+impl Estimate {
+    /// The estimate of a coefficient held at `h`.
+    pub fn held(h: Held) -> Self {
+        let nan = f64::NAN;
+        Estimate {
+            value: h.value,
+            std_err: if h.sigma > 0.0 { h.sigma } else { nan },
+            naive_std_err: nan,
+            bootstrap_std_err: nan,
+            noise_model_std_err: nan,
+            ols_value: h.value,
+            ols_noise_model_std_err: nan,
+            held: true,
+        }
+    }
 }
 
 /// Result of [`joint_fit`]; coefficients in `bench.gyro_model` units.
@@ -189,6 +239,8 @@ pub struct JointFit {
     pub temp_coeff: Estimate,
     /// rad/s per (°C/s).
     pub temp_rate_coeff: Estimate,
+    /// The nuisance regressor's coefficient ([`JointFitOptions::nuisance`]), when given.
+    pub nuisance: Option<Estimate>,
     /// RMS of the residual, rad/s.
     pub residual_rms_rad_s: f64,
     /// Samples used.
@@ -201,8 +253,10 @@ pub struct JointFit {
     /// Bootstrap replicates.
     pub replicates: usize,
     /// Covariance of (bias, scale factor error, temp_coeff, temp_rate_coeff), contract units:
-    /// GLS, the Cramér–Rao bound scaled by max(1, whitened RMS)²; OLS, under the noise model
-    /// when there is one, else NaN. Its diagonal is each [`Estimate::std_err`]² for GLS.
+    /// GLS, the Cramér–Rao bound scaled by max(1, whitened RMS)² (the nuisance regressor
+    /// marginalised), a held coefficient's σ² and its covariance with the others through the
+    /// estimator (0 when held exactly); OLS, NaN. Its diagonal is each [`Estimate::std_err`]²
+    /// for GLS.
     pub covariance: [[f64; 4]; 4],
     /// Each sample's residual in units of its noise: the GLS whitened residual (white, unit
     /// variance when the noise model fits), or for OLS the residual over its RMS; in the
@@ -242,49 +296,108 @@ const NAMES: [&str; 4] = {
     [k[0].key(), k[1].key(), k[2].key(), k[3].key()]
 };
 
-/// Fit the model (module docs) over all `windows`.
-pub fn joint_fit(
-    windows: &[RecordWindow],
-    opts: &JointFitOptions,
-) -> Result<JointFit, AnalysisError> {
+/// The design of one fit: the free columns (the coefficients not held, then the nuisance
+/// regressor if any) scaled to unit RMS, `y` with the held coefficients' terms taken out, and
+/// the raw columns of the held ones.
+struct Design {
+    x: DMatrix<f64>,
+    y: DVector<f64>,
+    /// Each free column's RMS (the scale it was divided by).
+    scale: Vec<f64>,
+    /// Each free column's index: 0–3 a coefficient (`NAMES` order), 4 the nuisance.
+    cols: Vec<usize>,
+    /// Held coefficients with a σ: (index, σ, raw column).
+    held: Vec<(usize, f64, DVector<f64>)>,
+}
+
+/// The four regressors of one sample: bias, input rate, T − T0, dT/dt.
+fn regressors(omega_in: f64, t: f64, t0: f64, d: f64) -> [f64; 4] {
+    [1.0, omega_in, t - t0, d]
+}
+
+/// Build the [`Design`] of `windows` (module docs), refusing a free column that is zero
+/// everywhere.
+fn design(windows: &[RecordWindow], opts: &JointFitOptions) -> Result<Design, AnalysisError> {
     let earth = opts.latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, opts.axis_up));
     let t0 = opts.reference_temperature_c;
     let n: usize = windows.iter().map(RecordWindow::len).sum();
-    if n < 8 {
-        return Err(AnalysisError::TooFewSamples { what: "joint fit".into(), got: n, min: 8 });
+    if let Some(nu) = &opts.nuisance {
+        let lens: Vec<usize> = nu.values.iter().map(Vec::len).collect();
+        let want: Vec<usize> = windows.iter().map(RecordWindow::len).collect();
+        if lens != want {
+            return Err(AnalysisError::Insufficient(format!(
+                "joint fit: the nuisance column `{}` does not match the windows",
+                nu.name
+            )));
+        }
     }
-    let mut x = DMatrix::<f64>::zeros(n, 4);
+    let mut cols: Vec<usize> = (0..4).filter(|&j| opts.held[j].is_none()).collect();
+    if opts.nuisance.is_some() {
+        cols.push(4);
+    }
+    let held: Vec<(usize, Held)> = (0..4).filter_map(|j| opts.held[j].map(|h| (j, h))).collect();
+    let mut x = DMatrix::<f64>::zeros(n, cols.len());
     let mut y = DVector::<f64>::zeros(n);
+    let mut raw_held: Vec<DVector<f64>> = held.iter().map(|_| DVector::zeros(n)).collect();
     let mut row = 0;
-    for w in windows {
+    for (wi, w) in windows.iter().enumerate() {
         let temp = w.temperature_c();
         let rate = w.temperature_rate_c_s(opts.rate_window_s)?;
-        for (((v, o), t), d) in
-            w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate)
+        for (k, (((v, o), t), d)) in
+            w.gyro_rate_rad_s().iter().zip(w.table_rate_rad_s()).zip(temp).zip(&rate).enumerate()
         {
             let omega_in = o + earth;
+            let r = regressors(omega_in, *t, t0, *d);
             y[row] = v - omega_in;
-            x[(row, 0)] = 1.0;
-            x[(row, 1)] = omega_in;
-            x[(row, 2)] = t - t0;
-            x[(row, 3)] = *d;
+            for (c, &j) in cols.iter().enumerate() {
+                x[(row, c)] = match (j, &opts.nuisance) {
+                    (4, Some(nu)) => nu.values[wi][k],
+                    _ => r[j],
+                };
+            }
+            for (h, (j, hv)) in held.iter().enumerate() {
+                y[row] -= hv.value * r[*j];
+                raw_held[h][row] = r[*j];
+            }
             row += 1;
         }
     }
     // Scale columns to unit RMS so the SVD's rank test compares like with like.
-    let mut scale = [0.0; 4];
-    for (j, s) in scale.iter_mut().enumerate() {
-        let rms = (x.column(j).norm_squared() / n as f64).sqrt();
-        if rms == 0.0 {
+    let mut scale = Vec::with_capacity(cols.len());
+    for (c, &j) in cols.iter().enumerate() {
+        let rms = (x.column(c).norm_squared() / n as f64).sqrt();
+        if rms == 0.0 || !rms.is_finite() {
+            let name = if j < 4 { NAMES[j] } else { "nuisance" };
             return Err(AnalysisError::Insufficient(format!(
-                "joint fit: the data never excite `{}` (its regressor is zero everywhere)",
-                NAMES[j]
+                "joint fit: the data never excite `{name}` (its regressor is zero everywhere)"
             )));
         }
-        *s = rms;
-        x.column_mut(j).scale_mut(1.0 / rms);
+        scale.push(rms);
+        x.column_mut(c).scale_mut(1.0 / rms);
     }
-    let svd = x.clone().svd(true, true);
+    let held = held
+        .iter()
+        .zip(raw_held)
+        .filter(|((_, h), _)| h.sigma.is_finite() && h.sigma > 0.0)
+        .map(|((j, h), col)| (*j, h.sigma, col))
+        .collect();
+    Ok(Design { x, y, scale, cols, held })
+}
+
+/// The ordinary least-squares solution of a [`Design`] by SVD.
+struct Ols {
+    pinv: DMatrix<f64>,
+    beta: DVector<f64>,
+    resid: DVector<f64>,
+    rss: f64,
+}
+
+fn ols(d: &Design) -> Result<Ols, AnalysisError> {
+    let (n, p) = (d.x.nrows(), d.x.ncols());
+    if n < 8 || n <= p {
+        return Err(AnalysisError::TooFewSamples { what: "joint fit".into(), got: n, min: 8 });
+    }
+    let svd = d.x.clone().svd(true, true);
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
     if smin.is_nan() || smin <= 1e-9 * smax {
@@ -297,23 +410,56 @@ pub fn joint_fit(
     let pinv = svd
         .pseudo_inverse(1e-12 * smax)
         .map_err(|e| AnalysisError::Insufficient(format!("joint fit: {e}")))?;
-    let beta_s = &pinv * &y;
-    let resid = &y - &x * &beta_s;
+    let beta = &pinv * &d.y;
+    let resid = &d.y - &d.x * &beta;
     let rss = resid.norm_squared();
-    let sigma2 = rss / (n - 4) as f64;
+    Ok(Ols { pinv, beta, resid, rss })
+}
 
-    if opts.replicates < 2 {
-        return Err(AnalysisError::InvalidParameter {
-            name: "replicates",
-            value: opts.replicates as f64,
-            why: "need at least 2 bootstrap replicates",
-        });
+/// An ordinary least-squares fit without errors ([`ols_fit`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OlsFit {
+    /// The coefficients (`ModelKey::CALIBRATED` order; a held one's held value).
+    pub coefficients: [f64; 4],
+    /// The residual, one value per sample in the windows' order, rad/s.
+    pub residual: Vec<f64>,
+}
+
+/// The OLS fit of the model over `windows` (held coefficients and the nuisance as in `opts`;
+/// no bootstrap, no noise model): the residual the noise model is measured on, and starting
+/// values ([`crate::calibrate`]).
+pub fn ols_fit(windows: &[RecordWindow], opts: &JointFitOptions) -> Result<OlsFit, AnalysisError> {
+    let d = design(windows, opts)?;
+    let o = ols(&d)?;
+    let mut coefficients: [f64; 4] = std::array::from_fn(|j| opts.held[j].map_or(0.0, |h| h.value));
+    for (c, &j) in d.cols.iter().enumerate().filter(|(_, &j)| j < 4) {
+        coefficients[j] = o.beta[c] / d.scale[c];
     }
+    Ok(OlsFit { coefficients, residual: o.resid.as_slice().to_vec() })
+}
+
+/// The noise model's view of a design: sample times and white variances, the GLS fit and the
+/// OLS estimate's variance under the model.
+struct NoiseStage {
+    spec: Option<NoiseSpec>,
+    times: Vec<f64>,
+    white: Vec<f64>,
+    gls: Option<crate::gls::Gls>,
+    ols_model_var: Vec<f64>,
+}
+
+fn noise_stage(
+    windows: &[RecordWindow],
+    d: &Design,
+    o: &Ols,
+    opts: &JointFitOptions,
+) -> Result<NoiseStage, AnalysisError> {
+    let p = d.x.ncols();
     // Sample times and white-noise variances (per-window median interval) for the noise model.
-    let noise = opts
+    let spec = opts
         .noise
         .filter(|s| [s.arw, s.flicker_floor, s.rrw].iter().all(|v| v.is_finite() && *v >= 0.0));
-    let (times, dts): (Vec<f64>, Vec<f64>) = if noise.is_some() {
+    let (times, dts): (Vec<f64>, Vec<f64>) = if spec.is_some() {
         windows
             .iter()
             .flat_map(|w| {
@@ -324,23 +470,42 @@ pub fn joint_fit(
     } else {
         (Vec::new(), Vec::new())
     };
-    let ols_model_var = match &noise {
-        Some(spec) => noise_model_variance(&pinv, &times, &dts, spec),
-        None => [f64::NAN; 4],
+    let ols_model_var = match &spec {
+        Some(spec) => noise_model_variance(&o.pinv, &times, &dts, spec),
+        None => vec![f64::NAN; p],
     };
     // Each sample's white-noise variance, for the GLS (and the reference errors through it).
-    let white: Vec<f64> = match &noise {
+    let white: Vec<f64> = match &spec {
         Some(spec) if spec.arw > 0.0 => dts.iter().map(|dt| spec.arw * spec.arw / dt).collect(),
         _ => Vec::new(),
     };
-    let gls_fit = match &noise {
-        Some(spec) if spec.arw > 0.0 => Some(gls(&x, &y, &times, &white, spec)?),
+    let gls = match &spec {
+        Some(spec) if spec.arw > 0.0 => Some(gls(&d.x, &d.y, &times, &white, spec)?),
         _ => None,
     };
+    Ok(NoiseStage { spec, times, white, gls, ols_model_var })
+}
+
+/// Fit the model (module docs) over all `windows`.
+pub fn joint_fit(
+    windows: &[RecordWindow],
+    opts: &JointFitOptions,
+) -> Result<JointFit, AnalysisError> {
+    if opts.replicates < 2 {
+        return Err(AnalysisError::InvalidParameter {
+            name: "replicates",
+            value: opts.replicates as f64,
+            why: "need at least 2 bootstrap replicates",
+        });
+    }
+    let d = design(windows, opts)?;
+    let o = ols(&d)?;
+    let ns = noise_stage(windows, &d, &o, opts)?;
+    let (n, p) = (d.x.nrows(), d.x.ncols());
     // The bootstrap resamples the residual that should be closest to white: whitened for GLS.
-    let (boot_pinv, boot_resid) = match &gls_fit {
+    let (boot_pinv, boot_resid) = match &ns.gls {
         Some(g) => (&g.pinv_whitened, g.whitened_residual.as_slice()),
-        None => (&pinv, resid.as_slice()),
+        None => (&o.pinv, o.resid.as_slice()),
     };
     let correlation_lag = correlation_lag(boot_resid, (n / 50).max(1));
     let block_len = match opts.block_len {
@@ -355,30 +520,42 @@ pub fn joint_fit(
         None => block_len_rule(correlation_lag, n),
     };
     let boot_var = block_bootstrap_variance(boot_pinv, boot_resid, block_len, opts);
-    let whitened_rms = gls_fit.as_ref().map_or(f64::NAN, |g| {
+    let whitened_rms = ns.gls.as_ref().map_or(f64::NAN, |g| {
         (g.whitened_residual.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt()
     });
-    // The table rate's own error, one constant per reference line: its variance through the
-    // estimator's linear map, added to the noise model's.
-    let reference =
-        reference_covariance(windows, &pinv, gls_fit.as_ref(), &times, &white, noise.as_ref())?;
-    let est = |j: usize| {
-        let naive = (sigma2 * pinv.row(j).norm_squared()).sqrt() / scale[j];
-        let boot = boot_var[j].max(0.0).sqrt() / scale[j];
-        let ols_model = ols_model_var[j].max(0.0).sqrt() / scale[j];
-        let ols_value = beta_s[j] / scale[j];
-        let (value, model) = match &gls_fit {
-            Some(g) => (g.beta[j] / scale[j], g.cov[(j, j)].max(0.0).sqrt() / scale[j]),
+    // The table rate's own error (one constant per reference line) and the held values' σ:
+    // their variance through the estimator's linear map, added to the noise model's.
+    let (refs, ref_sigma) = reference_columns(windows);
+    let mut added = through_estimator(&o.pinv, ns.gls.as_ref(), &ns, &refs, &ref_sigma)?;
+    let held_map = if d.held.is_empty() {
+        DMatrix::zeros(p, 0)
+    } else {
+        let cols: Vec<DVector<f64>> = d.held.iter().map(|h| h.2.clone()).collect();
+        map_columns(&o.pinv, ns.gls.as_ref(), &ns, &DMatrix::from_columns(&cols))?
+    };
+    for (c, h) in d.held.iter().enumerate() {
+        let col = held_map.column(c);
+        added += col * col.transpose() * (h.1 * h.1);
+    }
+    let sigma2 = o.rss / (n - p) as f64;
+    let est = |c: usize| {
+        let sc = d.scale[c];
+        let naive = (sigma2 * o.pinv.row(c).norm_squared()).sqrt() / sc;
+        let boot = boot_var[c].max(0.0).sqrt() / sc;
+        let ols_model = ns.ols_model_var[c].max(0.0).sqrt() / sc;
+        let ols_value = o.beta[c] / sc;
+        let (value, model) = match &ns.gls {
+            Some(g) => (g.beta[c] / sc, g.cov[(c, c)].max(0.0).sqrt() / sc),
             None => (ols_value, ols_model),
         };
-        let std_err = if gls_fit.is_some() {
+        let std_err = if ns.gls.is_some() {
             model * whitened_rms.max(1.0)
         } else if model.is_nan() {
             boot
         } else {
             boot.max(model)
         };
-        let std_err = std_err.hypot(reference[(j, j)].max(0.0).sqrt() / scale[j]);
+        let std_err = std_err.hypot(added[(c, c)].max(0.0).sqrt() / sc);
         Estimate {
             value,
             std_err,
@@ -387,56 +564,80 @@ pub fn joint_fit(
             noise_model_std_err: model,
             ols_value,
             ols_noise_model_std_err: ols_model,
+            held: false,
         }
     };
+    let mut coef: [Estimate; 4] = std::array::from_fn(|j| {
+        let h = opts.held[j].unwrap_or(Held { value: f64::NAN, sigma: f64::NAN });
+        Estimate::held(h)
+    });
+    let mut nuisance = None;
+    for (c, &j) in d.cols.iter().enumerate() {
+        if j < 4 {
+            coef[j] = est(c);
+        } else {
+            nuisance = Some(est(c));
+        }
+    }
+    let covariance = match &ns.gls {
+        Some(g) => {
+            full_covariance(&d, &(&g.cov * whitened_rms.max(1.0).powi(2) + &added), &held_map)
+        }
+        None => [[f64::NAN; 4]; 4],
+    };
     Ok(JointFit {
-        estimator: if gls_fit.is_some() { Estimator::Gls } else { Estimator::Ols },
+        estimator: if ns.gls.is_some() { Estimator::Gls } else { Estimator::Ols },
         whitened_residual_rms: whitened_rms,
-        reference_temperature_c: t0,
-        bias: est(0),
-        scale_factor_error: est(1),
-        temp_coeff: est(2),
-        temp_rate_coeff: est(3),
-        residual_rms_rad_s: (rss / n as f64).sqrt(),
+        reference_temperature_c: opts.reference_temperature_c,
+        bias: coef[0],
+        scale_factor_error: coef[1],
+        temp_coeff: coef[2],
+        temp_rate_coeff: coef[3],
+        nuisance,
+        residual_rms_rad_s: (o.rss / n as f64).sqrt(),
         n_samples: n,
         correlation_lag,
         block_len,
         replicates: opts.replicates,
-        covariance: {
-            let mut c = [[f64::NAN; 4]; 4];
-            if let Some(g) = &gls_fit {
-                let k = whitened_rms.max(1.0).powi(2);
-                for (i, row) in c.iter_mut().enumerate() {
-                    for (j, v) in row.iter_mut().enumerate() {
-                        *v = (g.cov[(i, j)] * k + reference[(i, j)]) / (scale[i] * scale[j]);
-                    }
-                }
-            }
-            c
-        },
-        residual_z: match gls_fit {
+        covariance,
+        residual_z: match ns.gls {
             Some(g) => g.whitened_residual,
             None => {
-                let rms = (rss / n as f64).sqrt();
-                resid.iter().map(|e| if rms > 0.0 { e / rms } else { 0.0 }).collect()
+                let rms = (o.rss / n as f64).sqrt();
+                o.resid.iter().map(|e| if rms > 0.0 { e / rms } else { 0.0 }).collect()
             }
         },
     })
 }
 
-/// Covariance (in the scaled columns' units) that the table rate's errors add to the
-/// coefficients ([`RecordWindow::with_reference_error`]): each reference's error `δ_s` is one
-/// constant in `y` over its samples, so it moves `β` by `δ_s·P·1_s` for the estimator's linear
-/// map `P` (GLS: the whitened design's pseudo-inverse applied to the whitened indicator).
-fn reference_covariance(
-    windows: &[RecordWindow],
-    pinv: &DMatrix<f64>,
-    gls_fit: Option<&crate::gls::Gls>,
-    times: &[f64],
-    white_var: &[f64],
-    noise: Option<&NoiseSpec>,
-) -> Result<DMatrix<f64>, AnalysisError> {
-    let p = pinv.nrows();
+/// The 4×4 covariance of the coefficients in contract units (GLS): the free ones' from
+/// `cov_free` (scaled units: the bound × max(1, whitened RMS)², plus what references and held
+/// values add), a held one's σ² on its diagonal and its covariance with the free ones through
+/// the estimator (`−P·x_h·σ_h²`); 0 for a held value taken as exact. Held values are
+/// independent of each other.
+fn full_covariance(d: &Design, cov_free: &DMatrix<f64>, held_map: &DMatrix<f64>) -> [[f64; 4]; 4] {
+    let mut c = [[0.0; 4]; 4];
+    let coef: Vec<(usize, usize)> =
+        d.cols.iter().copied().enumerate().filter(|&(_, j)| j < 4).collect();
+    for &(a, i) in &coef {
+        for &(b, j) in &coef {
+            c[i][j] = cov_free[(a, b)] / (d.scale[a] * d.scale[b]);
+        }
+    }
+    for (h, &(j, s, _)) in d.held.iter().enumerate() {
+        c[j][j] = s * s;
+        for &(a, i) in &coef {
+            let v = -held_map[(a, h)] * s * s / d.scale[a];
+            c[i][j] = v;
+            c[j][i] = v;
+        }
+    }
+    c
+}
+
+/// The table rate's errors as columns: per reference line ([`RecordWindow::reference_error`])
+/// its indicator over the samples it serves, and its σ.
+fn reference_columns(windows: &[RecordWindow]) -> (DMatrix<f64>, Vec<f64>) {
     let mut keys: Vec<(usize, f64)> = windows
         .iter()
         .filter_map(RecordWindow::reference_error)
@@ -444,10 +645,6 @@ fn reference_covariance(
         .collect();
     keys.sort_by_key(|k| k.0);
     keys.dedup_by_key(|k| k.0);
-    let mut out = DMatrix::<f64>::zeros(p, p);
-    if keys.is_empty() {
-        return Ok(out);
-    }
     let n: usize = windows.iter().map(RecordWindow::len).sum();
     let mut z = DMatrix::<f64>::zeros(n, keys.len());
     let mut row = 0;
@@ -460,25 +657,54 @@ fn reference_covariance(
             row += 1;
         }
     }
-    let v = match (gls_fit, noise) {
+    (z, keys.iter().map(|k| k.1).collect())
+}
+
+/// `P·Z` for the estimator's linear map `P` (scaled columns' units): GLS, the whitened design's
+/// pseudo-inverse applied to `Z` whitened in time order; OLS, the pseudo-inverse.
+fn map_columns(
+    pinv: &DMatrix<f64>,
+    gls_fit: Option<&crate::gls::Gls>,
+    ns: &NoiseStage,
+    z: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, AnalysisError> {
+    match (gls_fit, &ns.spec) {
         (Some(g), Some(spec)) => {
-            // In the time order the GLS whitened in.
+            let n = z.nrows();
             let mut order: Vec<usize> = (0..n).collect();
-            order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
-            let t: Vec<f64> = order.iter().map(|&i| times[i]).collect();
-            let r: Vec<f64> = order.iter().map(|&i| white_var[i]).collect();
-            let mut zs = DMatrix::<f64>::zeros(n, keys.len());
+            order.sort_by(|&a, &b| ns.times[a].total_cmp(&ns.times[b]));
+            let t: Vec<f64> = order.iter().map(|&i| ns.times[i]).collect();
+            let r: Vec<f64> = order.iter().map(|&i| ns.white[i]).collect();
+            let mut zs = DMatrix::<f64>::zeros(n, z.ncols());
             for (k, &i) in order.iter().enumerate() {
                 zs.row_mut(k).copy_from(&z.row(i));
             }
             crate::gls::whiten(&t, &r, spec, &mut zs)?;
-            &g.pinv_whitened * zs
+            Ok(&g.pinv_whitened * zs)
         }
-        _ => pinv * z,
-    };
-    for (c, &(_, sigma)) in keys.iter().enumerate() {
+        _ => Ok(pinv * z),
+    }
+}
+
+/// Covariance (scaled columns' units) that independent errors `σ_c·z_c` in `y` add to the
+/// coefficients: `Σ_c (P·z_c)(P·z_c)ᵀ σ_c²` ([`RecordWindow::with_reference_error`]: each
+/// reference's error is one constant over its samples).
+fn through_estimator(
+    pinv: &DMatrix<f64>,
+    gls_fit: Option<&crate::gls::Gls>,
+    ns: &NoiseStage,
+    z: &DMatrix<f64>,
+    sigma: &[f64],
+) -> Result<DMatrix<f64>, AnalysisError> {
+    let p = pinv.nrows();
+    let mut out = DMatrix::<f64>::zeros(p, p);
+    if z.ncols() == 0 {
+        return Ok(out);
+    }
+    let v = map_columns(pinv, gls_fit, ns, z)?;
+    for (c, s) in sigma.iter().enumerate() {
         let col = v.column(c);
-        out += col * col.transpose() * (sigma * sigma);
+        out += col * col.transpose() * (s * s);
     }
     Ok(out)
 }
@@ -490,13 +716,15 @@ fn block_bootstrap_variance(
     resid: &[f64],
     block_len: usize,
     opts: &JointFitOptions,
-) -> [f64; 4] {
+) -> Vec<f64> {
     let n = resid.len();
+    let p = pinv.nrows();
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-    let mut sum = [0.0; 4];
-    let mut sum2 = [0.0; 4];
+    let mut sum = vec![0.0; p];
+    let mut sum2 = vec![0.0; p];
+    let mut d = vec![0.0; p];
     for _ in 0..opts.replicates {
-        let mut d = [0.0; 4];
+        d.fill(0.0);
         let mut pos = 0;
         while pos < n {
             let start = rng.random_range(0..n);
@@ -509,17 +737,13 @@ fn block_bootstrap_variance(
             }
             pos += len;
         }
-        for j in 0..4 {
+        for j in 0..p {
             sum[j] += d[j];
             sum2[j] += d[j] * d[j];
         }
     }
     let b = opts.replicates as f64;
-    let mut out = [0.0; 4];
-    for j in 0..4 {
-        out[j] = (sum2[j] - sum[j] * sum[j] / b) / (b - 1.0);
-    }
-    out
+    (0..p).map(|j| (sum2[j] - sum[j] * sum[j] / b) / (b - 1.0)).collect()
 }
 
 /// Variances of the coefficients `β = P·e` (rows of `pinv`, scaled units) for noise `e` from
@@ -531,17 +755,18 @@ fn noise_model_variance(
     times: &[f64],
     dts: &[f64],
     spec: &NoiseSpec,
-) -> [f64; 4] {
+) -> Vec<f64> {
     let n = times.len();
+    let p = pinv.nrows();
     // Sample order in time (windows are normally given in time order already).
     let mut order: Vec<usize> = (0..n).collect();
     if times.windows(2).any(|w| w[1] < w[0]) {
         order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
     }
     // Weights in time order, and the gaps between successive samples.
-    let w: Vec<Vec<f64>> = (0..4).map(|j| order.iter().map(|&i| pinv[(j, i)]).collect()).collect();
+    let w: Vec<Vec<f64>> = (0..p).map(|j| order.iter().map(|&i| pinv[(j, i)]).collect()).collect();
     let gaps: Vec<f64> = (1..n).map(|k| times[order[k]] - times[order[k - 1]]).collect();
-    let mut out = [0.0; 4];
+    let mut out = vec![0.0; p];
     // White rate noise.
     for (j, o) in out.iter_mut().enumerate() {
         for (k, &i) in order.iter().enumerate() {

@@ -32,10 +32,12 @@
 pub mod allan_fit;
 pub mod angle_fit;
 pub mod calibrate;
+pub mod compensation;
 pub mod diagnose;
 pub mod error;
 pub mod fit_check;
 pub mod gls;
+pub mod information;
 pub mod interp;
 pub mod joint_fit;
 pub mod nominal;

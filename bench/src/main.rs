@@ -28,6 +28,9 @@ enum Command {
     Info(cli::info::InfoArgs),
     /// The gyro's thermal calibration from a recording: calibration file, JSON and report.
     Calibrate(cli::calibrate::CalibrateArgs),
+    /// A calibration file applied to another run of the gyro: the error per window with and
+    /// without it, against what the calibration states; worse is a failure.
+    Verify(cli::verify::VerifyArgs),
     /// Calibration accuracy over many simulated seeds (seed method vs joint fit).
     MonteCarlo(cli::monte_carlo::MonteCarloArgs),
     /// Put a recording back on the bench: its devices on virtual ports (--serve), its streams
@@ -95,6 +98,7 @@ fn main() -> ExitCode {
         Command::Validate(a) => cli::validate::run(a),
         Command::Info(a) => cli::info::run(a),
         Command::Calibrate(a) => cli::calibrate::run(a),
+        Command::Verify(a) => cli::verify::run(a),
         Command::MonteCarlo(a) => cli::monte_carlo::run(a),
         Command::Replay(a) => cli::replay::run(a),
         Command::Recover(a) => cli::recover::run(a),

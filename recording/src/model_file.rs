@@ -20,18 +20,30 @@
 //! [source]                      # where it came from (optional, informative)
 //! recording = "run.mcap"
 //!
+//! [held.temp_rate_coeff_rad_s_per_c_s]   # not determined by the run: not estimated (optional)
+//! value = 1.45e-5               # the nominal model's (or a prior's) value, used as it is
+//! source = "nominal"
+//! reason = "nothing in this run excites it: …"
+//! determination = "record windows while the chamber ramps …"
+//!
+//! [covariance]                  # of the coefficients estimated (optional), SI, σ² on the diagonal
+//! keys = ["bias_rad_s", "scale_factor_error", "temp_coeff_rad_s_per_c"]
+//! matrix = [[…], […], […]]
+//!
 //! [effects]                     # effects beyond the model (optional; see docs/scenario.md)
 //! earth_rate = false
 //! warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900.0 }
 //! ```
 //!
-//! `[gyro_model]` must hold every key; unknown keys anywhere in it are errors (a typo must not
-//! silently fall back to zero). `[effects]` takes the ids of [`bench_physics::effects`], each
+//! `[gyro_model]` must hold every key, except a coefficient held (`[held.KEY]`, one of
+//! [`HOLDABLE_KEYS`]): its value is there, never among the measured ones; a key in both is an
+//! error. Unknown keys anywhere are errors (a typo must not silently fall back to zero). `[effects]` takes the ids of [`bench_physics::effects`], each
 //! with every parameter of its struct. Errors name file, line and column.
 //!
 //! [`write_model_file`] / [`model_file_toml`] write a file from a model and effects (what
 //! `bench calibrate` and `bench diagnose` produce).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use bench_physics::effects::Effects;
@@ -161,26 +173,146 @@ pub struct Source {
     pub method: String,
 }
 
-/// The whole calibration file.
+/// The calibrated coefficients a calibration may hold instead of estimating, with their keys
+/// in `[gyro_model]`.
+pub const HOLDABLE_KEYS: [(ModelKey, &str); 4] = {
+    let k = ModelKey::HOLDABLE;
+    [
+        (k[0], k[0].file_key()),
+        (k[1], k[1].file_key()),
+        (k[2], k[2].file_key()),
+        (k[3], k[3].file_key()),
+    ]
+};
+
+/// A coefficient the calibration held (the run does not determine it): the value used, never
+/// written among the measured ones.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+pub struct HeldEntry {
+    /// The value used, SI.
+    pub value: f64,
+    /// Its 1σ (a prior's), when stated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+    /// `nominal`, `prior` or `none`.
+    #[serde(default)]
+    pub source: String,
+    /// Why the run does not determine it.
+    #[serde(default)]
+    pub reason: String,
+    /// The run that would determine it.
+    #[serde(default)]
+    pub determination: String,
+}
+
+/// The covariance of the coefficients estimated, SI.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CovarianceSection {
+    /// Rows and columns: `[gyro_model]` keys of [`HOLDABLE_KEYS`].
+    pub keys: Vec<String>,
+    /// The matrix, σ² on its diagonal.
+    pub matrix: Vec<Vec<f64>>,
+}
+
+/// The whole calibration file.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationFile {
     /// Where it came from.
-    #[serde(default)]
     pub source: Source,
-    /// The model.
+    /// The model (a held coefficient at its held value).
     pub gyro_model: ModelKeys,
     /// 1σ of the fitted coefficients.
-    #[serde(default)]
     pub uncertainty: Uncertainty,
     /// Effects beyond the model (none when the section is absent): recorded as `effect.*`
     /// keys of `bench.gyro_model` and, on the simulated bench, simulated.
-    #[serde(default, skip_serializing_if = "no_effects")]
     pub effects: Effects,
+    /// Coefficients held, not estimated, by their `[gyro_model]` key ([`HOLDABLE_KEYS`]).
+    pub held: BTreeMap<String, HeldEntry>,
+    /// The covariance of the coefficients estimated, when known.
+    pub covariance: Option<CovarianceSection>,
 }
 
 fn no_effects(e: &Effects) -> bool {
     !e.any()
+}
+
+/// `[gyro_model]` as written: a held coefficient's key absent. Read and written through the key
+/// table as [`ModelKeys`] is, the keys given in `given`.
+#[derive(Debug, Clone, PartialEq)]
+struct RawModelKeys {
+    model: GyroModel,
+    given: Vec<ModelKey>,
+}
+
+impl RawModelKeys {
+    /// A holdable coefficient by its file key.
+    fn holdable(key: &str) -> Option<ModelKey> {
+        HOLDABLE_KEYS.iter().find(|h| h.1 == key).map(|h| h.0)
+    }
+}
+
+impl Serialize for RawModelKeys {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap as _;
+        let mut st = s.serialize_map(Some(self.given.len()))?;
+        for k in ModelKey::ALL.into_iter().filter(|k| self.given.contains(k)) {
+            match k {
+                ModelKey::EarthRate => st.serialize_entry(k.file_key(), &self.model.earth_rate)?,
+                _ => st.serialize_entry(k.file_key(), &self.model.get(k))?,
+            }
+        }
+        st.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for RawModelKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = RawModelKeys;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("the [gyro_model] table")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<RawModelKeys, A::Error> {
+                let mut model = GyroModel::zero();
+                let mut given = Vec::with_capacity(ModelKey::ALL.len());
+                while let Some(FileKey(k)) = map.next_key()? {
+                    if given.contains(&k) {
+                        return Err(serde::de::Error::duplicate_field(k.file_key()));
+                    }
+                    match k {
+                        ModelKey::EarthRate => model.earth_rate = map.next_value()?,
+                        _ => model.set(k, map.next_value()?),
+                    }
+                    given.push(k);
+                }
+                Ok(RawModelKeys { model, given })
+            }
+        }
+        d.deserialize_struct("ModelKeys", &MODEL_FILE_KEYS, V)
+    }
+}
+
+/// The file as written and read.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFile {
+    #[serde(default)]
+    source: Source,
+    gyro_model: RawModelKeys,
+    #[serde(default)]
+    uncertainty: Uncertainty,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    held: BTreeMap<String, HeldEntry>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    covariance: Option<CovarianceSection>,
+    #[serde(default, skip_serializing_if = "no_effects")]
+    effects: Effects,
 }
 
 /// A calibration file that cannot be used.
@@ -215,6 +347,18 @@ pub enum ModelFileError {
         /// Which parameter and what is wrong.
         message: String,
     },
+    /// A `[held]` or `[covariance]` entry that cannot be used, located.
+    #[error("{path}:{line}:{column}: {message}")]
+    BadSection {
+        /// File.
+        path: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
     /// A value out of range, located at the value (at `[gyro_model]`, or 1:1, when the key is
     /// absent and its default is out of range).
     #[error("{path}:{line}:{column}: [gyro_model] {key} = {value}: {why}")]
@@ -242,7 +386,34 @@ impl CalibrationFile {
         source: Source,
         uncertainty: Uncertainty,
     ) -> Self {
-        Self { source, gyro_model: ModelKeys::from(model), uncertainty, effects: *effects }
+        Self {
+            source,
+            gyro_model: ModelKeys::from(model),
+            uncertainty,
+            effects: *effects,
+            held: BTreeMap::new(),
+            covariance: None,
+        }
+    }
+
+    /// The file as written: a held coefficient's key absent from `[gyro_model]`.
+    fn raw(&self) -> RawFile {
+        let given: Vec<ModelKey> =
+            ModelKey::ALL.into_iter().filter(|k| !self.held.contains_key(k.file_key())).collect();
+        let keys = RawModelKeys { model: self.gyro_model.0.clone(), given };
+        RawFile {
+            source: self.source.clone(),
+            gyro_model: keys,
+            uncertainty: self.uncertainty.clone(),
+            held: self.held.clone(),
+            covariance: self.covariance.clone(),
+            effects: self.effects,
+        }
+    }
+
+    /// Whether a coefficient (of [`HOLDABLE_KEYS`]) is held, not estimated.
+    pub fn is_held(&self, key: ModelKey) -> bool {
+        HOLDABLE_KEYS.iter().any(|(k, name)| *k == key && self.held.contains_key(*name))
     }
 
     /// The gyro model.
@@ -252,17 +423,24 @@ impl CalibrationFile {
 
     /// As TOML text, with a header comment.
     pub fn to_toml(&self) -> String {
-        let body = toml::to_string_pretty(self).unwrap_or_default();
+        let body = toml::to_string_pretty(&self.raw()).unwrap_or_default();
         format!(
             "# Gyro model written by bench. SI units, named in the keys; [uncertainty] holds 1σ\n\
              # standard errors, [effects] effects beyond the model. Load with\n\
-             # `bench run --gyro-model FILE`.\n\n{body}"
+             # `bench run --gyro-model FILE`.\n{}\n{body}",
+            if self.held.is_empty() && self.covariance.is_none() {
+                ""
+            } else {
+                "# [held]: coefficients the run did not determine, not estimated (the value used, \
+                 why,\n# and the run that would determine it); [covariance]: of the estimated \
+                 ones.\n"
+            }
         )
     }
 
     /// Parse `text` (from `path`, for messages).
     pub fn parse(text: &str, path: &str) -> Result<Self, ModelFileError> {
-        let file: CalibrationFile = toml::from_str(text).map_err(|e| {
+        let raw: RawFile = toml::from_str(text).map_err(|e| {
             let (line, column) = e.span().map(|s| line_col(text, s.start)).unwrap_or((1, 1));
             ModelFileError::Parse {
                 path: path.to_owned(),
@@ -271,6 +449,7 @@ impl CalibrationFile {
                 message: e.message().to_owned(),
             }
         })?;
+        let file = Self::from_raw(raw, text, path)?;
         if let Err((key, why)) = file.gyro_model.0.validate() {
             let span = crate::toml_doc::value_span(text, &["gyro_model", key.file_key()])
                 .or_else(|| crate::toml_doc::value_span(text, &["gyro_model"]));
@@ -293,6 +472,81 @@ impl CalibrationFile {
             },
         )?;
         Ok(file)
+    }
+
+    /// The file from what was read: every `[gyro_model]` key given once, in `[gyro_model]` or,
+    /// for a held coefficient, in `[held]`; the covariance over estimated keys.
+    fn from_raw(mut raw: RawFile, text: &str, path: &str) -> Result<Self, ModelFileError> {
+        let at = |keys: &[&str], message: String| {
+            let span = crate::toml_doc::value_span(text, keys);
+            let (line, column) = span.map_or((1, 1), |s| line_col(text, s.start));
+            ModelFileError::BadSection { path: path.to_owned(), line, column, message }
+        };
+        for (key, h) in &raw.held {
+            let Some(k) = RawModelKeys::holdable(key) else {
+                return Err(at(
+                    &["held", key],
+                    format!(
+                        "[held] {key}: only a calibrated coefficient can be held ({})",
+                        HOLDABLE_KEYS.map(|k| k.1).join(", ")
+                    ),
+                ));
+            };
+            if raw.gyro_model.given.contains(&k) {
+                return Err(at(
+                    &["gyro_model", key],
+                    format!("[gyro_model] {key}: the coefficient is held ([held.{key}]): not both"),
+                ));
+            }
+            let sigma_ok = h.sigma.is_none_or(|s| s.is_finite() && s >= 0.0);
+            if !h.value.is_finite() || !sigma_ok {
+                return Err(at(
+                    &["held", key],
+                    format!("[held.{key}]: value and sigma must be finite, sigma not negative"),
+                ));
+            }
+            raw.gyro_model.model.set(k, h.value);
+            raw.gyro_model.given.push(k);
+        }
+        if let Some(k) = ModelKey::ALL.into_iter().find(|k| !raw.gyro_model.given.contains(k)) {
+            return Err(at(
+                &["gyro_model"],
+                format!("missing field `{}` in [gyro_model]", k.file_key()),
+            ));
+        }
+        let gyro_model = ModelKeys(raw.gyro_model.model.clone());
+        if let Some(c) = &raw.covariance {
+            let n = c.keys.len();
+            let bad_key = c.keys.iter().find(|k| {
+                !HOLDABLE_KEYS.iter().any(|h| h.1 == k.as_str()) || raw.held.contains_key(*k)
+            });
+            if let Some(k) = bad_key {
+                return Err(at(
+                    &["covariance", "keys"],
+                    format!("[covariance] keys: `{k}` is not an estimated coefficient"),
+                ));
+            }
+            let square = c.matrix.len() == n && c.matrix.iter().all(|r| r.len() == n);
+            let finite = c.matrix.iter().flatten().all(|v| v.is_finite());
+            let diag = (0..n).all(|i| !square || c.matrix[i][i] >= 0.0);
+            if !(square && finite && diag) {
+                return Err(at(
+                    &["covariance", "matrix"],
+                    format!(
+                        "[covariance] matrix: must be {n}×{n} (one row and column per key), \
+                         finite, variances not negative"
+                    ),
+                ));
+            }
+        }
+        Ok(Self {
+            source: raw.source,
+            gyro_model,
+            uncertainty: raw.uncertainty,
+            effects: raw.effects,
+            held: raw.held,
+            covariance: raw.covariance,
+        })
     }
 
     /// Read a calibration file.
@@ -353,6 +607,8 @@ mod tests {
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty { bias_rad_s: Some(1e-9), ..Uncertainty::default() },
             effects: Effects::default(),
+            held: BTreeMap::new(),
+            covariance: None,
         };
         let back = CalibrationFile::parse(&f.to_toml(), "cal.toml").expect("parses");
         assert_eq!(back, f);
@@ -367,6 +623,8 @@ mod tests {
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty::default(),
             effects: Effects::default(),
+            held: BTreeMap::new(),
+            covariance: None,
         };
         let text = f.to_toml().replace("temp_coeff_rad_s_per_c =", "temp_cof_rad_s_per_c =");
         let e = CalibrationFile::parse(&text, "cal.toml").expect_err("rejects");
@@ -380,13 +638,15 @@ mod tests {
     fn a_missing_key_and_a_negative_noise_are_errors() {
         let e = CalibrationFile::parse("[gyro_model]\nbias_rad_s = 0.0\n", "c.toml")
             .expect_err("incomplete");
-        assert!(e.to_string().contains("missing field"), "{e}");
+        assert!(e.to_string().contains("missing field `scale_factor_error`"), "{e}");
         let m = GyroModel { arw: -1.0, ..GyroModel::default() };
         let f = CalibrationFile {
             source: Source::default(),
             gyro_model: ModelKeys::from(&m),
             uncertainty: Uncertainty::default(),
             effects: Effects::default(),
+            held: BTreeMap::new(),
+            covariance: None,
         };
         let text = f.to_toml();
         let e = CalibrationFile::parse(&text, "c.toml").expect_err("negative");
@@ -400,6 +660,58 @@ mod tests {
                  and not negative"
             )
         );
+    }
+
+    #[test]
+    fn a_held_coefficient_is_written_apart_and_reads_back_into_the_model() {
+        let m = GyroModel::default();
+        let mut f = CalibrationFile::new(
+            &m,
+            &Effects::default(),
+            Source::default(),
+            Uncertainty::default(),
+        );
+        f.held.insert(
+            "temp_rate_coeff_rad_s_per_c_s".into(),
+            HeldEntry {
+                value: m.temp_rate_coeff,
+                sigma: None,
+                source: "nominal".into(),
+                reason: "nothing in this run excites it".into(),
+                determination: "record windows while the chamber ramps".into(),
+            },
+        );
+        f.covariance = Some(CovarianceSection {
+            keys: vec!["bias_rad_s".into(), "temp_coeff_rad_s_per_c".into()],
+            matrix: vec![vec![1e-16, 1e-19], vec![1e-19, 4e-20]],
+        });
+        let text = f.to_toml();
+        // Never among the measured values.
+        let gyro = text.split("[gyro_model]").nth(1).and_then(|t| t.split("\n[").next());
+        assert!(gyro.is_some_and(|g| !g.contains("temp_rate_coeff")), "{text}");
+        assert!(text.contains("[held.temp_rate_coeff_rad_s_per_c_s]"), "{text}");
+        let back = CalibrationFile::parse(&text, "cal.toml").expect("parses");
+        assert_eq!(back, f);
+        assert_eq!(back.model(), m);
+        assert!(back.is_held(ModelKey::TempRateCoeff) && !back.is_held(ModelKey::Bias));
+        // In both places: refused, at the measured one.
+        let both =
+            text.replace("[gyro_model]\n", "[gyro_model]\ntemp_rate_coeff_rad_s_per_c_s = 1.0\n");
+        let e = CalibrationFile::parse(&both, "cal.toml").expect_err("both");
+        assert!(e.to_string().contains("not both"), "{e}");
+        // A covariance over a held key, or of the wrong shape: refused.
+        let mut bad = f.clone();
+        if let Some(c) = &mut bad.covariance {
+            c.keys[1] = "temp_rate_coeff_rad_s_per_c_s".into();
+        }
+        let e = CalibrationFile::parse(&bad.to_toml(), "cal.toml").expect_err("held key");
+        assert!(e.to_string().contains("not an estimated coefficient"), "{e}");
+        if let Some(c) = &mut bad.covariance {
+            c.keys[1] = "temp_coeff_rad_s_per_c".into();
+            c.matrix[1].pop();
+        }
+        let e = CalibrationFile::parse(&bad.to_toml(), "cal.toml").expect_err("not square");
+        assert!(e.to_string().contains("must be 2×2"), "{e}");
     }
 
     #[test]

@@ -6,7 +6,8 @@
 //! when |value| − 2σ > limit, and is **inconclusive** in between (the data cannot tell at
 //! ≈ 95 %). A noise term (ARW, bias instability) is judged the same way on its confidence
 //! interval: passes when its upper end is within the limit, fails when its lower end is beyond.
-//! A limit for a coefficient the calibration did not estimate is `not_estimated`. The run
+//! A limit for a coefficient the calibration did not estimate (held: the run does not determine
+//! it) is `not_estimated`. The run
 //! passes when every limit passes.
 
 use std::collections::BTreeMap;
@@ -111,7 +112,14 @@ pub fn judge_calibration(out: &CalibrationOutcome) -> Option<Acceptance> {
     let mut checks = Vec::new();
     for (key, &limit) in &run.acceptance {
         let model_key = ModelKey::from_file_key(key);
-        let joint = cal.joint.as_ref().ok().zip(model_key).and_then(|(j, k)| j.estimate(k));
+        let joint = cal
+            .joint
+            .as_ref()
+            .ok()
+            .zip(model_key)
+            .and_then(|(j, k)| j.estimate(k))
+            // A held coefficient was not measured: its limit cannot be judged.
+            .filter(|e| !e.held);
         let noise = cal.allan.as_ref().ok().zip(model_key).and_then(|(a, k)| match k {
             ModelKey::Arw => Some(a.fit.arw),
             ModelKey::BiasInstability => Some(a.fit.flicker_floor()),

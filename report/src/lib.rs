@@ -8,6 +8,8 @@
 //! - [`diagnose`]: where a recording departs from the simulation of its run, and the physics
 //!   left out (`bench diagnose`).
 //! - [`acceptance`]: a calibration's coefficients against the recording's acceptance limits.
+//! - [`verify`]: a calibration file applied to another run (`bench verify`), judged;
+//!   [`verify_html`] its report.
 //! - [`display`]: the engineering units shown to people; [`render`]: the figures and the HTML
 //!   page both reports share.
 //!
@@ -29,5 +31,7 @@ pub mod npy;
 pub(crate) mod render;
 #[cfg(test)]
 mod testutil;
+pub mod verify;
+pub mod verify_html;
 
 pub use render::{ReportError, ReportFiles};

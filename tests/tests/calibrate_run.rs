@@ -69,6 +69,8 @@ fn thermal_short_is_recovered_within_the_stated_errors_and_the_files_load_back()
         gyro_model: ModelKeys::from(&model),
         uncertainty: Uncertainty::default(),
         effects: Default::default(),
+        held: Default::default(),
+        covariance: None,
     };
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("calibration.toml");
@@ -118,4 +120,106 @@ fn what_is_missing_is_said_and_what_remains_is_estimated() {
         }
         other => panic!("expected NoRecordWindows, got {:?}", other.map(|o| o.calibration.missing)),
     }
+}
+
+/// Issue 27's soak-only case: plateaus and no ramps. k_dt is not determined by the run: held
+/// at the nominal model's value, named with the reason and the run that would determine it,
+/// never written as measured; the calibration is incomplete, and it does not make the gyro
+/// worse on a ramp run of the same simulated gyro. (Before: k_dt −0.045 ± 0.051
+/// °/h/(°C/min) for a true +0.0505, "sound", thermal error "removed" −67 %.)
+#[test]
+fn a_soak_only_run_holds_k_dt_says_why_and_does_not_make_a_ramp_run_worse() {
+    let rec = simulate("scenarios/soak-only.toml", 1);
+    let out = calibrate_recording(&rec, &settings()).expect("calibrates");
+    let cal = &out.calibration;
+    let truth = out.truth.as_ref().expect("simulated").model.clone();
+    let held = cal.held[3].as_ref().expect("k_dt held");
+    assert_eq!(held.value, truth.temp_rate_coeff, "held at the nominal (here the simulator's)");
+    assert!(!held.determination.determined());
+    assert!(cal.held[..3].iter().all(Option::is_none), "{:?}", cal.held);
+    assert!(cal.incomplete());
+    assert_eq!(out.quality.verdict, "incomplete");
+    let j = cal.joint.as_ref().expect("joint fit of the rest");
+    assert!(j.temp_rate_coeff.held && !j.temp_coeff.held);
+    for (e, t) in [(j.bias, truth.bias), (j.temp_coeff, truth.temp_coeff)] {
+        assert!((e.value - t).abs() <= 4.0 * e.std_err, "{e:?} vs {t}");
+    }
+    // The thermal error this calibration leaves is smaller than the one it takes out.
+    let removed = out.truth.as_ref().and_then(|t| t.joint_removal).expect("removal").removed();
+    assert!(removed > 0.8, "removed {removed}");
+    // The JSON: held, with reason and determination, not among the coefficients.
+    let js = serde_json::to_value(json::to_json(&out, "soak.mcap")).expect("json");
+    assert_eq!(js["version"], 3);
+    assert_eq!(js["fit"]["verdict"], "incomplete");
+    assert!(js["coefficients"].get("temp_rate_coeff").is_none());
+    let h = &js["held"]["temp_rate_coeff"];
+    assert_eq!(h["source"], "nominal");
+    assert!(h["reason"].as_str().is_some_and(|r| r.contains("2.80σ")), "{h}");
+    assert!(h["determination"].as_str().is_some_and(|d| d.contains("ramps")), "{h}");
+    assert_eq!(js["covariance_keys"].as_array().map(Vec::len), Some(3));
+    assert_eq!(js["identifiability"]["temp_rate_coeff"]["verdict"], "too_small");
+
+    // Verified on a ramp run (thermal-short, another seed) of the same simulated gyro.
+    let model = out.model.clone().expect("model");
+    let mut file = CalibrationFile::new(
+        &model,
+        &Default::default(),
+        Source::default(),
+        Uncertainty::default(),
+    );
+    file.held.insert(
+        "temp_rate_coeff_rad_s_per_c_s".into(),
+        bench_recording::model_file::HeldEntry {
+            value: model.temp_rate_coeff,
+            sigma: None,
+            source: "nominal".into(),
+            reason: String::new(),
+            determination: String::new(),
+        },
+    );
+    let ramps = simulate("scenarios/thermal-short.toml", 2);
+    let v = bench_report::verify::verify_recording(&ramps, &file).expect("verifies");
+    let c = &v.compensation;
+    assert!(!c.worse, "{c:?}");
+    assert!(c.rms_compensated < c.rms_uncompensated, "{c:?}");
+}
+
+/// `thermal-short`'s calibration applied to `thermal-full` with another seed: every window's
+/// compensated error within what the calibration states (|z| ≤ 3), and a verification pass;
+/// the same file with k_dt of the wrong sign and seven times too large makes the gyro worse,
+/// and k_dt is named.
+#[test]
+fn thermal_shorts_calibration_holds_on_thermal_full_and_a_wrong_k_dt_is_named() {
+    use bench_report::verify::{verify_recording, VerifyVerdict};
+    let out = calibrate_recording(&simulate("scenarios/thermal-short.toml", 11), &settings())
+        .expect("calibrates");
+    assert!(!out.calibration.incomplete(), "{:?}", out.calibration.held);
+    let model = out.model.clone().expect("model");
+    let j = out.calibration.joint.as_ref().expect("joint");
+    let mut file = CalibrationFile::new(
+        &model,
+        &Default::default(),
+        Source::default(),
+        Uncertainty::default(),
+    );
+    file.covariance = Some(bench_recording::model_file::CovarianceSection {
+        keys: bench_recording::model_file::HOLDABLE_KEYS.iter().map(|k| k.1.to_owned()).collect(),
+        matrix: j.covariance.iter().map(|r| r.to_vec()).collect(),
+    });
+    let full = simulate("scenarios/thermal-full.toml", 12);
+    let v = verify_recording(&full, &file).expect("verifies");
+    let c = &v.compensation;
+    assert!(c.windows.len() >= 14, "{}", c.windows.len());
+    assert!(c.max_abs_z <= 3.0, "worst |z| {}: {:?}", c.max_abs_z, c.windows);
+    assert!(c.rms_compensated < 0.3 * c.rms_uncompensated, "{c:?}");
+    assert_eq!(v.verdict, VerifyVerdict::Pass);
+    // Loaded into the gyro with a wrong k_dt, the file would make it worse: FAIL, k_dt named.
+    let mut wrong = file.clone();
+    wrong.gyro_model.0.temp_rate_coeff = -7.0 * model.temp_rate_coeff;
+    let v = verify_recording(&full, &wrong).expect("verifies");
+    assert_eq!(v.verdict, VerifyVerdict::Worse);
+    assert_eq!(
+        v.compensation.responsible.map(|r| r.0),
+        Some(bench_physics::ModelKey::TempRateCoeff)
+    );
 }

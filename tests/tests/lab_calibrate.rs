@@ -27,7 +27,18 @@ fn calibrate(preset: &str) -> (CalibrationOutcome, Value) {
 /// like a bias over the run), so no unbiased estimator reaches 1e-8 on these data.
 const MAX_SIGMA: [f64; 4] = [1.6e-8, 2e-6, 2e-10, 1e-6];
 
+/// A gyro without its own sensor: the lag is fitted with the coefficients (issue 27), so σ(k_t)
+/// carries the lag's uncertainty too — 2.06e-10 rad/s/°C on `lab-nosensor`, where the ceiling
+/// above held only while the lag was taken as known.
+const MAX_SIGMA_LAG_FITTED: [f64; 4] = [1.6e-8, 2e-6, 2.5e-10, 1e-6];
+
 fn assert_within_truth(out: &CalibrationOutcome, truth: &Value, what: &str) {
+    let max_sigma =
+        if out.calibration.lag.as_ref().is_some_and(|l| l.as_ref().is_ok_and(|l| l.used_s > 0.0)) {
+            MAX_SIGMA_LAG_FITTED
+        } else {
+            MAX_SIGMA
+        };
     let j = out.calibration.joint.as_ref().expect("joint fit");
     let a = out.calibration.angle.as_ref().expect("readings").as_ref().expect("angle fit");
     for (i, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
@@ -42,11 +53,11 @@ fn assert_within_truth(out: &CalibrationOutcome, truth: &Value, what: &str) {
             e.std_err
         );
         assert!(
-            e.std_err <= MAX_SIGMA[i],
+            e.std_err <= max_sigma[i],
             "{what} σ {} = {} > {}",
             key.key(),
             e.std_err,
-            MAX_SIGMA[i]
+            max_sigma[i]
         );
         let ae = a.estimates()[i];
         let za = (ae.value - t) / ae.std_err;

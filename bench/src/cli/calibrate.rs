@@ -8,8 +8,12 @@ use super::exit::Exit;
 use anyhow::Context as _;
 use bench_analysis::joint_fit::Estimator;
 use bench_physics::ModelKey;
-use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench_report::calibrate::{calibrate_recording, json, report, CalibrateSettings};
+use bench_recording::model_file::{
+    CalibrationFile, CovarianceSection, HeldEntry, ModelKeys, Source, Uncertainty, HOLDABLE_KEYS,
+};
+use bench_report::calibrate::{
+    calibrate_recording, held, json, report, CalibrateSettings, CalibrationOutcome, Prior,
+};
 use bench_report::display::{self, coefficient_unit};
 
 /// Arguments of `bench calibrate`.
@@ -41,6 +45,16 @@ pub struct CalibrateArgs {
     /// Write `calibration.toml` even when the fit is poor (it then says so in its method).
     #[arg(long)]
     pub keep_poor_fit: bool,
+    /// What a coefficient is expected to be before the data, `KEY=VALUE±SIGMA` (or `+-`; SI
+    /// units, keys bias, scale_factor_error, temp_coeff, temp_rate_coeff): the size the run must
+    /// resolve, and the value held when the run does not determine it (else the recording's
+    /// nominal model). Repeatable.
+    #[arg(long = "prior", value_name = "KEY=VALUE±SIGMA")]
+    pub priors: Vec<Prior>,
+    /// Apply the calibration to this second recording of the same gyro and report it there
+    /// too, as `bench verify` does (in the report, the JSON and the exit code).
+    #[arg(long, value_name = "RECORDING")]
+    pub verify: Option<PathBuf>,
 }
 
 /// Calibrate and write the outputs.
@@ -49,6 +63,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         reference_temperature_c: args.reference_temperature_c,
         replicates: args.replicates,
         no_lag: args.no_lag,
+        priors: args.priors.clone(),
     };
     let started = std::time::Instant::now();
     let rec = super::load_recording(&args.recording, args.quiet)?;
@@ -56,7 +71,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         &format!("calibrating {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),
     );
-    let out = calibrate_recording(&rec, &settings)
+    let mut out = calibrate_recording(&rec, &settings)
         .with_context(|| super::analysis_context(&rec, "calibrate", &args.recording))?;
     drop(working);
     let name = args
@@ -120,9 +135,20 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         println!("fit: not checked (the joint fit gave nothing to check)");
     } else {
         println!(
-            "fit: sound ({} checks passed; no residual block beyond {:.2}σ)",
+            "fit: {} ({} checks passed; no residual block beyond {:.2}σ)",
+            if cal.incomplete() { "the coefficients estimated fit" } else { "sound" },
             out.quality.checks.len(),
             out.quality.block_threshold
+        );
+    }
+    for l in held::lines(cal) {
+        eprintln!("{l}");
+    }
+    if cal.incomplete() && !poor {
+        eprintln!(
+            "calibration INCOMPLETE: {} held at the value above, not estimated; \
+             calibration.toml says so in [held]",
+            held::held(cal).iter().map(|(k, _)| k.key()).collect::<Vec<_>>().join(", ")
         );
     }
     let model_label = if out.truth.is_some() { "simulator's truth" } else { "recording's model" };
@@ -149,11 +175,20 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
                 display::value_like(unit.of(v), unit.of(sigma_si), unit.name)
             })
         };
+        let est = joint.and_then(|f| f.estimate(key));
+        let (rate, ang) = match est.filter(|e| e.held) {
+            Some(e) => (
+                format!("HELD at {} — not estimated", display::si_value(unit, e.value, 4)),
+                "held".into(),
+            ),
+            None => (
+                pm(est.map(|e| (e.value, e.std_err))),
+                pm(angle.map(|a| a.estimates()[j]).map(|e| (e.value, e.std_err))),
+            ),
+        };
         println!(
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {rate} | {ang} | {} | {} |",
             key.key(),
-            pm(joint.and_then(|f| f.estimate(key)).map(|e| (e.value, e.std_err))),
-            pm(angle.map(|a| a.estimates()[j]).map(|e| (e.value, e.std_err))),
             one(seed.and_then(|s| s.coefficient(key))),
             one(recorded.map(|m| m.get(key))),
         );
@@ -168,6 +203,29 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    if let Some(c) = &out.compensation {
+        for l in bench_report::verify::summary_lines(c) {
+            println!("this run: {l}");
+        }
+    }
+    if let Some(path) = &args.verify {
+        if let Some(model_file) =
+            out.model.as_ref().map(|m| calibration_file(&out, m, &name, false))
+        {
+            let vrec = super::load_recording(path, args.quiet)?;
+            let v = bench_report::verify::verify_recording(&vrec, &model_file)
+                .with_context(|| format!("cannot verify on {}", path.display()))?;
+            println!("verification on {}: {}", path.display(), v.verdict.text());
+            for l in bench_report::verify::summary_lines(&v.compensation) {
+                println!("verification: {l}");
+            }
+            let vname = path
+                .file_name()
+                .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+            out.verification = Some((vname, Box::new(v)));
+        }
+    }
+
     let acceptance = bench_report::acceptance::judge_calibration(&out);
     if let Some(a) = &acceptance {
         print_acceptance(a);
@@ -176,30 +234,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         acceptance.as_ref().is_some_and(|a| a.result == bench_report::acceptance::Judgement::Fail);
 
     if let Some(model) = out.model.as_ref().filter(|_| !poor || args.keep_poor_fit) {
-        let j = cal.joint.as_ref().ok();
-        let file = CalibrationFile {
-            source: Source {
-                recording: name.clone(),
-                software: format!("bench {}", env!("CARGO_PKG_VERSION")),
-                method: match j.map(|j| j.estimator) {
-                    Some(Estimator::Gls) => {
-                        "joint generalised least squares under the Allan noise model \
-                         (docs/calibrate.md)"
-                    }
-                    _ => "joint least squares (docs/calibrate.md)",
-                }
-                .to_owned()
-                    + if poor { "; FIT POOR: kept on request, not sound" } else { "" },
-            },
-            gyro_model: ModelKeys::from(model),
-            uncertainty: Uncertainty {
-                bias_rad_s: j.map(|j| j.bias.std_err),
-                scale_factor_error: j.map(|j| j.scale_factor_error.std_err),
-                temp_coeff_rad_s_per_c: j.map(|j| j.temp_coeff.std_err),
-                temp_rate_coeff_rad_s_per_c_s: j.map(|j| j.temp_rate_coeff.std_err),
-            },
-            effects: Default::default(),
-        };
+        let file = calibration_file(&out, model, &name, poor);
         let path = args.out.join("calibration.toml");
         file.save(&path)?;
         println!("wrote {}", path.display());
@@ -225,13 +260,80 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     if !args.quiet {
         eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
     }
-    Ok(match (&out.model, poor) {
+    let exit = match (&out.model, poor) {
         (None, _) => Exit::Incomplete,
         (Some(_), true) => Exit::FitPoor,
         (Some(_), false) if failed => Exit::AcceptanceFailed,
-        (Some(_), false) => Exit::Success,
+        (Some(_), false) if cal.incomplete() => Exit::Incomplete,
+        (Some(_), false) => {
+            out.verification.as_ref().map_or(Exit::Success, |(_, v)| super::verify::exit_of(v))
+        }
+    };
+    Ok(exit.into())
+}
+
+/// The calibration file of `out`: the model, the 1σ of what was estimated, `[held]` for what
+/// the run does not determine (never among the measured values) and the covariance of what was
+/// estimated.
+fn calibration_file(
+    out: &CalibrationOutcome,
+    model: &bench_physics::GyroModel,
+    recording: &str,
+    poor: bool,
+) -> CalibrationFile {
+    let cal = &out.calibration;
+    let j = cal.joint.as_ref().ok();
+    let sigma = |k: ModelKey| j.and_then(|j| j.estimate(k)).filter(|e| !e.held).map(|e| e.std_err);
+    let mut file = CalibrationFile::new(
+        model,
+        &Default::default(),
+        Source {
+            recording: recording.to_owned(),
+            software: format!("bench {}", env!("CARGO_PKG_VERSION")),
+            method: match j.map(|j| j.estimator) {
+                Some(Estimator::Gls) => {
+                    "joint generalised least squares under the Allan noise model \
+                     (docs/calibrate.md)"
+                }
+                _ => "joint least squares (docs/calibrate.md)",
+            }
+            .to_owned()
+                + if poor { "; FIT POOR: kept on request, not sound" } else { "" }
+                + if cal.incomplete() { "; INCOMPLETE: see [held]" } else { "" },
+        },
+        Uncertainty {
+            bias_rad_s: sigma(ModelKey::Bias),
+            scale_factor_error: sigma(ModelKey::ScaleFactorError),
+            temp_coeff_rad_s_per_c: sigma(ModelKey::TempCoeff),
+            temp_rate_coeff_rad_s_per_c_s: sigma(ModelKey::TempRateCoeff),
+        },
+    );
+    file.gyro_model = ModelKeys::from(model);
+    for (k, h) in held::held(cal) {
+        let Some((_, name)) = HOLDABLE_KEYS.iter().find(|(hk, _)| *hk == k) else { continue };
+        let hj = held::held_json(h);
+        file.held.insert(
+            (*name).to_owned(),
+            HeldEntry {
+                value: h.value,
+                sigma: hj.sigma,
+                source: hj.source.to_owned(),
+                reason: hj.reason,
+                determination: hj.determination,
+            },
+        );
     }
-    .into())
+    let est: Vec<usize> = (0..4).filter(|&i| cal.held[i].is_none()).collect();
+    file.covariance = j
+        .map(|j| CovarianceSection {
+            keys: est.iter().map(|&i| HOLDABLE_KEYS[i].1.to_owned()).collect(),
+            matrix: est
+                .iter()
+                .map(|&a| est.iter().map(|&b| j.covariance[a][b]).collect())
+                .collect(),
+        })
+        .filter(|c| c.matrix.iter().flatten().all(|v| v.is_finite()));
+    file
 }
 
 /// The pass/fail lines: the unit, each limit, the result.

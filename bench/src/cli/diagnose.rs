@@ -265,6 +265,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
             temp_rate_coeff_rad_s_per_c_s: sigma(ModelKey::TempRateCoeff),
         },
         effects: d.effects,
+        held: Default::default(),
+        covariance: None,
     };
     let path = args.out.join("model.toml");
     file.save(&path)?;

@@ -19,7 +19,9 @@ pub enum Exit {
     Invalid = 3,
     /// The run was aborted; the recording keeps everything up to the abort and names its cause.
     Aborted = 4,
-    /// The calibration is incomplete: the joint fit could not run on these data.
+    /// The calibration is incomplete: a coefficient the run does not determine was held (named,
+    /// with the run that would determine it; `calibration.toml` says so in `[held]`), or the
+    /// joint fit could not run on these data.
     Incomplete = 5,
     /// A diagnosis found the model's parameters off, but no missing physics.
     ParametersOnly = 6,
@@ -35,6 +37,12 @@ pub enum Exit {
     /// A soak found a sample that arrived intact and was not recorded, memory growing, or a
     /// fault without its expected outcome.
     SoakFailed = 10,
+    /// `bench verify`: the calibration makes the gyro worse on the verification run than no
+    /// compensation (the coefficient responsible named).
+    CompensationWorse = 11,
+    /// `bench verify`: the compensated error is beyond what the calibration states (its σ and
+    /// the gyro's noise): the calibration does not hold on this run.
+    BeyondStatedSigma = 12,
 }
 
 /// A command line that clap accepts but that asks for something impossible (e.g. the same

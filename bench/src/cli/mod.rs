@@ -15,6 +15,7 @@ pub mod run;
 pub mod sim;
 pub mod soak;
 pub mod validate;
+pub mod verify;
 
 use tracing_subscriber::EnvFilter;
 

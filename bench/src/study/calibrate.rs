@@ -194,8 +194,10 @@ fn one_seed(
     let by_key = |f: &dyn Fn(ModelKey) -> Option<(f64, f64)>| -> Vec<(f64, f64)> {
         COEFFICIENTS.iter().map(|k| f(*k).unwrap_or(nan)).collect()
     };
-    let ols = by_key(&|k| joint.estimate(k).map(|e| (e.ols_value, e.ols_noise_model_std_err)));
-    let rate = by_key(&|k| joint.estimate(k).map(|e| (e.value, e.std_err)));
+    let ols = by_key(&|k| {
+        joint.estimate(k).filter(|e| !e.held).map(|e| (e.ols_value, e.ols_noise_model_std_err))
+    });
+    let rate = by_key(&|k| joint.estimate(k).filter(|e| !e.held).map(|e| (e.value, e.std_err)));
     let angle = cal.angle.as_ref().and_then(|a| a.as_ref().ok());
     let angle_est = by_key(&|k| {
         let j = COEFFICIENTS.iter().position(|c| *c == k)?;

@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::CalibrationOutcome;
 
 /// Version of this JSON layout.
-pub const JSON_VERSION: u32 = 2;
+pub const JSON_VERSION: u32 = 3;
 
 /// A value with its 1σ standard error.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -60,13 +60,20 @@ pub struct CalibrationJson {
     pub estimator: Option<&'static str>,
     /// RMS of the GLS whitened residual (≈ 1 when the noise model fits); null for OLS.
     pub whitened_residual_rms: Option<f64>,
-    /// Joint fit, keyed by `bench.gyro_model` key.
+    /// Joint fit, keyed by `bench.gyro_model` key: the coefficients estimated (a held one is
+    /// in `held`, never here).
     pub coefficients: BTreeMap<String, Coefficient>,
-    /// Covariance of the joint fit's coefficients (their σ² on the diagonal), rows and columns
+    /// Coefficients the run does not determine, held at a value and not estimated: the value,
+    /// where it comes from, why, and the run that would determine it.
+    pub held: BTreeMap<String, super::held::HeldJson>,
+    /// Per coefficient, the identifiability test made before the fit
+    /// (`bench_analysis::information`).
+    pub identifiability: BTreeMap<String, IdentifiabilityJson>,
+    /// Covariance of the estimated coefficients (their σ² on the diagonal), rows and columns
     /// in `covariance_keys` order, contract units; null for OLS.
-    pub covariance: Option<[[f64; 4]; 4]>,
-    /// The order of `covariance`'s rows and columns.
-    pub covariance_keys: [&'static str; 4],
+    pub covariance: Option<Vec<Vec<f64>>>,
+    /// The order of `covariance`'s rows and columns: the estimated coefficients.
+    pub covariance_keys: Vec<&'static str>,
     /// The seed method's values (no σ: the method gives none), keyed likewise.
     pub seed_method: BTreeMap<String, f64>,
     /// IEEE 952 noise terms: `arw` (rad/√s), `bias_instability` (the flicker floor, rad/s, as
@@ -78,8 +85,10 @@ pub struct CalibrationJson {
     /// The noise model carried into the coefficients' σ (least-squares fit of the whole Allan
     /// curve): `arw` rad/√s, `flicker_floor` rad/s, `rrw` rad/s/√s.
     pub noise_model: Option<BTreeMap<String, f64>>,
-    /// Thermal lag used, s (0 = the measured temperature).
+    /// Thermal lag, s (0 = the measured temperature): fitted with the coefficients.
     pub thermal_time_constant: f64,
+    /// Its 1σ, s, when fitted; null otherwise.
+    pub thermal_time_constant_sigma: Option<f64>,
     /// The calibrated model as `bench.gyro_model` keys.
     pub gyro_model: BTreeMap<String, f64>,
     /// Against the recording's `bench.gyro_model`, when present.
@@ -103,6 +112,27 @@ pub struct CalibrationJson {
     /// The coefficients against the recording's acceptance limits (`bench.acceptance`), with
     /// its `bench.station`; null when the recording has no limits ([`crate::acceptance`]).
     pub acceptance: Option<crate::acceptance::Acceptance>,
+    /// The calibration applied to this run's own windows: the error before and after, per
+    /// window (`bench_analysis::compensation`); null without a joint fit.
+    pub compensation: Option<crate::verify::CompensationJson>,
+    /// The calibration applied to a verification run (`--verify`), when given.
+    pub verification: Option<crate::verify::VerifyJson>,
+}
+
+/// One coefficient's identifiability.
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifiabilityJson {
+    /// `determined`, `not_excited`, `confounded` or `too_small`.
+    pub verdict: &'static str,
+    /// Its Cramér–Rao σ on this run's design, contract unit (null when not excited or
+    /// confounded outright, or without a noise model).
+    pub sigma_bound: Option<f64>,
+    /// Share of its information the other coefficients carry, 0–1.
+    pub confounding: Option<f64>,
+    /// The coefficient it is most correlated with.
+    pub confounded_with: Option<&'static str>,
+    /// Its expected size (a prior's, else the nominal model's), when known.
+    pub expected_size: Option<f64>,
 }
 
 /// The angle-domain fit.
@@ -214,7 +244,10 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
     let cal = &outcome.calibration;
     let mut coefficients = BTreeMap::new();
     if let Ok(j) = &cal.joint {
-        for (k, e) in ModelKey::CALIBRATED.into_iter().filter_map(|k| Some((k, j.estimate(k)?))) {
+        for (k, e) in ModelKey::CALIBRATED
+            .into_iter()
+            .filter_map(|k| Some((k, j.estimate(k).filter(|e| !e.held)?)))
+        {
             coefficients.insert(
                 k.key().to_owned(),
                 Coefficient {
@@ -284,9 +317,20 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             .joint
             .as_ref()
             .ok()
-            .map(|j| j.covariance)
-            .filter(|c| c.iter().flatten().all(|v| v.is_finite())),
-        covariance_keys: ModelKey::CALIBRATED.map(|k| k.key()),
+            .map(|j| {
+                let est = estimated(cal);
+                est.iter().map(|&a| est.iter().map(|&b| j.covariance[a][b]).collect()).collect()
+            })
+            .filter(|c: &Vec<Vec<f64>>| c.iter().flatten().all(|v| v.is_finite())),
+        covariance_keys: estimated(cal)
+            .into_iter()
+            .map(|j| ModelKey::CALIBRATED[j].key())
+            .collect(),
+        held: super::held::held(cal)
+            .into_iter()
+            .map(|(k, h)| (k.key().to_owned(), super::held::held_json(h)))
+            .collect(),
+        identifiability: identifiability_json(cal),
         seed_method,
         noise,
         noise_confidence,
@@ -298,8 +342,12 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             ])
         }),
         thermal_time_constant: match &cal.lag {
-            Some(Ok(l)) => l.used_s,
+            Some(Ok(l)) => l.fitted_s(),
             _ => 0.0,
+        },
+        thermal_time_constant_sigma: match &cal.lag {
+            Some(Ok(l)) if l.sigma_s.is_finite() => Some(l.sigma_s),
+            _ => None,
         },
         gyro_model: outcome.model.as_ref().map(model_map).unwrap_or_default(),
         truth,
@@ -350,7 +398,37 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             })
             .collect(),
         acceptance: crate::acceptance::judge_calibration(outcome),
+        compensation: outcome.compensation.as_ref().map(crate::verify::compensation_json),
+        verification: outcome
+            .verification
+            .as_ref()
+            .map(|(name, v)| crate::verify::verify_json(v, name, "calibration.toml")),
     }
+}
+
+/// Indices (`ModelKey::CALIBRATED` order) of the coefficients estimated, not held.
+fn estimated(cal: &bench_analysis::calibrate::Calibration) -> Vec<usize> {
+    (0..4).filter(|&j| cal.held[j].is_none()).collect()
+}
+
+fn identifiability_json(
+    cal: &bench_analysis::calibrate::Calibration,
+) -> BTreeMap<String, IdentifiabilityJson> {
+    let Ok(d) = &cal.identifiability else { return BTreeMap::new() };
+    d.iter()
+        .map(|d| {
+            (
+                d.key.key().to_owned(),
+                IdentifiabilityJson {
+                    verdict: d.verdict.key(),
+                    sigma_bound: Some(d.sigma_bound).filter(|s| s.is_finite()),
+                    confounding: Some(d.confounding).filter(|s| s.is_finite()),
+                    confounded_with: d.confounded_with.map(|k| k.key()),
+                    expected_size: d.expected_size,
+                },
+            )
+        })
+        .collect()
 }
 
 fn angle_json(
@@ -373,6 +451,7 @@ fn angle_json(
             coefficients: ModelKey::CALIBRATED
                 .into_iter()
                 .zip(a.estimates())
+                .filter(|(_, e)| !e.held)
                 .map(|(k, e)| {
                     (
                         k.key().to_owned(),

@@ -6,6 +6,7 @@
 //! machine-readable result; [`report`] the HTML/SVG/PNG report. The calibration file itself is
 //! `bench_recording::model_file`.
 
+pub mod held;
 pub mod json;
 pub mod quality;
 pub mod report;
@@ -14,10 +15,12 @@ pub mod windows;
 use std::path::Path;
 
 use bench_analysis::calibrate::{
-    calibrate, thermal_error_removal, CalibrateOptions, Calibration, ThermalErrorRemoval,
+    calibrate, thermal_error_removal, CalibrateOptions, Calibration, Expected, ExpectedSource,
+    ThermalErrorRemoval,
 };
+use bench_analysis::compensation::{compensate, Compensation, CompensationOptions};
 use bench_analysis::AnalysisError;
-use bench_physics::GyroModel;
+use bench_physics::{GyroModel, ModelKey};
 
 use bench_recording::{Recording, RecordingError};
 
@@ -57,6 +60,82 @@ pub struct CalibrateSettings {
     pub replicates: Option<usize>,
     /// Skip the thermal-lag profile.
     pub no_lag: bool,
+    /// What the user expects of coefficients before the data (`--prior KEY=VALUE±SIGMA`): the
+    /// identifiability test's size and the value held when the run does not determine one,
+    /// in place of the nominal model's.
+    pub priors: Vec<Prior>,
+}
+
+/// A prior on a calibrated coefficient: `KEY=VALUE±SIGMA`, contract key and SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prior {
+    /// The coefficient (one of `ModelKey::CALIBRATED`).
+    pub key: ModelKey,
+    /// Expected value, SI.
+    pub value: f64,
+    /// Its 1σ, SI (≥ 0).
+    pub sigma: f64,
+}
+
+impl std::str::FromStr for Prior {
+    type Err = String;
+
+    /// `temp_rate_coeff=1.45e-5±3e-6` (or `+-` for `±`; SI units, the contract's keys: `bias`,
+    /// `scale_factor_error`, `temp_coeff`, `temp_rate_coeff`).
+    fn from_str(text: &str) -> Result<Self, String> {
+        let (key, rest) =
+            text.split_once('=').ok_or_else(|| format!("`{text}`: expected KEY=VALUE±SIGMA"))?;
+        let key = key.trim();
+        let k = ModelKey::from_key(key).filter(|k| ModelKey::CALIBRATED.contains(k)).ok_or_else(
+            || {
+                format!(
+                    "`{key}`: a prior is for a calibrated coefficient: {}",
+                    ModelKey::CALIBRATED.map(|k| k.key()).join(", ")
+                )
+            },
+        )?;
+        let (v, s) = rest
+            .split_once('±')
+            .or_else(|| rest.split_once("+-"))
+            .ok_or_else(|| format!("`{rest}`: expected VALUE±SIGMA (or VALUE+-SIGMA), SI units"))?;
+        let num = |t: &str| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("`{}`: not a finite number", t.trim()))
+        };
+        let (value, sigma) = (num(v)?, num(s)?);
+        if sigma < 0.0 {
+            return Err(format!("`{text}`: σ must not be negative"));
+        }
+        Ok(Prior { key: k, value, sigma })
+    }
+}
+
+/// Each calibrated coefficient's expected value: a prior's, else the nominal model's for the
+/// thermal coefficients. A nominal bias or scale factor is no expected value: a data sheet
+/// gives them as bounds (or 0), and a unit's own offsets are what every run with the table
+/// turning measures — they are judged by excitation and confounding alone, and held (at the
+/// nominal value) only when the run cannot tell them at all.
+fn expected_values(priors: &[Prior], nominal: Option<&GyroModel>) -> [Option<Expected>; 4] {
+    std::array::from_fn(|j| {
+        let key = ModelKey::CALIBRATED[j];
+        match priors.iter().rev().find(|p| p.key == key) {
+            Some(p) => Some(Expected {
+                value: p.value,
+                sigma: Some(p.sigma),
+                source: ExpectedSource::Prior,
+                sized: true,
+            }),
+            None => nominal.map(|m| Expected {
+                value: m.get(key),
+                sigma: None,
+                source: ExpectedSource::Nominal,
+                sized: matches!(key, ModelKey::TempCoeff | ModelKey::TempRateCoeff),
+            }),
+        }
+    })
 }
 
 /// The seed-style error-function comparison with a known model (the seed's Δk_t and Δk_dt).
@@ -103,6 +182,34 @@ pub struct CalibrationOutcome {
     pub rate_range_c_s: (f64, f64),
     /// Whether the fit fits ([`quality`]).
     pub quality: quality::FitQuality,
+    /// The calibration applied to this run's own windows: the error before and after
+    /// compensation (`bench_analysis::compensation`), when the joint fit ran.
+    pub compensation: Option<Compensation>,
+    /// The calibration applied to a verification run (`bench calibrate --verify`), when given:
+    /// its file name and the verification.
+    pub verification: Option<(String, Box<crate::verify::VerifyOutcome>)>,
+}
+
+/// The options of applying `model` (with `covariance`, NaN entries unknown) over windows of a
+/// run at `latitude_deg` (`bench_analysis::compensation`).
+pub fn compensation_options(
+    model: &GyroModel,
+    covariance: [[f64; 4]; 4],
+    latitude_deg: Option<f64>,
+    axis_up: bool,
+    rate_window_s: f64,
+    noise: Option<bench_analysis::joint_fit::NoiseSpec>,
+) -> CompensationOptions {
+    CompensationOptions {
+        coefficients: ModelKey::CALIBRATED.map(|k| model.get(k)),
+        covariance: covariance.map(|r| r.map(|c| if c.is_finite() { c } else { 0.0 })),
+        reference_temperature_c: model.reference_temperature,
+        latitude_deg,
+        axis_up,
+        rate_window_s,
+        noise,
+        alpha: quality::BLOCK_ALPHA,
+    }
 }
 
 fn function_errors(
@@ -154,6 +261,7 @@ pub fn calibrate_recording(
             .as_ref()
             .map(|m| m.bias_instability)
             .filter(|b| *b > 0.0),
+        expected: expected_values(&settings.priors, recorded.as_ref()),
         ..CalibrateOptions::default()
     };
     if let Some(r) = settings.replicates {
@@ -201,6 +309,21 @@ pub fn calibrate_recording(
             model: t,
         }
     });
+    let compensation = match (&model, &calibration.joint) {
+        (Some(m), Ok(j)) => compensate(
+            &calibration.model_windows,
+            &compensation_options(
+                m,
+                j.covariance,
+                opts.latitude_deg,
+                opts.axis_up,
+                opts.rate_window_s,
+                calibration.noise_model,
+            ),
+        )
+        .ok(),
+        _ => None,
+    };
     let mut out = CalibrationOutcome {
         data,
         calibration,
@@ -210,6 +333,8 @@ pub fn calibrate_recording(
         temp_range_c,
         rate_range_c_s,
         quality: quality::FitQuality::default(),
+        compensation,
+        verification: None,
     };
     out.quality = quality::judge(&out);
     Ok(out)

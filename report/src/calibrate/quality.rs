@@ -60,7 +60,8 @@ pub struct Excursion {
 /// The verdict on a calibration's fit.
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct FitQuality {
-    /// `sound` or `poor`.
+    /// `sound` (every check passed, every coefficient determined), `incomplete` (every check
+    /// passed, some coefficient held: not determined by the run) or `poor` (a check failed).
     pub verdict: &'static str,
     /// Every check made.
     pub checks: Vec<Check>,
@@ -146,7 +147,7 @@ pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
         if j.estimator == bench_analysis::joint_fit::Estimator::Gls {
             let worst = ModelKey::CALIBRATED
                 .into_iter()
-                .filter_map(|k| j.estimate(k).map(|e| (k, e)))
+                .filter_map(|k| j.estimate(k).filter(|e| !e.held).map(|e| (k, e)))
                 .map(|(k, e)| (k, e.bootstrap_std_err / e.noise_model_std_err))
                 .filter(|(_, r)| r.is_finite())
                 .max_by(|a, b| spread(a.1).total_cmp(&spread(b.1)));
@@ -172,7 +173,7 @@ pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
             .into_iter()
             .zip(a.estimates())
             .filter_map(|(k, ae)| {
-                let je = j.estimate(k)?;
+                let je = j.estimate(k).filter(|e| !e.held)?;
                 let s = je.std_err.max(ae.std_err);
                 Some((k, (je.value - ae.value).abs() / s))
             })
@@ -221,6 +222,8 @@ pub fn judge(outcome: &CalibrationOutcome) -> FitQuality {
     };
     if q.poor() {
         q.verdict = "poor";
+    } else if cal.incomplete() {
+        q.verdict = "incomplete";
     }
     q
 }

@@ -116,13 +116,20 @@ mod tests {
         let j = out.calibration.joint.as_ref().expect("joint fit on the short run");
         // Digits set by σ (display::value_sigma).
         use crate::display::{si_value_sigma, PPM, RATE, TEMP_COEFF};
-        let bias = si_value_sigma(RATE, j.bias.value, j.bias.std_err);
-        let tc = si_value_sigma(TEMP_COEFF, j.temp_coeff.value, j.temp_coeff.std_err);
-        let sf = si_value_sigma(PPM, j.scale_factor_error.value, j.scale_factor_error.std_err);
-        for (v, unit) in [(&bias, RATE), (&tc, TEMP_COEFF), (&sf, PPM)] {
+        for (e, unit) in [(j.bias, RATE), (j.temp_coeff, TEMP_COEFF), (j.scale_factor_error, PPM)] {
+            if e.held {
+                // Held (this short, noisy run does not determine it): said so, not as measured.
+                let v = crate::render::sig(e.value * unit.per_si, 4);
+                assert!(html.contains(&format!("HELD at {v} — not estimated")), "held {v}");
+                continue;
+            }
+            let v = si_value_sigma(unit, e.value, e.std_err);
             let v = v.trim_end_matches(unit.name).trim_end();
             assert!(html.contains(&format!("<td>{v}</td>")), "joint value {v} in the table");
         }
+        // The summary near the top: what was determined and what held.
+        assert!(html.contains("<h2>Summary</h2>") && html.contains("Determined: bias"));
+        assert!(html.contains("On this run (the data it was fitted to)"));
         assert!(html.contains("°/h/(°C/min)"));
 
         // One PNG per figure, decodable header, the figure's pixel size.

@@ -83,8 +83,18 @@ fn coefficient_rows(o: &CalibrationOutcome) -> String {
     let mut out = String::new();
     for (row, (name, unit, j, s, t)) in rows.into_iter().enumerate() {
         let k = unit.per_si;
-        let jt = j.map_or("—".into(), |(v, e)| pm(v * k, e * k));
-        let at = angle_of(row).map_or("—".into(), |(v, e)| pm(v * k, e * k));
+        let held = joint
+            .and_then(|j| j.estimate(bench_physics::ModelKey::CALIBRATED[row]))
+            .is_some_and(|e| e.held);
+        let jt = match j {
+            Some((v, _)) if held => format!("HELD at {} — not estimated", sig(v * k, 4)),
+            _ => j.map_or("—".into(), |(v, e)| pm(v * k, e * k)),
+        };
+        let at = if held {
+            "held".into()
+        } else {
+            angle_of(row).map_or("—".into(), |(v, e)| pm(v * k, e * k))
+        };
         let st = s.map_or_else(
             || if name.starts_with("scale") { "not fitted".into() } else { "—".into() },
             |v| sig(v * k, 4),
@@ -221,6 +231,72 @@ fn fit_quality(h: &mut String, o: &CalibrationOutcome, source: &str) {
     }
 }
 
+/// Near the top: what the run determined, what was held and why, and what the compensation
+/// does to this run and to a verification run.
+fn summary(h: &mut String, o: &CalibrationOutcome) {
+    let cal = &o.calibration;
+    let verdict = match o.quality.verdict {
+        "poor" => "<span class=bad>POOR</span>: the model does not fit these data",
+        "incomplete" => {
+            "<span class=bad>INCOMPLETE</span>: the run does not determine every coefficient"
+        }
+        _ => "<span class=ok>sound</span>: every coefficient determined, every check passed",
+    };
+    let _ = writeln!(h, "<h2>Summary</h2>\n<p>Calibration: {verdict}.</p>\n<ul>");
+    let joint = cal.joint.as_ref().ok();
+    let determined: Vec<String> = bench_physics::ModelKey::CALIBRATED
+        .into_iter()
+        .filter_map(|k| {
+            let e = joint?.estimate(k).filter(|e| !e.held)?;
+            let unit = crate::display::coefficient_unit(k)?;
+            Some(format!(
+                "{} {}",
+                k.key(),
+                crate::display::si_value_sigma(unit, e.value, e.std_err)
+            ))
+        })
+        .collect();
+    if !determined.is_empty() {
+        let _ = writeln!(h, "<li>Determined: {}.</li>", escape(&determined.join("; ")));
+    }
+    for l in crate::calibrate::held::lines(cal) {
+        let _ = writeln!(h, "<li class=bad>{}</li>", escape(&l));
+    }
+    if let Some(c) = &o.compensation {
+        let _ = writeln!(
+            h,
+            "<li>On this run (the data it was fitted to): {}.</li>",
+            escape(&crate::verify::summary_lines(c).join("; "))
+        );
+    }
+    if let Some((name, v)) = &o.verification {
+        let _ = writeln!(
+            h,
+            "<li>On the verification run <b>{}</b>: <b>{}</b>; {}.</li>",
+            escape(name),
+            escape(v.verdict.text()),
+            escape(&crate::verify::summary_lines(&v.compensation).join("; "))
+        );
+    }
+    let _ = writeln!(h, "</ul>");
+}
+
+/// The compensation's windows, on this run and on a verification run.
+fn compensation_sections(h: &mut String, o: &CalibrationOutcome) {
+    if let Some(c) = &o.compensation {
+        let _ = writeln!(
+            h,
+            "<h2>Compensation on this run</h2>\n<p class=note>The calibration applied to the \
+             windows it was fitted to: what it takes out of this run (not a verification).</p>"
+        );
+        crate::verify_html::compensation_html(h, c);
+    }
+    if let Some((name, v)) = &o.verification {
+        let _ = writeln!(h, "<h2>Verification run: {}</h2>", escape(name));
+        crate::verify_html::compensation_html(h, &v.compensation);
+    }
+}
+
 /// What the record steps hold outside the windows, and each channel's time base.
 fn exclusions(h: &mut String, o: &CalibrationOutcome) {
     let d = &o.data;
@@ -308,6 +384,7 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         sig(opts.rate_window_s, 3)
     );
 
+    summary(&mut h, o);
     fit_quality(&mut h, o, source);
 
     // Coefficients.
@@ -491,6 +568,8 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
     }
     let _ = writeln!(h, "</table>");
     exclusions(&mut h, o);
+
+    compensation_sections(&mut h, o);
 
     // What the data lack.
     let _ = writeln!(h, "<h2>What the data lack</h2>");
