@@ -7,7 +7,7 @@
 //! temperature coefficient of `scenarios/seed.toml` by ≈ 5 % in noise-free simulations.
 
 use bench_physics::earth::vertical_rate_rad_s;
-use bench_physics::effects::{lag_temperature, EffectSample, Effects, HysteresisState};
+use bench_physics::effects::{lag_temperature, EffectId, EffectSample, Effects, HysteresisState};
 use bench_physics::GyroModel;
 
 use crate::diagnose::series::Native;
@@ -22,7 +22,7 @@ pub fn effects_per_sample(
     axis_up: bool,
     latitude_deg: Option<f64>,
 ) -> Vec<f64> {
-    let effects = Effects { earth_rate: false, ..*effects };
+    let effects = effects.without(EffectId::EarthRate);
     if !effects.any() {
         return vec![0.0; native.t.len()];
     }
@@ -52,17 +52,11 @@ pub fn effects_per_sample(
 /// model temperature, or with an effect's thermal lag, the lagged one (rate from the lag's own
 /// equation, dT/dt = (T_in − T)/τ).
 pub fn effect_temperature(native: &Native, effects: &Effects) -> (Vec<f64>, Vec<f64>) {
-    match effects.thermal_lag {
-        Some(l) => {
-            let lagged = lag_temperature(&native.t, &native.temp_c, l.time_constant_s);
-            let rate = native
-                .temp_c
-                .iter()
-                .zip(&lagged)
-                .map(|(a, b)| (a - b) / l.time_constant_s)
-                .collect();
-            (lagged, rate)
-        }
-        None => (native.temp_c.clone(), native.temp_rate_c_s.clone()),
+    if !effects.has(EffectId::ThermalLag) {
+        return (native.temp_c.clone(), native.temp_rate_c_s.clone());
     }
+    let tau = effects.lag_s();
+    let lagged = lag_temperature(&native.t, &native.temp_c, tau);
+    let rate = native.temp_c.iter().zip(&lagged).map(|(a, b)| (a - b) / tau).collect();
+    (lagged, rate)
 }

@@ -19,6 +19,15 @@ const LAT: f64 = 59.94;
 const OMEGA: f64 = 10.0 * DEG_PER_MIN;
 const ACCEL: f64 = 0.017_453_292_5; // 1 °/s²
 
+/// These effects on, each with its parameters.
+fn on(list: &[(EffectId, &[f64])]) -> Effects {
+    let mut e = Effects::default();
+    for (id, v) in list {
+        e.set(*id, v).expect("count fits");
+    }
+    e
+}
+
 /// label, table rate, air at start, air rate (°C/s), duration (s).
 type Step = (&'static str, f64, f64, f64, f64);
 
@@ -97,7 +106,7 @@ fn nominal() -> GyroModel {
 fn check(d: &Diagnosis) -> String {
     let mut s = format!(
         "verdict {:?}, rms {:?}, n_eff {:.0}, params W {:.1}/{:.1}\n",
-        d.verdict, d.rms, d.n_eff, d.parameters_wald.0, d.parameters_wald.1
+        d.verdict, d.rms, d.n_eff, d.parameters_wald.value, d.parameters_wald.threshold
     );
     for f in &d.findings {
         s += &format!(
@@ -166,32 +175,24 @@ fn parameters_only_run_is_named_so() {
 
 #[test]
 fn once_per_revolution_is_found() {
-    let o = OncePerRevolution { amplitude_rad_s: 3e-8, phase_rad: 0.8 };
-    let d = run_with(Effects { once_per_revolution: Some(o), ..Effects::default() }, 4);
+    let d = run_with(on(&[(EffectId::OncePerRevolution, &[3e-8, 0.8])]), 4);
     assert_eq!(accepted(&d), vec![EffectId::OncePerRevolution], "{}", check(&d));
     within_3_sigma(&d, EffectId::OncePerRevolution, "amplitude_rad_s", 3e-8);
     within_3_sigma(&d, EffectId::OncePerRevolution, "phase_rad", 0.8);
-    assert!(d.rms.2 < d.rms.1);
+    assert!(d.rms.after < d.rms.before);
 }
 
 #[test]
 fn warm_up_alone_is_found() {
-    let e = Effects {
-        warm_up: Some(WarmUp { amplitude_rad_s: 2e-7, time_constant_s: 600.0 }),
-        ..Effects::default()
-    };
-    let d = run_with(e, 5);
+    let d = run_with(on(&[(EffectId::WarmUp, &[2e-7, 600.0])]), 5);
     assert_eq!(accepted(&d), vec![EffectId::WarmUp], "{}", check(&d));
-    assert!(d.rms.2 < d.rms.1);
+    assert!(d.rms.after < d.rms.before);
 }
 
 #[test]
 fn once_per_revolution_and_bias_step_together() {
-    let e = Effects {
-        once_per_revolution: Some(OncePerRevolution { amplitude_rad_s: 4e-8, phase_rad: -1.0 }),
-        bias_step: Some(BiasStep { time_s: 5000.0, step_rad_s: 1e-7 }),
-        ..Effects::default()
-    };
+    let e =
+        on(&[(EffectId::OncePerRevolution, &[4e-8, -1.0]), (EffectId::BiasStep, &[5000.0, 1e-7])]);
     let d = run_with(e, 6);
     let mut got = accepted(&d);
     got.sort();
@@ -205,11 +206,7 @@ fn once_per_revolution_and_bias_step_together() {
 fn warm_up_and_bias_step_together() {
     // A warm-up judged alone against held-out blocks that also hold an unmodelled step is not
     // confirmed; the pair is (each with the other in the model), both grid values refitted.
-    let e = Effects {
-        warm_up: Some(WarmUp { amplitude_rad_s: 3e-7, time_constant_s: 600.0 }),
-        bias_step: Some(BiasStep { time_s: 4000.0, step_rad_s: 1e-7 }),
-        ..Effects::default()
-    };
+    let e = on(&[(EffectId::WarmUp, &[3e-7, 600.0]), (EffectId::BiasStep, &[4000.0, 1e-7])]);
     let d = run_with(e, 12);
     let mut got = accepted(&d);
     got.sort();
@@ -225,51 +222,45 @@ fn single(effects: Effects, seed: u64, id: EffectId, name: &str, truth: f64) {
     let d = run_with(effects, seed);
     assert_eq!(accepted(&d), vec![id], "{}", check(&d));
     within_3_sigma(&d, id, name, truth);
-    assert!(d.rms.2 < d.rms.1, "{}", check(&d));
-    assert!(d.bic.1 < d.bic.0, "{}", check(&d));
+    assert!(d.rms.after < d.rms.before, "{}", check(&d));
+    assert!(d.bic.after < d.bic.before, "{}", check(&d));
 }
 
 #[test]
 fn temperature_quadratic_is_found() {
     // Over 20..50 °C with T0 = 20 °C, 4e-10 rad/s/°C² departs from the best line by up to
     // 4.5e-8 rad/s: five times the flicker floor.
-    let q = TemperatureQuadratic { coeff_rad_s_per_c2: 4e-10 };
-    let e = Effects { temperature_quadratic: Some(q), ..Effects::default() };
+    let e = on(&[(EffectId::TemperatureQuadratic, &[4e-10])]);
     single(e, 7, EffectId::TemperatureQuadratic, "coeff_rad_s_per_c2", 4e-10);
 }
 
 #[test]
 fn scale_factor_temperature_is_found() {
-    let k = ScaleFactorTemperature { coeff_per_c: 1e-6 };
-    let e = Effects { scale_factor_temperature: Some(k), ..Effects::default() };
+    let e = on(&[(EffectId::ScaleFactorTemperature, &[1e-6])]);
     single(e, 8, EffectId::ScaleFactorTemperature, "coeff_per_c", 1e-6);
 }
 
 #[test]
 fn rate_squared_is_found() {
-    let c = RateSquared { coeff_s_per_rad: 1e-2 };
-    let e = Effects { rate_squared: Some(c), ..Effects::default() };
+    let e = on(&[(EffectId::RateSquared, &[1e-2])]);
     single(e, 9, EffectId::RateSquared, "coeff_s_per_rad", 1e-2);
 }
 
 #[test]
 fn time_offset_is_found() {
-    let o = TimeOffset { offset_s: 2e-4 };
-    let e = Effects { time_offset: Some(o), ..Effects::default() };
+    let e = on(&[(EffectId::TimeOffset, &[2e-4])]);
     single(e, 10, EffectId::TimeOffset, "offset_s", 2e-4);
 }
 
 #[test]
 fn thermal_hysteresis_is_found() {
-    let h = ThermalHysteresis { half_width_rad_s: 5e-8, threshold_c_s: HYSTERESIS_THRESHOLD_C_S };
-    let e = Effects { thermal_hysteresis: Some(h), ..Effects::default() };
+    let e = on(&[(EffectId::ThermalHysteresis, &[5e-8, HYSTERESIS_THRESHOLD_C_S])]);
     single(e, 11, EffectId::ThermalHysteresis, "half_width_rad_s", 5e-8);
 }
 
 #[test]
 fn thermal_lag_is_found() {
-    let l = ThermalLag { time_constant_s: 400.0 };
-    let e = Effects { thermal_lag: Some(l), ..Effects::default() };
+    let e = on(&[(EffectId::ThermalLag, &[400.0])]);
     single(e, 12, EffectId::ThermalLag, "time_constant_s", 400.0);
 }
 
@@ -282,7 +273,7 @@ fn earth_rate_left_out_of_the_model_is_found() {
         .expect("diagnosis");
     assert_eq!(accepted(&d), vec![EffectId::EarthRate], "{}", check(&d));
     within_3_sigma(&d, EffectId::EarthRate, "latitude_deg", LAT);
-    assert!(d.effects.earth_rate);
+    assert!(d.effects.has(EffectId::EarthRate));
 }
 
 #[test]
@@ -305,8 +296,7 @@ fn periodic_bias_is_found_not_mistaken_for_other_effects() {
     // A 22 min oscillation (lab air conditioning) at four times the flicker floor: named alone
     // (not a step, a once-per-revolution term or a temperature effect), its period and
     // amplitude within 3σ.
-    let pb = PeriodicBias { amplitude_rad_s: 4e-8, period_s: 1320.0, phase_rad: 0.6 };
-    let e = Effects { periodic_bias: Some(pb), ..Effects::default() };
+    let e = on(&[(EffectId::PeriodicBias, &[4e-8, 1320.0, 0.6])]);
     single(e, 13, EffectId::PeriodicBias, "amplitude_rad_s", 4e-8);
     let d = run_with(e, 13);
     within_3_sigma(&d, EffectId::PeriodicBias, "period_s", 1320.0);

@@ -30,6 +30,13 @@ use bench_recording::Recording;
 use bench_report::diagnose::diagnose_recording;
 use criterion::{criterion_group, criterion_main, Criterion};
 
+/// The default options, with `BENCH_DIAGNOSE_THREADS` threads when it is set (as the CLI).
+fn options() -> DiagnoseOptions {
+    let threads = std::env::var("BENCH_DIAGNOSE_THREADS").ok().and_then(|v| v.parse().ok());
+    let default = DiagnoseOptions::default();
+    DiagnoseOptions { threads: threads.filter(|&t| t >= 1).unwrap_or(default.threads), ..default }
+}
+
 fn simulated() -> Vec<u8> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/thermal-short.toml");
     let plan = bench::scenario::load(&path, &capabilities()).expect("valid scenario");
@@ -40,7 +47,7 @@ fn lab_null_5h(c: &mut Criterion) {
     let path = bench_tests::lab_fixture("lab-null", 1, &[]);
     let bytes = std::fs::read(&path).expect("the lab writer's file");
     let rec = Recording::from_bytes(&bytes).expect("reads");
-    let opts = DiagnoseOptions::default();
+    let opts = options();
     let mut g = c.benchmark_group("diagnose_lab_null_5h");
     g.sample_size(10).measurement_time(Duration::from_secs(40));
     g.bench_function("read_and_diagnose", |b| {
@@ -66,7 +73,7 @@ fn lab_null_5h(c: &mut Criterion) {
 fn thermal_short_7h(c: &mut Criterion) {
     let bytes = simulated();
     let rec = Recording::from_bytes(&bytes).expect("reads");
-    let opts = DiagnoseOptions::default();
+    let opts = options();
     let mut g = c.benchmark_group("diagnose_thermal_short_7h");
     g.sample_size(10).measurement_time(Duration::from_secs(30));
     g.bench_function("diagnose", |b| {
@@ -86,7 +93,7 @@ fn thermal_short_7h(c: &mut Criterion) {
 fn lab_warmup_step_5h(c: &mut Criterion) {
     let path = bench_tests::lab_fixture("effect-warmup-step", 1, &[]);
     let bytes = std::fs::read(&path).expect("the lab writer's file");
-    let opts = DiagnoseOptions::default();
+    let opts = options();
     let mut g = c.benchmark_group("diagnose_lab_warmup_step_5h");
     g.sample_size(10).measurement_time(Duration::from_secs(100));
     g.bench_function("read_and_diagnose", |b| {

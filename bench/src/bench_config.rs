@@ -1106,13 +1106,13 @@ time_constant_s = 900
 
     #[test]
     fn a_config_without_drivers_is_the_simulated_bench_with_its_effects() {
-        use bench_physics::effects::{BiasStep, WarmUp};
+        use bench_physics::effects::EffectId;
         let c = BenchConfig::parse(SIM, "sim.toml").expect("valid");
         assert!(c.is_simulated());
         let e = c.sim_effects();
-        assert!(e.earth_rate);
-        assert_eq!(e.bias_step, Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }));
-        assert_eq!(e.warm_up, Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }));
+        assert!(e.has(EffectId::EarthRate));
+        assert_eq!(e.get(EffectId::BiasStep), Some(&[100.0, 1e-6][..]));
+        assert_eq!(e.get(EffectId::WarmUp), Some(&[1e-7, 900.0][..]));
         assert_eq!(e.ids().len(), 3);
         // Written back, it reads the same.
         let text = c.to_toml().expect("serialises");
@@ -1120,7 +1120,7 @@ time_constant_s = 900
         // A lab config may carry [simulation] too.
         let both = format!("{GOOD}\n{}", SIM.replace("[site]\nlatitude_deg = 45.0\n", ""));
         let c = BenchConfig::parse(&both, "lab.toml").expect("valid");
-        assert!(!c.is_simulated() && c.sim_effects().earth_rate);
+        assert!(!c.is_simulated() && c.sim_effects().has(EffectId::EarthRate));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! and what a simulated run records of it. Runs go through [`crate::runner::run`] with
 //! [`crate::runner::Bench::Simulated`] (or [`crate::runner::simulate_in_memory`]).
 
-use bench_physics::effects::{Effects, RateRipple};
+use bench_physics::effects::{EffectId, Effects};
 use bench_sim::SimConfig;
 
 use crate::plan::RunPlan;
@@ -41,12 +41,12 @@ pub fn sim_config(plan: &RunPlan, seed: u64) -> SimConfig {
 pub fn recorded_effects(plan: &RunPlan, config: &SimConfig) -> Effects {
     let mut effects = plan.gyro.effects;
     let table = &config.table;
-    if effects.rate_ripple.is_none() && table.ripple_rel > 0.0 && table.ripple_cycles_per_rev > 0 {
-        effects.rate_ripple = Some(RateRipple {
-            relative_amplitude: table.ripple_rel,
-            cycles_per_rev: f64::from(table.ripple_cycles_per_rev),
-            phase_rad: table.ripple_phase_rad,
-        });
+    let ripple = EffectId::RateRipple;
+    if !effects.has(ripple) && table.ripple_rel > 0.0 && table.ripple_cycles_per_rev > 0 {
+        let values =
+            [table.ripple_rel, f64::from(table.ripple_cycles_per_rev), table.ripple_phase_rad];
+        // Three values, the ripple's three parameters.
+        let _ = effects.set(ripple, &values);
     }
     effects
 }

@@ -26,7 +26,7 @@ use std::fmt::Write as _;
 
 use anyhow::Context as _;
 use bench_analysis::diagnose::{Collinearity, DiagnoseOptions, Diagnosis};
-use bench_physics::effects::EffectId;
+use bench_physics::effects::{EffectId, Procedure};
 use bench_physics::GyroModel;
 
 use crate::runner::simulate_in_memory;
@@ -63,15 +63,10 @@ pub struct RecordingFacts {
     pub temp_range_c: (f64, f64),
 }
 
-/// Terms that full turns at two rates separate: the angle's and the rate's.
+/// Terms that full turns at two rates separate: the angle's and the rate's (the effect's
+/// [`bench_physics::effects::Effect::separated_by`]).
 fn is_angle(id: EffectId) -> bool {
-    matches!(
-        id,
-        EffectId::OncePerRevolution
-            | EffectId::AngleHarmonic
-            | EffectId::RateRipple
-            | EffectId::RateSquared
-    )
+    id.effect().separated_by() == Procedure::TurnsAtTwoRates
 }
 
 /// A scenario that separates the diagnosis's confounded pairs (module docs), or `None` when

@@ -21,7 +21,7 @@
 //! passes the table angle at `t − δ`.
 
 use crate::earth::vertical_rate_rad_s;
-use crate::effects::{EffectSample, Effects, HysteresisState};
+use crate::effects::{EffectId, EffectSample, Effects, HysteresisState};
 use crate::lag::FirstOrderLag;
 use crate::noise::GyroNoise;
 use crate::units::quantise;
@@ -205,7 +205,7 @@ impl GyroSampler {
     #[inline]
     pub fn sample(&mut self, t_end_s: f64, table_angle_rad: f64, temp_c: f64) -> GyroTerms {
         let dt_s = t_end_s - self.prev_t_s;
-        let (temp_start_c, temp_end_c) = if self.effects.thermal_lag.is_some() {
+        let (temp_start_c, temp_end_c) = if self.effects.has(EffectId::ThermalLag) {
             let start = self.coil.value();
             (start, self.coil.step_linear(self.prev_temp_c, temp_c, dt_s))
         } else {
@@ -222,7 +222,7 @@ impl GyroSampler {
         };
         let mut terms = sample_terms(&self.model, &inp);
         if self.effects.any() {
-            let earth = if self.model.earth_rate || self.effects.earth_rate {
+            let earth = if self.model.earth_rate || self.effects.has(EffectId::EarthRate) {
                 self.earth_rad_s
             } else {
                 0.0

@@ -13,7 +13,7 @@ pub fn check_located(
 ) -> Result<(), (usize, usize, String)> {
     for id in effects.ids() {
         let Some(values) = effects.param_values(id) else { continue };
-        for (p, v) in id.params().iter().zip(values) {
+        for (p, v) in id.param_names().into_iter().zip(values) {
             let why = if !v.is_finite() {
                 "must be a finite number"
             } else if id.param_must_be_positive(p) && v <= 0.0 {

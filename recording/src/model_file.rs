@@ -769,22 +769,23 @@ mod tests {
 
 #[cfg(test)]
 mod effects_tests {
-    use bench_physics::effects::{BiasStep, OncePerRevolution, ThermalLag, WarmUp};
+    use bench_physics::effects::EffectId;
 
     use super::*;
 
     fn fitted() -> Effects {
-        Effects {
-            earth_rate: true,
-            thermal_lag: Some(ThermalLag { time_constant_s: 412.25 }),
-            once_per_revolution: Some(OncePerRevolution {
-                amplitude_rad_s: 2.0000000000000004e-8,
-                phase_rad: -0.1 - 0.2,
-            }),
-            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
-            bias_step: Some(BiasStep { time_s: 3600.5, step_rad_s: -3e-9 }),
-            ..Effects::default()
+        let on: [(EffectId, &[f64]); 5] = [
+            (EffectId::EarthRate, &[]),
+            (EffectId::ThermalLag, &[412.25]),
+            (EffectId::OncePerRevolution, &[2.0000000000000004e-8, -0.1 - 0.2]),
+            (EffectId::WarmUp, &[1e-7, 900.0]),
+            (EffectId::BiasStep, &[3600.5, -3e-9]),
+        ];
+        let mut e = Effects::default();
+        for (id, v) in on {
+            e.set(id, v).expect("count fits");
         }
+        e
     }
 
     #[test]
@@ -827,11 +828,8 @@ mod effects_tests {
              time_constant_s = 900 }}\n"
         );
         let f = CalibrationFile::parse(&text, "m.toml").expect("parses");
-        assert!(f.effects.earth_rate);
-        assert_eq!(
-            f.effects.warm_up,
-            Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 })
-        );
+        assert!(f.effects.has(EffectId::EarthRate));
+        assert_eq!(f.effects.get(EffectId::WarmUp), Some(&[1e-7, 900.0][..]));
     }
 
     #[test]
@@ -876,7 +874,7 @@ mod effects_tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("bad.toml");
         let mut effects = fitted();
-        effects.thermal_lag = Some(ThermalLag { time_constant_s: -1.0 });
+        effects.set(EffectId::ThermalLag, &[-1.0]).expect("fits");
         let e = write_model_file(
             &path,
             &GyroModel::default(),

@@ -2,7 +2,7 @@
 
 use bench_drivers::{ChamberCapabilities, DeviceInfo, GyroCapabilities, TableCapabilities};
 use bench_physics::chamber::ChamberParams;
-use bench_physics::effects::Effects;
+use bench_physics::effects::{EffectId, Effects};
 use bench_physics::table::TableParams;
 use bench_physics::units::DEG;
 use bench_physics::GyroModel;
@@ -70,17 +70,15 @@ impl SimConfig {
     /// table's true motion), so it leaves the gyro's effects and sets `table.ripple_*`.
     pub fn table_and_gyro_effects(&self) -> (TableParams, Effects) {
         let mut table = self.table.clone();
-        let mut effects = self.gyro_effects;
-        if let Some(r) = effects.rate_ripple.take() {
+        let effects = self.gyro_effects.without(EffectId::RateRipple);
+        if let Some(&[rel, cycles_per_rev, phase_rad]) = self.gyro_effects.get(EffectId::RateRipple)
+        {
             // ε·sin(x + φ) with ε < 0 is |ε|·sin(x + φ + π).
-            let (eps, phase) = if r.relative_amplitude < 0.0 {
-                (-r.relative_amplitude, r.phase_rad + std::f64::consts::PI)
-            } else {
-                (r.relative_amplitude, r.phase_rad)
-            };
+            let (eps, phase) =
+                if rel < 0.0 { (-rel, phase_rad + std::f64::consts::PI) } else { (rel, phase_rad) };
             table.ripple_rel = eps;
             // Whole and in range: checked by `validate`.
-            table.ripple_cycles_per_rev = r.cycles_per_rev.round().clamp(0.0, 65_535.0) as u32;
+            table.ripple_cycles_per_rev = cycles_per_rev.round().clamp(0.0, 65_535.0) as u32;
             table.ripple_phase_rad = phase;
         }
         (table, effects)
@@ -91,11 +89,10 @@ impl SimConfig {
     pub fn seen_effects(&self) -> Effects {
         let (table, mut effects) = self.table_and_gyro_effects();
         if table.ripple_rel > 0.0 && table.ripple_cycles_per_rev > 0 {
-            effects.rate_ripple = Some(bench_physics::effects::RateRipple {
-                relative_amplitude: table.ripple_rel,
-                cycles_per_rev: f64::from(table.ripple_cycles_per_rev),
-                phase_rad: table.ripple_phase_rad,
-            });
+            let ripple =
+                [table.ripple_rel, f64::from(table.ripple_cycles_per_rev), table.ripple_phase_rad];
+            // Three values, the ripple's three parameters.
+            let _ = effects.set(EffectId::RateRipple, &ripple);
         }
         effects
     }
@@ -195,8 +192,7 @@ impl SimConfig {
             ));
         }
         self.gyro_effects.validate().map_err(|e| err("gyro_effects", e))?;
-        if let Some(r) = self.gyro_effects.rate_ripple {
-            let n = r.cycles_per_rev;
+        if let Some(&[_, n, _]) = self.gyro_effects.get(EffectId::RateRipple) {
             if n.fract() != 0.0 || !(1.0..=f64::from(u16::MAX)).contains(&n) {
                 return Err(err(
                     "gyro_effects",
@@ -269,26 +265,25 @@ impl SimConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bench_physics::effects::RateRipple;
+    use bench_physics::effects::EffectId;
 
     #[test]
     fn a_rate_ripple_effect_becomes_the_tables_ripple() {
         let cfg = SimConfig::default();
         // The default table ripples; the gyro adds nothing of its own.
         let seen = cfg.seen_effects();
-        let r = seen.rate_ripple.expect("the table's ripple is seen");
-        assert_eq!((r.relative_amplitude, r.cycles_per_rev, r.phase_rad), (1e-5, 16.0, 0.0));
+        let r = seen.get(EffectId::RateRipple).expect("the table's ripple is seen");
+        assert_eq!(r, &[1e-5, 16.0, 0.0][..]);
 
         let mut cfg = SimConfig::default();
-        let ripple = RateRipple { relative_amplitude: -2e-5, cycles_per_rev: 8.0, phase_rad: 0.5 };
-        cfg.gyro_effects.rate_ripple = Some(ripple);
+        cfg.gyro_effects.set(EffectId::RateRipple, &[-2e-5, 8.0, 0.5]).expect("fits");
         assert!(cfg.validate().is_ok());
         let (table, effects) = cfg.table_and_gyro_effects();
-        assert_eq!(effects.rate_ripple, None, "not added a second time through the gyro");
+        assert!(!effects.has(EffectId::RateRipple), "not added a second time through the gyro");
         assert_eq!((table.ripple_rel, table.ripple_cycles_per_rev), (2e-5, 8));
         assert!((table.ripple_phase_rad - (0.5 + std::f64::consts::PI)).abs() < 1e-15);
 
-        cfg.gyro_effects.rate_ripple = Some(RateRipple { cycles_per_rev: 2.5, ..ripple });
+        cfg.gyro_effects.set(EffectId::RateRipple, &[-2e-5, 2.5, 0.5]).expect("fits");
         let e = cfg.validate().expect_err("half a cycle");
         assert!(e.to_string().contains("whole number"), "{e}");
     }

@@ -4,7 +4,7 @@
 
 use bench::runner::simulate_in_memory;
 use bench::simulate::capabilities;
-use bench_physics::effects::{BiasStep, Effects, OncePerRevolution, RateRipple};
+use bench_physics::effects::{EffectId, Effects};
 use bench_recording::Recording;
 
 /// Table at rest, chamber held at 20 °C, 200 s.
@@ -87,17 +87,12 @@ fn nominal_effects_are_recorded_as_effect_keys_and_simulated() {
         Some("2e-8")
     );
     assert_eq!(meta.get("effect.bias_step.step_rad_s").map(String::as_str), Some("1e-6"));
-    let expected = Effects {
-        once_per_revolution: Some(OncePerRevolution { amplitude_rad_s: 2e-8, phase_rad: 0.5 }),
-        bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
+    let expected = Effects::default()
+        .with(EffectId::OncePerRevolution, &[2e-8, 0.5])
+        .and_then(|e| e.with(EffectId::BiasStep, &[100.0, 1e-6]))
         // The simulated table's own ripple.
-        rate_ripple: Some(RateRipple {
-            relative_amplitude: 1e-5,
-            cycles_per_rev: 16.0,
-            phase_rad: 0.0,
-        }),
-        ..Effects::default()
-    };
+        .and_then(|e| e.with(EffectId::RateRipple, &[1e-5, 16.0, 0.0]))
+        .expect("counts fit");
     assert_eq!(Effects::from_metadata(meta), Ok(expected));
     // The contract's keys are all still there.
     for key in bench_physics::gyro_model::GYRO_MODEL_KEYS {

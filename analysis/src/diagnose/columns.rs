@@ -106,8 +106,9 @@ impl ColumnMemo {
         axis: f64,
         angle_orders: &[f64],
         periods: &[f64],
+        n_threads: usize,
     ) {
-        self.prefill_on(native, bins, axis, angle_orders, periods, threads());
+        self.prefill_on(native, bins, axis, angle_orders, periods, n_threads);
     }
 
     /// [`Self::prefill`] on `n_threads` threads.
@@ -136,9 +137,8 @@ impl ColumnMemo {
                 (0..bins.len()).step_by(BIN_RUN).map(move |a| (i, a..(a + BIN_RUN).min(bins.len())))
             })
             .collect();
-        let computed = par_map_on(n_threads, &items, |(i, r)| {
-            tasks[*i].compute(native, &bins[r.clone()], axis)
-        });
+        let computed =
+            par_map(n_threads, &items, |(i, r)| tasks[*i].compute(native, &bins[r.clone()], axis));
         let mut joined: Vec<Vec<(Key, Columns)>> = tasks.iter().map(|_| Vec::new()).collect();
         for ((i, _), part) in items.iter().zip(computed) {
             let whole = &mut joined[*i];
@@ -472,16 +472,11 @@ fn angle_and_ripple(
     (vec![s, c], vec![rs, rc])
 }
 
-/// `f` over `items` on up to [`threads`] threads, results in order (each item computed as it
+/// `f` over `items` on up to `n_threads` threads, results in order (each item computed as it
 /// would be alone: the results do not depend on the number of threads). Items are dealt out in
 /// turn (thread `t` takes items `t`, `t + T`, …), so neighbouring items of unequal cost — a
 /// grid's expensive columns next to a cheap grid — are shared evenly.
-pub(super) fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    par_map_on(threads(), items, f)
-}
-
-/// [`par_map`] on up to `n_threads` threads.
-fn par_map_on<T: Sync, R: Send>(
+pub(super) fn par_map<T: Sync, R: Send>(
     n_threads: usize,
     items: &[T],
     f: impl Fn(&T) -> R + Sync,
@@ -510,14 +505,10 @@ fn par_map_on<T: Sync, R: Send>(
     (0..items.len()).filter_map(|i| iters[i % n_threads].next()).collect()
 }
 
-/// Threads for the diagnosis's parallel parts: the machine's parallelism, at most 8;
-/// `BENCH_DIAGNOSE_THREADS` sets it (1: serial).
-pub fn threads() -> usize {
-    std::env::var("BENCH_DIAGNOSE_THREADS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .filter(|&t| t >= 1)
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()).min(8))
+/// The default number of threads for the diagnosis's parallel parts
+/// ([`super::DiagnoseOptions::threads`]): the machine's parallelism, at most 8.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get()).min(8)
 }
 
 #[cfg(test)]
@@ -590,6 +581,16 @@ mod tests {
         (native, bins)
     }
 
+    /// The periodic bias's grid over `bins`.
+    fn periodic_grid(bins: &[Bin]) -> Vec<f64> {
+        match bench_physics::effects::EffectId::PeriodicBias.effect().grid() {
+            bench_physics::effects::Grid::Periods { min_s, min_cycles, most } => {
+                super::super::period_grid(bins, min_s, min_cycles, most)
+            }
+            _ => Vec::new(),
+        }
+    }
+
     fn orders() -> Vec<f64> {
         (1..=64).map(f64::from).collect()
     }
@@ -612,7 +613,7 @@ mod tests {
     fn rotated_grid_agrees_with_sin_cos() {
         let (nat, bins) = synthetic();
         let axis = -1.0;
-        let periods = super::super::period_grid(&bins);
+        let periods = periodic_grid(&bins);
         assert!(periods.len() > 3 * ANCHOR_EVERY, "{} periods", periods.len());
         let memo = ColumnMemo::default();
         memo.prefill_on(&nat, &bins, axis, &orders(), &periods, 2);
@@ -642,7 +643,7 @@ mod tests {
     #[test]
     fn the_threads_do_not_change_the_columns() {
         let (nat, bins) = synthetic();
-        let periods = super::super::period_grid(&bins);
+        let periods = periodic_grid(&bins);
         let columns_on = |threads: usize| {
             let memo = ColumnMemo::default();
             memo.prefill_on(&nat, &bins, 1.0, &orders(), &periods, threads);
@@ -668,7 +669,7 @@ mod tests {
     #[test]
     fn values_off_the_grid_are_computed_directly() {
         let (nat, bins) = synthetic();
-        let mut periods = super::super::period_grid(&bins)[..8].to_vec();
+        let mut periods = periodic_grid(&bins)[..8].to_vec();
         periods[3] *= 1.0 + 1e-9;
         let memo = ColumnMemo::default();
         memo.prefill_on(&nat, &bins, 1.0, &[2.5], &periods, 2);

@@ -24,7 +24,7 @@
 //! nuisance terms so that no other effect is named for what they hold.
 
 use bench_physics::allan::chi2_quantile;
-use bench_physics::effects::EffectId;
+use bench_physics::effects::{Columns, EffectId, Family, Order};
 use bench_physics::GyroModel;
 
 use super::columns::Kind;
@@ -176,9 +176,9 @@ pub(super) fn members(
     let t0 = prep.t0;
     let dtemp = |i: usize| prep.temp[i] - t0;
     let input = |i: usize| prep.axis * nat.table_rate_rad_s[i] + prep.earth_in;
-    match id {
-        EffectId::OncePerRevolution | EffectId::AngleHarmonic => {
-            let k = if id == EffectId::OncePerRevolution { 1.0 } else { p };
+    match id.effect().family() {
+        Family::AngleHarmonics => {
+            let k = if id.effect().columns() == Columns::Angle(Order::One) { 1.0 } else { p };
             let kmax = harmonic_max(prep);
             let mut v: Vec<Member> = (1..=kmax)
                 .map(f64::from)
@@ -192,7 +192,7 @@ pub(super) fn members(
             v.push(m(format!("table rate ripple, {k} cycles/rev (∝ rate)"), ripple(prep, k)));
             (format!("angle harmonics 1..{kmax} and the table's rate ripple at {k}"), v)
         }
-        EffectId::RateRipple => {
+        Family::RippleOrders => {
             let mut v = vec![m(
                 format!("table angle, {p} cycles/rev (independent of rate)"),
                 sin_cos(prep, p),
@@ -212,7 +212,7 @@ pub(super) fn members(
                 v,
             )
         }
-        EffectId::PeriodicBias => {
+        Family::PeriodShape => {
             // The cycle's harmonics down to four bins a period (a sawtooth has them all), and
             // twice the period.
             let bin_s = prep.bins.first().map_or(10.0, |b| b.span_s());
@@ -226,7 +226,7 @@ pub(super) fn members(
             v.push(m(format!("time, period {:.0} s (2P)", 2.0 * p), periodic(prep, 2.0 * p)));
             (format!("the harmonics P/2..P/{hmax} and 2P of a {p:.0} s cycle (its shape)"), v)
         }
-        EffectId::WarmUp => {
+        Family::Decay => {
             let tm = nat.t.iter().sum::<f64>() / nat.t.len().max(1) as f64;
             let v = vec![
                 m(
@@ -241,8 +241,8 @@ pub(super) fn members(
             ];
             (format!("decays at τ/3 and 3τ of {p:.0} s, a drift"), v)
         }
-        EffectId::BiasStep => {
-            let mut v: Vec<Member> = grid(prep, EffectId::BiasStep)
+        Family::Step => {
+            let mut v: Vec<Member> = grid(prep, id)
                 .into_iter()
                 .filter(|&q| (q - p).abs() > 2.0 * prep.bins.first().map_or(10.0, |b| b.span_s()))
                 .map(|q| {
@@ -259,38 +259,8 @@ pub(super) fn members(
             v.push(m(format!("a drift from {p:.0} s"), one(prep, |i| (nat.t[i] - p).max(0.0))));
             ("a second step, a drift after the step".into(), v)
         }
-        EffectId::TemperatureQuadratic
-        | EffectId::ScaleFactorTemperature
-        | EffectId::ThermalHysteresis
-        | EffectId::ThermalLag => {
-            let mut v = Vec::new();
-            for other in [
-                EffectId::TemperatureQuadratic,
-                EffectId::ScaleFactorTemperature,
-                EffectId::ThermalHysteresis,
-            ] {
-                if other != id {
-                    let name = match other {
-                        EffectId::TemperatureQuadratic => "(T − T0)²",
-                        EffectId::ScaleFactorTemperature => "(T − T0)·Ω_in (scale factor vs T)",
-                        _ => "heating vs cooling (hysteresis)",
-                    };
-                    v.push(m(name.into(), candidate_columns(prep, other, f64::NAN, model)));
-                }
-            }
-            v.push(m("(T − T0)³".into(), one(prep, |i| dtemp(i).powi(3))));
-            v.push(m("dT/dt while heating only".into(), one(prep, |i| prep.temp_rate[i].max(0.0))));
-            if id == EffectId::ThermalLag {
-                for q in [0.5 * p, 2.0 * p] {
-                    v.push(m(
-                        format!("the thermal terms through a {q:.0} s lag"),
-                        candidate_columns(prep, EffectId::ThermalLag, q, model),
-                    ));
-                }
-            }
-            ("(T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating, T·Ω".into(), v)
-        }
-        EffectId::RateSquared => {
+        Family::Temperature => temperature_members(prep, id, p, model),
+        Family::RateShape => {
             let v = vec![
                 m(
                     "|Ω_in| (linear in speed, either direction)".into(),
@@ -300,7 +270,7 @@ pub(super) fn members(
             ];
             ("|Ω|, Ω·(T − T0)²".into(), v)
         }
-        EffectId::TimeOffset => {
+        Family::RateChange => {
             let bins = &prep.bins;
             let v = vec![
                 m(
@@ -324,8 +294,39 @@ pub(super) fn members(
             ];
             ("|dΩ/dt|, dΩ/dt while speeding up".into(), v)
         }
-        EffectId::EarthRate => (String::new(), Vec::new()),
+        Family::None => (String::new(), Vec::new()),
     }
+}
+
+/// [`members`] of a temperature effect: the library's other temperature shapes, (T − T0)³,
+/// dT/dt while heating, and for a lag the lag at τ/2 and 2τ.
+fn temperature_members(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    model: &GyroModel,
+) -> (String, Vec<Member>) {
+    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols, angle_harmonic: false };
+    let dtemp = |i: usize| prep.temp[i] - prep.t0;
+    let mut v = Vec::new();
+    // The other temperature shapes of the library, by their own regressors.
+    let shapes = EffectId::ALL.into_iter().filter(|&o| {
+        o.effect().family() == Family::Temperature && o.effect().columns() == Columns::PerSample
+    });
+    for other in shapes.filter(|&o| o != id) {
+        v.push(m(other.effect().shape().into(), candidate_columns(prep, other, f64::NAN, model)));
+    }
+    v.push(m("(T − T0)³".into(), one(prep, |i| dtemp(i).powi(3))));
+    v.push(m("dT/dt while heating only".into(), one(prep, |i| prep.temp_rate[i].max(0.0))));
+    if id.effect().columns() == Columns::ThermalLag {
+        for q in [0.5 * p, 2.0 * p] {
+            v.push(m(
+                format!("the thermal terms through a {q:.0} s lag"),
+                candidate_columns(prep, id, q, model),
+            ));
+        }
+    }
+    ("(T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating, T·Ω".into(), v)
 }
 
 /// Fitted size of a member in rad/s: a sinusoid's amplitude, else its contribution's RMS.
@@ -416,7 +417,7 @@ pub(super) fn gate(
     // Only between the gyro's angle harmonics: other families' members are the same term at
     // another grid value (a lag's τ/2) or shapes one run may not separate by design (rate² and
     // |rate| at one speed), which identifiability states instead.
-    let harmonic = matches!(id, EffectId::OncePerRevolution | EffectId::AngleHarmonic);
+    let harmonic = matches!(id.effect().columns(), Columns::Angle(_));
     for (j, mem) in members.iter().enumerate().filter(|(_, m)| harmonic && m.angle_harmonic) {
         let thr_j = chi2_quantile(1.0 - level / m, mem.cols.len() as f64);
         let Some(alone) = p_o.test(&mem.cols, y, noise) else { continue };

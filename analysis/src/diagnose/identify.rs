@@ -60,23 +60,10 @@ pub(super) struct Term {
     pub cols: Vec<usize>,
 }
 
-/// The linear parameter whose size is bounded, and its unit.
+/// The linear parameter whose size is bounded (the first size the effect reports), and its
+/// unit.
 fn bounded_parameter(id: EffectId) -> (&'static str, &'static str) {
-    match id {
-        EffectId::EarthRate => ("rate_rad_s", "rad/s"),
-        EffectId::ThermalLag => ("gain", "1"),
-        EffectId::TemperatureQuadratic => ("coeff_rad_s_per_c2", "rad/s/°C²"),
-        EffectId::ScaleFactorTemperature => ("coeff_per_c", "1/°C"),
-        EffectId::ThermalHysteresis => ("half_width_rad_s", "rad/s"),
-        EffectId::TimeOffset => ("offset_s", "s"),
-        EffectId::RateSquared => ("coeff_s_per_rad", "s/rad"),
-        EffectId::RateRipple => ("relative_amplitude", "1"),
-        EffectId::BiasStep => ("step_rad_s", "rad/s"),
-        EffectId::OncePerRevolution
-        | EffectId::AngleHarmonic
-        | EffectId::WarmUp
-        | EffectId::PeriodicBias => ("amplitude_rad_s", "rad/s"),
-    }
+    id.effect().reported().iter().find(|r| r.is_size()).map_or(("", ""), |r| (r.name(), r.unit()))
 }
 
 /// 95 % upper bound of a term's size: `|θ| + 1.96σ`, or a sinusoid's amplitude `+ 2.45σ`

@@ -162,7 +162,12 @@ fn suggest_scenario(
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
-    let opts = DiagnoseOptions { bin_s: args.bin_s, alpha: args.alpha, ..Default::default() };
+    let opts = DiagnoseOptions {
+        bin_s: args.bin_s,
+        alpha: args.alpha,
+        threads: threads_from_env(),
+        ..Default::default()
+    };
     let rec = super::load_recording(&args.recording, args.quiet)?;
     if args.scan_only {
         return scan_only(&args, nominal, &opts, &rec, started);
@@ -184,9 +189,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     println!(
         "residual RMS of {} bins: nominal {}, parameters refitted {}, with effects {}",
         display::si_value(display::SECONDS, opts.bin_s, 3),
-        rms(d.rms.0),
-        rms(d.rms.1),
-        rms(d.rms.2)
+        rms(d.rms.nominal),
+        rms(d.rms.before),
+        rms(d.rms.after)
     );
     println!("| parameter | nominal | fitted ± 1σ | z |");
     println!("| --- | --- | --- | --- |");
@@ -242,7 +247,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     if let Some(r) = &out.resimulated {
         println!(
             "re-simulated with the updated model: residual RMS {}, verdict {}",
-            rms(r.rms.0),
+            rms(r.rms.nominal),
             r.verdict.key()
         );
     }
@@ -264,7 +269,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
             temp_coeff_rad_s_per_c: sigma(ModelKey::TempCoeff),
             temp_rate_coeff_rad_s_per_c_s: sigma(ModelKey::TempRateCoeff),
         },
-        effects: d.effects,
+        // The gyro's effects: the table's motion and the clocks are the recording's bench's.
+        effects: d.effects.travelling(),
         held: Default::default(),
         covariance: None,
     };
@@ -291,6 +297,16 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         Verdict::ParametersOnly => Exit::ParametersOnly.into(),
         Verdict::MissingPhysics => Exit::MissingPhysics.into(),
     })
+}
+
+/// The diagnosis's threads: `BENCH_DIAGNOSE_THREADS` (1: serial) or the machine's
+/// parallelism, at most 8 ([`bench_analysis::diagnose::default_threads`]).
+fn threads_from_env() -> usize {
+    std::env::var("BENCH_DIAGNOSE_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&t| t >= 1)
+        .unwrap_or_else(bench_analysis::diagnose::default_threads)
 }
 
 /// `--scan-only`: the residual scan alone, timed ([`bench_analysis::diagnose::residual_scan`]).
@@ -328,7 +344,7 @@ fn scan_only(
             })
         })
         .collect();
-    let threads = bench_analysis::diagnose::threads();
+    let threads = opts.threads;
     let out = serde_json::json!({
         "recording": args.recording.display().to_string(), "nominal_model": source,
         "samples": scan.samples, "bins": scan.bins, "threads": threads,

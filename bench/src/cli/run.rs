@@ -483,7 +483,7 @@ fn start_live(
 
 #[cfg(test)]
 mod tests {
-    use bench_physics::effects::{Effects, RateSquared, WarmUp};
+    use bench_physics::effects::{EffectId, Effects};
     use bench_physics::GyroModel;
     use bench_recording::model_file::{write_model_file, Source, Uncertainty};
 
@@ -520,14 +520,11 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("m.toml");
         let model = GyroModel { bias: 3e-8, ..GyroModel::default() };
-        let effects = Effects {
-            warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
-            ..Effects::default()
-        };
+        let effects = Effects::default().with(EffectId::WarmUp, &[1e-7, 900.0]).expect("fits");
         write_model_file(&path, &model, &effects, &Source::default(), &Uncertainty::default())
             .expect("writes");
         let mut p = plan();
-        assert!(p.sim.truth_effects.rate_squared.is_some());
+        assert!(p.sim.truth_effects.has(EffectId::RateSquared));
         apply_gyro_model(&mut p, Some(&path)).expect("applies");
         assert_eq!(p.gyro.model, model);
         assert_eq!(p.gyro.effects, effects);
@@ -548,11 +545,8 @@ mod tests {
         let mut p = plan();
         apply_sim_config(&mut p, &config);
         assert_eq!(p.site.latitude_deg, 45.5);
-        assert_eq!(p.sim.truth_effects.rate_squared, Some(RateSquared { coeff_s_per_rad: 1e-3 }));
-        assert_eq!(
-            p.sim.truth_effects.warm_up,
-            Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 60.0 })
-        );
+        assert_eq!(p.sim.truth_effects.get(EffectId::RateSquared), Some(&[1e-3][..]));
+        assert_eq!(p.sim.truth_effects.get(EffectId::WarmUp), Some(&[1e-7, 60.0][..]));
         assert!(!p.gyro.effects.any(), "concealed: not the nominal model's");
         let meta = bench::runner::run_info(&p, 0).gyro_model;
         assert!(meta.keys().all(|k| !k.starts_with("effect.")), "{meta:?}");

@@ -162,6 +162,7 @@ async fn control_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bench_physics::effects::EffectId;
 
     #[test]
     fn a_bench_config_adds_its_site_and_effects_to_the_served_simulator() {
@@ -172,12 +173,12 @@ mod tests {
         )
         .expect("valid");
         let mut config = SimConfig::default();
-        config.gyro_effects.earth_rate = true;
+        config.gyro_effects.set(EffectId::EarthRate, &[]).expect("a flag");
         apply_bench_config(&mut config, &bench);
         assert_eq!(config.latitude_deg, -33.9);
         assert!(!config.axis_up);
-        assert!(config.gyro_effects.earth_rate, "kept");
-        assert_eq!(config.gyro_effects.rate_squared.map(|r| r.coeff_s_per_rad), Some(1e-3));
+        assert!(config.gyro_effects.has(EffectId::EarthRate), "kept");
+        assert_eq!(config.gyro_effects.get(EffectId::RateSquared), Some(&[1e-3][..]));
         assert!(config.validate().is_ok());
     }
 

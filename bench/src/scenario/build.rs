@@ -852,15 +852,20 @@ impl<'a> Builder<'a> {
         for e in t.entries {
             let Some(id) = EffectId::from_key(&e.key) else { continue };
             let key = id.key();
-            let params = id.params();
+            let params = id.param_names();
+            // An effect without parameters is switched on or off.
+            let flag = params.is_empty();
             match &e.node.value {
-                Value::Bool(on) if id == EffectId::EarthRate => effects.earth_rate = *on,
+                Value::Bool(true) if flag => {
+                    // No parameters: the count fits.
+                    let _ = effects.set(id, &[]);
+                }
                 Value::Bool(false) => effects.clear(id),
-                Value::Table(entries) if id != EffectId::EarthRate => {
+                Value::Table(entries) if !flag => {
                     let pt = Tbl { entries, span: &e.node.span };
-                    self.check_keys(pt, params, &format!("effect `{key}`"));
+                    self.check_keys(pt, &params, &format!("effect `{key}`"));
                     let mut values = Vec::with_capacity(params.len());
-                    for p in params {
+                    for &p in &params {
                         let got = self.number(pt, p);
                         let msg = format!(
                             "effect `{key}` needs `{p}`; its parameters: {}",
@@ -886,10 +891,10 @@ impl<'a> Builder<'a> {
                         let _ = effects.set(id, &values);
                     }
                 }
-                v if id == EffectId::EarthRate => {
+                v if flag => {
                     self.err(
                         &e.node.span,
-                        format!("effect `earth_rate` must be true or false, got {}", v.type_name()),
+                        format!("effect `{key}` must be true or false, got {}", v.type_name()),
                     );
                 }
                 v => {

@@ -829,42 +829,30 @@ coeff_s_per_rad = 2e-3
 [[step]]
 wait = "1 s"
 "#);
-    let nominal = Effects {
-        rate_squared: Some(RateSquared { coeff_s_per_rad: 1e-3 }),
-        warm_up: Some(WarmUp { amplitude_rad_s: 5e-8, time_constant_s: 60.0 }),
-        ..Effects::default()
+    let on = |list: &[(EffectId, &[f64])]| {
+        let mut e = Effects::default();
+        for (id, v) in list {
+            e.set(*id, v).expect("count fits");
+        }
+        e
     };
+    let nominal = on(&[(EffectId::RateSquared, &[1e-3]), (EffectId::WarmUp, &[5e-8, 60.0])]);
     assert_eq!(p.gyro.effects, nominal);
-    let truth = Effects {
-        earth_rate: true,
-        thermal_lag: Some(ThermalLag { time_constant_s: 300.0 }),
-        temperature_quadratic: Some(TemperatureQuadratic { coeff_rad_s_per_c2: 2e-11 }),
-        scale_factor_temperature: Some(ScaleFactorTemperature { coeff_per_c: -1e-6 }),
-        thermal_hysteresis: Some(ThermalHysteresis {
-            half_width_rad_s: 4e-9,
-            threshold_c_s: 0.001,
-        }),
-        once_per_revolution: Some(OncePerRevolution { amplitude_rad_s: 2e-8, phase_rad: 0.5 }),
-        time_offset: Some(TimeOffset { offset_s: 0.01 }),
-        warm_up: Some(WarmUp { amplitude_rad_s: 1e-7, time_constant_s: 900.0 }),
-        bias_step: Some(BiasStep { time_s: 100.0, step_rad_s: 1e-6 }),
-        rate_squared: Some(RateSquared { coeff_s_per_rad: 2e-3 }),
-        periodic_bias: Some(PeriodicBias {
-            amplitude_rad_s: 3e-8,
-            period_s: 1200.0,
-            phase_rad: -1.0,
-        }),
-        rate_ripple: Some(RateRipple {
-            relative_amplitude: 1e-5,
-            cycles_per_rev: 16.0,
-            phase_rad: 0.0,
-        }),
-        angle_harmonic: Some(bench_physics::effects::AngleHarmonic {
-            amplitude_rad_s: 6e-8,
-            cycles_per_rev: 2.0,
-            phase_rad: -0.4,
-        }),
-    };
+    let truth = on(&[
+        (EffectId::EarthRate, &[]),
+        (EffectId::ThermalLag, &[300.0]),
+        (EffectId::TemperatureQuadratic, &[2e-11]),
+        (EffectId::ScaleFactorTemperature, &[-1e-6]),
+        (EffectId::ThermalHysteresis, &[4e-9, 0.001]),
+        (EffectId::OncePerRevolution, &[2e-8, 0.5]),
+        (EffectId::TimeOffset, &[0.01]),
+        (EffectId::WarmUp, &[1e-7, 900.0]),
+        (EffectId::BiasStep, &[100.0, 1e-6]),
+        (EffectId::RateSquared, &[2e-3]),
+        (EffectId::PeriodicBias, &[3e-8, 1200.0, -1.0]),
+        (EffectId::RateRipple, &[1e-5, 16.0, 0.0]),
+        (EffectId::AngleHarmonic, &[6e-8, 2.0, -0.4]),
+    ]);
     assert_eq!(p.sim.truth_effects, truth);
     assert_eq!(p.sim.truth_effects.ids().len(), EffectId::ALL.len());
     // The base model is untouched by effects.
@@ -883,10 +871,12 @@ earth_rate = false
 [[step]]
 wait = "1 s"
 "#);
-    assert!(p.gyro.effects.earth_rate && p.gyro.effects.bias_step.is_some());
-    assert!(!p.sim.truth_effects.earth_rate);
-    assert_eq!(p.sim.truth_effects.bias_step, None);
-    assert_eq!(p.sim.truth_effects.rate_squared, p.gyro.effects.rate_squared);
+    use bench_physics::effects::EffectId;
+    assert!(p.gyro.effects.has(EffectId::EarthRate) && p.gyro.effects.has(EffectId::BiasStep));
+    assert!(!p.sim.truth_effects.has(EffectId::EarthRate));
+    assert_eq!(p.sim.truth_effects.get(EffectId::BiasStep), None);
+    let rate_squared = EffectId::RateSquared;
+    assert_eq!(p.sim.truth_effects.get(rate_squared), p.gyro.effects.get(rate_squared));
     // Without any effects table, none are on.
     let p = ok("[[step]]\nwait = \"1 s\"\n");
     assert!(!p.gyro.effects.any() && !p.sim.truth_effects.any());

@@ -157,8 +157,9 @@ pub fn run(
     // diagnosis should name.
     if let Some(l) = lab {
         let delta_s = l.latency_s[0] - l.latency_s[1];
-        if delta_s != 0.0 && truth.time_offset.is_none() {
-            truth.time_offset = Some(bench_physics::effects::TimeOffset { offset_s: delta_s });
+        if delta_s != 0.0 && !truth.has(EffectId::TimeOffset) {
+            // One value, the offset's one parameter.
+            let _ = truth.set(EffectId::TimeOffset, &[delta_s]);
         }
     }
     let seeds = parallel_seeds(
@@ -184,14 +185,14 @@ pub fn run(
             let mut z = Vec::new();
             for id in truth.ids() {
                 let want = truth.param_values(id).unwrap_or_default();
-                for (name, value) in id.params().iter().zip(want) {
+                for (name, value) in id.param_names().into_iter().zip(want) {
                     let got = d
                         .findings
                         .iter()
                         .find(|f| f.accepted && f.effect == id)
-                        .and_then(|f| f.parameters.iter().find(|p| p.name == *name));
+                        .and_then(|f| f.parameters.iter().find(|p| p.name == name));
                     let zz = got.map_or(f64::NAN, |p| (p.value - value).abs() / p.sigma);
-                    z.push((id, *name, zz));
+                    z.push((id, name, zz));
                 }
             }
             Ok(SeedDiagnosis {
@@ -200,7 +201,7 @@ pub fn run(
                 found: d.findings.iter().filter(|f| f.accepted).map(|f| f.effect).collect(),
                 unexplained: !d.unexplained.is_empty(),
                 z,
-                rms: (d.rms.1, d.rms.2),
+                rms: (d.rms.before, d.rms.after),
                 seconds,
             })
         },

@@ -116,7 +116,7 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
     // Effects the recording's model states (e.g. a simulated table's rate ripple) are known
     // physics: taken out of the gyro's output before the base terms are fitted.
     let known: Option<Vec<f64>> = run.model.as_ref().and_then(|m| {
-        let stated = bench_physics::effects::Effects { earth_rate: false, ..m.effects };
+        let stated = m.effects.without(bench_physics::effects::EffectId::EarthRate);
         if !stated.any() {
             return None;
         }

@@ -110,7 +110,7 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
                       "confidence": 0.95},
         })).collect::<Vec<_>>(),
         "parameter_updates": updates,
-        "parameters_wald": {"value": num(d.parameters_wald.0), "threshold": num(d.parameters_wald.1)},
+        "parameters_wald": {"value": num(d.parameters_wald.value), "threshold": num(d.parameters_wald.threshold)},
         "findings": d.findings.iter().filter(|f| f.accepted).map(finding).collect::<Vec<_>>(),
         "tested": d.findings.iter().filter(|f| !f.accepted).map(finding).collect::<Vec<_>>(),
         "unexplained": d.unexplained.iter().map(|u| json!({
@@ -126,9 +126,9 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
             "n_eff": num(d.n_eff),
             "bins": d.n_bins,
         },
-        "rms": {"nominal": num(d.rms.0), "refit": num(d.rms.1), "final": num(d.rms.2),
-                "resimulated": o.resimulated.as_ref().map_or(Value::Null, |r| num(r.rms.0))},
-        "bic": {"refit": num(d.bic.0), "final": num(d.bic.1)},
+        "rms": {"nominal": num(d.rms.nominal), "refit": num(d.rms.before), "final": num(d.rms.after),
+                "resimulated": o.resimulated.as_ref().map_or(Value::Null, |r| num(r.rms.nominal))},
+        "bic": {"refit": num(d.bic.before), "final": num(d.bic.after)},
         "resimulated_verdict": o.resimulated.as_ref().map(|r| r.verdict.key()),
         "location": {
             "steps": regions(&l.steps),

@@ -59,7 +59,9 @@ pub struct DiagnoseOutcome {
 }
 
 /// Diagnose `rec` against `nominal` (model, effects, source name) or else the recording's own
-/// `bench.gyro_model`.
+/// `bench.gyro_model`. A nominal model from elsewhere brings its gyro's effects only: the
+/// table's motion and the clocks are the recording's own ([`Effects::on_the_bench_of`]; none
+/// where it states none), never another bench's.
 pub fn diagnose_recording(
     rec: &Recording,
     nominal: Option<(GyroModel, Effects, String)>,
@@ -67,7 +69,10 @@ pub fn diagnose_recording(
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
     let data = crate::load::load(rec)?;
     let nominal = match nominal {
-        Some(n) => n,
+        Some((model, effects, source)) => {
+            let own = data.model.as_ref().map(|m| m.effects).unwrap_or_default();
+            (model, effects.on_the_bench_of(&own), source)
+        }
         None => {
             let m = data.model.clone().ok_or(DiagnoseError::NoModel)?;
             (m.model, m.effects, "bench.gyro_model".into())

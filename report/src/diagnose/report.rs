@@ -56,9 +56,9 @@ fn residual_figure(o: &DiagnoseOutcome) -> Figure {
     p.items.push(line("after the effects", colour::BLUE, pts(&s.residual_after)));
     p.note = Some(format!(
         "RMS {} → {} → {} °/h",
-        sig(deg_h(d.rms.0), 3),
-        sig(deg_h(d.rms.1), 3),
-        sig(deg_h(d.rms.2), 3)
+        sig(deg_h(d.rms.nominal), 3),
+        sig(deg_h(d.rms.before), 3),
+        sig(deg_h(d.rms.after), 3)
     ));
     Figure {
         name: "fig1-residual",
@@ -220,13 +220,13 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
         sig(display::ARW.of(d.noise_after.arw), 3),
         sig(deg_h(d.noise_after.flicker_floor), 3),
         sig(d.n_eff, 3),
-        sig(deg_h(d.rms.0), 3),
-        sig(deg_h(d.rms.1), 3),
-        sig(deg_h(d.rms.2), 3),
+        sig(deg_h(d.rms.nominal), 3),
+        sig(deg_h(d.rms.before), 3),
+        sig(deg_h(d.rms.after), 3),
         match &o.resimulated {
             Some(r) => format!(
                 "; re-simulated with the updated model {} °/h ({})",
-                sig(deg_h(r.rms.0), 3),
+                sig(deg_h(r.rms.nominal), 3),
                 r.verdict.key()
             ),
             None => String::new(),
@@ -247,8 +247,8 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
     let _ = writeln!(
         h,
         "</table><p class=note>Joint Wald statistic of the corrections {} (threshold {}).</p>",
-        sig(d.parameters_wald.0, 3),
-        sig(d.parameters_wald.1, 3)
+        sig(d.parameters_wald.value, 3),
+        sig(d.parameters_wald.threshold, 3)
     );
     h.push_str("<h2>Effects tested</h2>\n<table><tr><th class=l>effect</th><th class=l>parameters</th><th>W</th><th>threshold</th><th>ΔBIC</th><th>held-out z</th><th class=l>verdict</th></tr>\n");
     for f in &d.findings {

@@ -1,0 +1,118 @@
+//! The candidates' regressors and grids, read from each effect's registry entry.
+
+use super::*;
+
+/// A candidate's columns for one grid value (a time constant's memoised in [`Prepared`]).
+pub(super) fn candidate_columns(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    model: &GyroModel,
+) -> Vec<Vec<f64>> {
+    if matches!(id.effect().grid(), Grid::TimeConstants(_)) {
+        let key = (id, p.to_bits());
+        // A poisoned lock only means another thread panicked mid-insert: the map is still valid.
+        let hit = prep.decays.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
+        if let Some(cols) = hit {
+            return cols;
+        }
+        let cols = regressor_columns(prep, id, p, model);
+        prep.decays.lock().unwrap_or_else(|e| e.into_inner()).insert(key, cols.clone());
+        return cols;
+    }
+    regressor_columns(prep, id, p, model)
+}
+
+/// [`candidate_columns`] computed (no memo), as the effect's [`Columns`] say.
+pub(super) fn regressor_columns(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    model: &GyroModel,
+) -> Vec<Vec<f64>> {
+    let nat = &prep.native;
+    let dt = &nat.dt;
+    let bins = &prep.bins;
+    let axis = prep.axis;
+    match id.effect().columns() {
+        Columns::ThermalLag => {
+            let lagged = lag_temperature(&nat.t, &prep.temp, p);
+            let col = bin_mean(bins, dt, |k| {
+                let rate_lag = (prep.temp[k] - lagged[k]) / p;
+                model.temp_coeff * (lagged[k] - prep.temp[k])
+                    + model.temp_rate_coeff * (rate_lag - prep.temp_rate[k])
+            });
+            vec![col]
+        }
+        Columns::TimeOffset => {
+            let scale = 1.0 + model.scale_factor_error;
+            vec![bins.iter().map(|b| -scale * axis * b.table_accel_rad_s2).collect()]
+        }
+        Columns::EarthRate => vec![vec![prep.earth; bins.len()]],
+        Columns::Angle(order) => {
+            let h = if order == Order::One { 1.0 } else { p };
+            prep.sinusoid(columns::Kind::Angle, h)
+        }
+        Columns::Ripple => prep.sinusoid(columns::Kind::Ripple, p),
+        Columns::Periodic => prep.sinusoid(columns::Kind::Periodic, p),
+        // At the bins' starts: a step is exactly 0 before its bin and 1 from there on.
+        Columns::AtBinStart => (0..id.linear_count())
+            .map(|j| {
+                bins.iter()
+                    .map(|b| {
+                        let mut out = [0.0; 2];
+                        let s = EffectSample { t_s: b.start_s, ..EffectSample::default() };
+                        id.regressors(&s, p, &mut out);
+                        out[j]
+                    })
+                    .collect()
+            })
+            .collect(),
+        Columns::PerSample => (0..id.linear_count())
+            .map(|j| {
+                bin_mean(bins, dt, |k| {
+                    let mut out = [0.0; 2];
+                    id.regressors(&prep.sample(k), p, &mut out);
+                    out[j]
+                })
+            })
+            .collect(),
+    }
+}
+
+/// The grid of a candidate's nonlinear parameter (a single NaN for none).
+pub(super) fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
+    match id.effect().grid() {
+        Grid::None => vec![f64::NAN],
+        Grid::TimeConstants(values) => values.to_vec(),
+        Grid::BinStarts { positions } => {
+            let n = prep.bins.len();
+            let lo = n / 50 + 1;
+            let hi = n - n / 50 - 1;
+            let stride = ((hi - lo) / positions).max(1);
+            (lo..hi).step_by(stride).map(|i| prep.bins[i].start_s).collect()
+        }
+        Grid::Periods { min_s, min_cycles, most } => {
+            period_grid(&prep.bins, min_s, min_cycles, most)
+        }
+        Grid::CyclesPerRev { from, to } => (from..=to).map(f64::from).collect(),
+        Grid::Harmonics => (2..=family::harmonic_max(prep)).map(f64::from).collect(),
+    }
+}
+
+/// Periods tried for a periodic bias: evenly in frequency, half a cycle over the run apart, from
+/// `min_cycles` cycles in the run up to the shortest period (`min_s`, four bins), at most `most`
+/// of them (the short-period end is dropped first). Longest first.
+pub(super) fn period_grid(bins: &[Bin], min_s: f64, min_cycles: f64, most: usize) -> Vec<f64> {
+    let (Some(first), Some(last)) = (bins.first(), bins.last()) else { return Vec::new() };
+    let span_s = last.end_s - first.start_s;
+    let p_min = min_s.max(4.0 * first.span_s());
+    if span_s.is_nan() || span_s <= min_cycles * p_min {
+        return Vec::new();
+    }
+    let f_lo = min_cycles / span_s;
+    let df = 0.5 / span_s;
+    let f_hi = (1.0 / p_min).min(f_lo + df * (most - 1) as f64);
+    let n = ((f_hi - f_lo) / df).floor() as usize + 1;
+    (0..n).map(|j| 1.0 / (f_lo + df * j as f64)).collect()
+}

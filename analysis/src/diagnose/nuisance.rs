@@ -1,0 +1,181 @@
+//! The family check of accepted effects; structure it does not confirm kept as nuisance terms.
+
+use super::*;
+
+/// Structure that a candidate fitted and its family check did not confirm: reported as
+/// [`Unexplained`], its columns (the effect's and its significant relatives') kept at the end
+/// of the base design as nuisance terms, in the order the blocks were added.
+pub(super) struct Downgraded {
+    pub(super) unexplained: Unexplained,
+    /// How many columns of the base design are this block's.
+    pub(super) cols: usize,
+}
+
+/// Nuisance blocks that the model's later effects explain leave the design and the report: a
+/// block that failed its family check beside a bent effect (a warm-up's τ shortened by a bias
+/// step not yet found) may hold nothing once the step is in. Each block is tested against the
+/// rest of the design and the accepted effects; one whose joint Wald is at most one test's χ²
+/// quantile at the effects' level (a lower bar than any search threshold, so a block leaves
+/// only when nothing of it is left) goes. `prefix` is the number of base columns before the
+/// blocks. Returns whether any left.
+pub(super) fn recheck_downgraded(
+    prefix: usize,
+    base_design: &mut Vec<Vec<f64>>,
+    downgraded: &mut Vec<Downgraded>,
+    accepted: &[Accepted],
+    y: &[f64],
+    noise: &BinNoise,
+    level: f64,
+) -> bool {
+    let all: Vec<usize> = (0..y.len()).collect();
+    let mut changed = false;
+    let mut i = 0;
+    while i < downgraded.len() {
+        let start = prefix + downgraded[..i].iter().map(|d| d.cols).sum::<usize>();
+        let k = downgraded[i].cols;
+        let block = &base_design[start..start + k];
+        let others: Vec<Vec<f64>> = base_design[..start]
+            .iter()
+            .chain(&base_design[start + k..])
+            .chain(accepted.iter().flat_map(|a| &a.cols))
+            .cloned()
+            .collect();
+        let thr = chi2_quantile(1.0 - level, k as f64);
+        let held = Projector::new(&others, &all)
+            .ok()
+            .and_then(|p| p.test(block, y, noise))
+            .is_some_and(|t| t.wald > thr);
+        if held {
+            i += 1;
+        } else {
+            base_design.drain(start..start + k);
+            downgraded.remove(i);
+            changed = true;
+        }
+    }
+    changed
+}
+
+/// What [`check_families`] updates.
+pub(super) struct FamilyState<'a> {
+    pub(super) accepted: &'a mut Vec<Accepted>,
+    pub(super) base_design: &'a mut Vec<Vec<f64>>,
+    pub(super) findings: &'a mut Vec<Finding>,
+    pub(super) rejected: &'a mut Vec<Finding>,
+    pub(super) downgraded: &'a mut Vec<Downgraded>,
+    pub(super) thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
+}
+
+/// The family check ([`family`]) of each accepted effect in `ids` against the rest of the
+/// model: its result goes into the finding; an effect that fails leaves the findings for the
+/// rejected, becomes [`Unexplained`] structure, and its columns with the significant members'
+/// stay in the design as nuisance terms. Returns whether any effect failed.
+pub(super) fn check_families(
+    prep: &Prepared,
+    model: &GyroModel,
+    ids: &[EffectId],
+    st: &mut FamilyState<'_>,
+    y: &[f64],
+    noise: &BinNoise,
+    level: f64,
+) -> bool {
+    let n = prep.bins.len();
+    let all: Vec<usize> = (0..n).collect();
+    let mut changed = false;
+    for &id in ids {
+        let Some(i) = st.accepted.iter().position(|a| a.id == id) else { continue };
+        let others = model_design(st.base_design, st.accepted, Some(i));
+        let (p, cols) = (st.accepted[i].p, st.accepted[i].cols.clone());
+        // Structure found to be unexplained since may hold this effect's part too.
+        let thr = st.thresholds.get(&id).copied().unwrap_or(0.0);
+        let still = Projector::new(&others, &all).ok().and_then(|po| po.test(&cols, y, noise));
+        if still.as_ref().is_none_or(|t| t.wald <= thr) {
+            changed = true;
+            st.accepted.remove(i);
+            if let Some(pos) = st.findings.iter().position(|f| f.effect == id) {
+                let mut f = st.findings.remove(pos);
+                f.accepted = false;
+                let w = still.map_or(0.0, |t| t.wald);
+                f.rejected_because = Some(format!(
+                    "explained by the unexplained structure once that is in the model \
+                     (Wald {w:.1} ≤ {thr:.1})"
+                ));
+                st.rejected.push(f);
+            }
+            continue;
+        }
+        let Some(g) =
+            family::gate(prep, id, p, &cols, &others, st.base_design, y, noise, level, model)
+        else {
+            continue;
+        };
+        let k = match id.effect().columns() {
+            Columns::Angle(Order::One) => Some(1.0),
+            Columns::Angle(Order::Grid) | Columns::Ripple => Some(p),
+            _ => None,
+        };
+        let rd = k.and_then(|k| family::rate_dependence(prep, k, &others, y, noise, level));
+        let Some(pos) = st.findings.iter().position(|f| f.effect == id) else { continue };
+        st.findings[pos].family = Some(g.check.clone());
+        st.findings[pos].rate_dependence = rd;
+        if g.check.passed {
+            continue;
+        }
+        changed = true;
+        st.accepted.remove(i);
+        let mut f = st.findings.remove(pos);
+        f.accepted = false;
+        f.rejected_because = Some(format!("not named: {}", g.check.reason()));
+        // What the effect and its significant relatives hold together, as unexplained.
+        let mut design = others.clone();
+        design.extend(cols.iter().cloned());
+        for m in &g.nuisance {
+            design.extend(m.cols.iter().cloned());
+        }
+        // Fitted values are stable where a split of coefficients between near-collinear
+        // columns is not: the contribution is what the extra columns add to the fit.
+        let fitted_gain = |d: &[Vec<f64>]| Projector::new(d, &all).map(|pd| pd.residual(y, n));
+        let contribution = match (fitted_gain(&others), fitted_gain(&design)) {
+            (Ok(r_o), Ok(r_d)) => r_o.iter().zip(&r_d).map(|(a, b)| a - b).collect(),
+            _ => vec![0.0; n],
+        };
+        let effect_size = f
+            .parameters
+            .iter()
+            .find(|q| q.unit == "rad/s")
+            .map_or(String::new(), |q| format!(" of {}", family::deg_h(q.value)));
+        let correlates_with = match &g.check.strongest {
+            Some(m) if m.wald > m.threshold => format!(
+                "{}, {} (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
+                m.name,
+                family::deg_h(m.size_rad_s),
+                m.wald,
+                m.threshold,
+                id.key()
+            ),
+            Some(m) => format!(
+                "a {}-like term{effect_size} whose size moves {:.1}σ when {} is freed",
+                id.key(),
+                g.check.size_change_z,
+                m.name
+            ),
+            None => format!("a {}-like term{effect_size}", id.key()),
+        };
+        let sel: Vec<f64> = contribution.iter().copied().filter(|v| *v != 0.0).collect();
+        let before = st.base_design.len();
+        st.base_design.extend(cols);
+        for m in g.nuisance {
+            st.base_design.extend(m.cols);
+        }
+        st.downgraded.push(Downgraded {
+            unexplained: Unexplained {
+                windows_s: windows_of(&prep.bins, &contribution),
+                correlates_with,
+                rms: rms(&sel),
+            },
+            cols: st.base_design.len() - before,
+        });
+        st.rejected.push(f);
+    }
+    changed
+}
