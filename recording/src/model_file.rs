@@ -73,15 +73,7 @@ impl From<&ModelKeys> for GyroModel {
 
 impl Serialize for ModelKeys {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeStruct as _;
-        let mut st = s.serialize_struct("ModelKeys", ModelKey::ALL.len())?;
-        for k in ModelKey::ALL {
-            match k {
-                ModelKey::EarthRate => st.serialize_field(k.file_key(), &self.0.earth_rate)?,
-                _ => st.serialize_field(k.file_key(), &self.0.get(k))?,
-            }
-        }
-        st.end()
+        RawModelKeys { model: self.0.clone(), given: ModelKey::ALL.to_vec() }.serialize(s)
     }
 }
 
@@ -109,35 +101,11 @@ impl<'de> Deserialize<'de> for FileKey {
 
 impl<'de> Deserialize<'de> for ModelKeys {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> serde::de::Visitor<'de> for V {
-            type Value = ModelKeys;
-            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-                f.write_str("the [gyro_model] table")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                mut map: A,
-            ) -> Result<ModelKeys, A::Error> {
-                let mut model = GyroModel::zero();
-                let mut seen = Vec::with_capacity(ModelKey::ALL.len());
-                while let Some(FileKey(k)) = map.next_key()? {
-                    if seen.contains(&k) {
-                        return Err(serde::de::Error::duplicate_field(k.file_key()));
-                    }
-                    match k {
-                        ModelKey::EarthRate => model.earth_rate = map.next_value()?,
-                        _ => model.set(k, map.next_value()?),
-                    }
-                    seen.push(k);
-                }
-                match ModelKey::ALL.into_iter().find(|k| !seen.contains(k)) {
-                    Some(k) => Err(serde::de::Error::missing_field(k.file_key())),
-                    None => Ok(ModelKeys(model)),
-                }
-            }
+        let raw = RawModelKeys::deserialize(d)?;
+        match ModelKey::ALL.into_iter().find(|k| !raw.given.contains(k)) {
+            Some(k) => Err(serde::de::Error::missing_field(k.file_key())),
+            None => Ok(ModelKeys(raw.model)),
         }
-        d.deserialize_struct("ModelKeys", &MODEL_FILE_KEYS, V)
     }
 }
 
