@@ -1,5 +1,5 @@
 //! Runs `scenarios/seed.toml` on the in-process simulated bench and checks the MCAP it writes
-//! against the recording contract (`shared/spec/recording.md`), reading it back with the bare
+//! against the recording contract (`recording/FORMAT.md`), reading it back with the bare
 //! `mcap` crate and, independently, through the file's summary section.
 
 use std::collections::BTreeMap;
@@ -12,6 +12,7 @@ fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
+#[derive(Debug, PartialEq)]
 struct Msg {
     topic: String,
     schema: String,
@@ -23,6 +24,7 @@ struct Msg {
     body: Value,
 }
 
+#[derive(Debug, PartialEq)]
 struct Read {
     msgs: Vec<Msg>,
     metadata: BTreeMap<String, BTreeMap<String, String>>,
@@ -53,7 +55,9 @@ fn read_linear(bytes: &[u8]) -> Read {
     Read { msgs, metadata }
 }
 
-fn run_seed(seed: u64) -> Vec<u8> {
+/// The seed scenario's recording with `seed`; `flush`: the run's kill-safety bound
+/// (`RunOptions::flush_interval`), whose wall-clock flushes close chunks early.
+fn run_seed_flushing(seed: u64, flush: std::time::Duration) -> Vec<u8> {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("seed.mcap");
     let plan = bench::scenario::load(
@@ -63,11 +67,22 @@ fn run_seed(seed: u64) -> Vec<u8> {
     .expect("valid");
     let file = std::fs::File::create(&out).expect("created");
     let bench = bench::runner::Bench::Simulated(bench::simulate::sim_config(&plan, seed));
-    let (report, file) =
-        bench::runner::run(&plan, bench, file, Default::default()).expect("seed scenario runs");
+    let opts = bench::runner::RunOptions { flush_interval: Some(flush), ..Default::default() };
+    let (report, file) = bench::runner::run(&plan, bench, file, opts).expect("seed scenario runs");
     file.sync_all().expect("written");
     assert_eq!(report.outcome, bench_recording::Outcome::Completed);
     std::fs::read(&out).expect("recording written")
+}
+
+/// The seed scenario's recording with `seed`, with no wall-clock flush during the run: its bytes
+/// depend on scenario and seed alone.
+fn run_seed(seed: u64) -> Vec<u8> {
+    run_seed_flushing(seed, bench::runner::IN_MEMORY_FLUSH_INTERVAL)
+}
+
+fn chunk_count(bytes: &[u8]) -> usize {
+    let summary = mcap::Summary::read(bytes).expect("summary readable").expect("summary present");
+    summary.chunk_indexes.len()
 }
 
 #[test]
@@ -227,6 +242,10 @@ fn same_seed_same_bytes_other_seed_other_noise() {
     let b = run_seed(3);
     let c = run_seed(4);
     assert_eq!(a, b, "a simulated run is a pure function of scenario and seed");
+    // Kill-safety flushes follow the wall clock, so they move chunk boundaries, never content.
+    let d = run_seed_flushing(3, std::time::Duration::from_millis(2));
+    assert!(chunk_count(&d) > chunk_count(&a), "{} vs {}", chunk_count(&d), chunk_count(&a));
+    assert!(read_linear(&d) == read_linear(&a), "the same messages and metadata");
     let rates = |bytes: &[u8]| -> Vec<f64> {
         read_linear(bytes)
             .msgs
