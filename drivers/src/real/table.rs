@@ -285,11 +285,43 @@ trait Controller: Send {
 }
 
 /// A dialect on its line link.
+#[async_trait]
 trait OnLine: Send {
     /// Its reply decoder.
     type Decoder: LineDecoder;
     /// The link.
     fn link(&mut self) -> &mut LineLink<Self::Decoder>;
+    /// Take remote control on an open link, one attempt.
+    async fn session(&mut self) -> DeviceResult<()>;
+}
+
+/// Reopen `c`'s link and start its session if the link was dropped.
+async fn ensure_open<C: OnLine>(c: &mut C) -> DeviceResult<()> {
+    if c.link().is_open() {
+        return Ok(());
+    }
+    c.link().open().await?;
+    c.link().counters.reconnects += 1;
+    tracing::info!(endpoint = %c.link().endpoint, "rate table link reopened");
+    if let Err(e) = c.session().await {
+        if e.kind() == ErrorKind::Link {
+            c.link().close();
+        }
+        return Err(e);
+    }
+    Ok(())
+}
+
+/// Open `c`'s link and take remote control, with retries.
+async fn open_session<C: OnLine>(c: &mut C) -> DeviceResult<()> {
+    c.link().open().await?;
+    with_retries(c, "session start", |me| {
+        Box::pin(async move {
+            ensure_open(me).await?;
+            me.session().await
+        })
+    })
+    .await
 }
 
 /// One exchange of `c` under the link's retry policy (`attempt` reopens the link and restarts
@@ -324,10 +356,18 @@ struct ActidynLine {
     alarm: bool,
 }
 
+#[async_trait]
 impl OnLine for ActidynLine {
     type Decoder = actidyn::ReplyDecoder;
     fn link(&mut self) -> &mut LineLink<actidyn::ReplyDecoder> {
         &mut self.link
+    }
+
+    /// Take remote control: `RMT 0:ALC 0`, one attempt.
+    async fn session(&mut self) -> DeviceResult<()> {
+        self.once(&[actidyn::Command::Remote, actidyn::Command::ClearAlarms]).await?;
+        self.last_keep_alive = self.clock.now();
+        Ok(())
     }
 }
 
@@ -377,37 +417,13 @@ impl ActidynLine {
         }
     }
 
-    /// Take remote control: `RMT 0:ALC 0`, one attempt.
-    async fn session(&mut self) -> DeviceResult<()> {
-        self.once(&[actidyn::Command::Remote, actidyn::Command::ClearAlarms]).await?;
-        self.last_keep_alive = self.clock.now();
-        Ok(())
-    }
-
-    /// Reopen the link and start the session if the link was dropped.
-    async fn ensure_open(&mut self) -> DeviceResult<()> {
-        if self.link.is_open() {
-            return Ok(());
-        }
-        self.link.open().await?;
-        self.link.counters.reconnects += 1;
-        tracing::info!(endpoint = %self.link.endpoint, "rate table link reopened");
-        if let Err(e) = self.session().await {
-            if e.kind() == ErrorKind::Link {
-                self.link.close();
-            }
-            return Err(e);
-        }
-        Ok(())
-    }
-
     /// An exchange with retries.
     async fn exchange(&mut self, cmds: &[actidyn::Command]) -> DeviceResult<Vec<actidyn::Reply>> {
         let cmds = cmds.to_vec();
         with_retries(self, "rate-table exchange", move |me| {
             let cmds = cmds.clone();
             Box::pin(async move {
-                me.ensure_open().await?;
+                ensure_open(me).await?;
                 me.once(&cmds).await
             })
         })
@@ -434,14 +450,7 @@ impl Controller for ActidynLine {
     }
 
     async fn connect(&mut self) -> DeviceResult<()> {
-        self.link.open().await?;
-        with_retries(self, "session start", |me| {
-            Box::pin(async move {
-                me.ensure_open().await?;
-                me.session().await
-            })
-        })
-        .await
+        open_session(self).await
     }
 
     async fn clear_alarms(&mut self) -> DeviceResult<()> {
@@ -530,10 +539,26 @@ struct AcutrolLine {
     alarm: bool,
 }
 
+#[async_trait]
 impl OnLine for AcutrolLine {
     type Decoder = acutrol::ReplyDecoder;
     fn link(&mut self) -> &mut LineLink<acutrol::ReplyDecoder> {
         &mut self.link
+    }
+
+    /// Take remote control: lockout, then open, reset and close the interlock; one attempt
+    /// per command.
+    async fn session(&mut self) -> DeviceResult<()> {
+        let a = self.axis;
+        for c in [
+            acutrol::Command::Lockout(true),
+            acutrol::Command::InterlockOpen(a),
+            acutrol::Command::InterlockReset(a),
+            acutrol::Command::InterlockClose(a),
+        ] {
+            self.once(c).await?;
+        }
+        Ok(())
     }
 }
 
@@ -579,43 +604,11 @@ impl AcutrolLine {
         }
     }
 
-    /// Take remote control: lockout, then open, reset and close the interlock; one attempt
-    /// per command.
-    async fn session(&mut self) -> DeviceResult<()> {
-        let a = self.axis;
-        for c in [
-            acutrol::Command::Lockout(true),
-            acutrol::Command::InterlockOpen(a),
-            acutrol::Command::InterlockReset(a),
-            acutrol::Command::InterlockClose(a),
-        ] {
-            self.once(c).await?;
-        }
-        Ok(())
-    }
-
-    /// Reopen the link and start the session if the link was dropped.
-    async fn ensure_open(&mut self) -> DeviceResult<()> {
-        if self.link.is_open() {
-            return Ok(());
-        }
-        self.link.open().await?;
-        self.link.counters.reconnects += 1;
-        tracing::info!(endpoint = %self.link.endpoint, "rate table link reopened");
-        if let Err(e) = self.session().await {
-            if e.kind() == ErrorKind::Link {
-                self.link.close();
-            }
-            return Err(e);
-        }
-        Ok(())
-    }
-
     /// An exchange with retries.
     async fn exchange(&mut self, cmd: acutrol::Command) -> DeviceResult<acutrol::Reply> {
         with_retries(self, "rate-table exchange", move |me| {
             Box::pin(async move {
-                me.ensure_open().await?;
+                ensure_open(me).await?;
                 me.once(cmd).await
             })
         })
@@ -642,14 +635,7 @@ impl Controller for AcutrolLine {
     }
 
     async fn connect(&mut self) -> DeviceResult<()> {
-        self.link.open().await?;
-        with_retries(self, "session start", |me| {
-            Box::pin(async move {
-                me.ensure_open().await?;
-                me.session().await
-            })
-        })
-        .await
+        open_session(self).await
     }
 
     async fn clear_alarms(&mut self) -> DeviceResult<()> {
