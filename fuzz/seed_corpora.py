@@ -90,13 +90,13 @@ def main() -> None:
     for f in sorted((ROOT / "tests" / "fixtures" / "lab").rglob("*.toml")):
         put("bench_config", f.read_bytes())
     protocol = {
-        "actidyn": ["drivers/src/protocol/actidyn.rs", "drivers/tests/protocol_table.rs"],
-        "acutrol": ["drivers/src/protocol/acutrol.rs", "drivers/tests/protocol_table.rs"],
-        "kvh1750": ["drivers/tests/protocol_kvh1750.rs"],
-        "kvh_dsp3000": ["drivers/src/protocol/kvh_dsp3000.rs", "drivers/tests/protocol_kvh_dsp3000.rs"],
-        "slcan": ["drivers/src/protocol/slcan.rs", "drivers/tests/protocol_slcan.rs"],
-        "gyro_can": ["drivers/tests/protocol_slcan.rs", "drivers/src/real/slcan.rs"],
-        "modbus_map": ["drivers/tests/protocol_modbus_map.rs"],
+        "actidyn": ["drivers/src/protocol/actidyn.rs", "drivers/tests/it/protocol_table.rs"],
+        "acutrol": ["drivers/src/protocol/acutrol.rs", "drivers/tests/it/protocol_table.rs"],
+        "kvh1750": ["drivers/tests/it/protocol_kvh1750.rs"],
+        "kvh_dsp3000": ["drivers/src/protocol/kvh_dsp3000.rs", "drivers/tests/it/protocol_kvh_dsp3000.rs"],
+        "slcan": ["drivers/src/protocol/slcan.rs", "drivers/tests/it/protocol_slcan.rs"],
+        "gyro_can": ["drivers/tests/it/protocol_slcan.rs", "drivers/src/real/slcan.rs"],
+        "modbus_map": ["drivers/tests/it/protocol_modbus_map.rs"],
     }
     for target, files in protocol.items():
         for f in files:

@@ -2,5 +2,4 @@
 //! each binary links the whole dependency tree, so one instead of many saves minutes of CI.
 
 mod diagnose_truth;
-mod main;
 mod physics_truth;

@@ -1,5 +1,6 @@
-//! The integration tests of the `bench` binary and library, one module per subject, built as one test binary:
-//! each binary links the whole dependency tree, so one instead of many saves minutes of CI.
+//! The integration tests of the `bench` binary and library, one module per subject, built as one
+//! test binary: each binary links the whole dependency tree, so one instead of many saves minutes
+//! of CI.
 
 mod bad_inputs;
 mod cli_ux;
@@ -8,7 +9,6 @@ mod diagnose_cli;
 mod estimate;
 mod export_parquet;
 mod kill_safety;
-mod main;
 mod report_browser;
 mod scenario_validation;
 mod signals;

@@ -1,4 +1,4 @@
-// Injected into a copy of a report page by bench/tests/report_browser.rs: once the page and
+// Injected into a copy of a report page by bench/tests/it/report_browser.rs: once the page and
 // its PNGs have loaded, writes what the browser rendered into <pre id="bench-check"> as JSON.
 window.addEventListener('load', async () => {
   const r = {};

@@ -1,7 +1,6 @@
 //! The integration tests of the drivers crate, one module per subject, built as one test binary:
 //! each binary links the whole dependency tree, so one instead of many saves minutes of CI.
 
-mod main;
 mod protocol_kvh1750;
 mod protocol_kvh_dsp3000;
 mod protocol_modbus_map;

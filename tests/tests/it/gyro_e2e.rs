@@ -432,7 +432,7 @@ async fn slcan_streams_2khz_without_drops_for_two_bench_seconds() {
 
 /// The figure for the docs: `GYRO_2KHZ_SECONDS` (default 600) of bench time at 2 kHz over
 /// SLCAN in real time (`GYRO_2KHZ_SCALE` to run faster). Run with
-/// `cargo test -p bench-tests --test gyro_e2e -- --ignored --nocapture slcan_2khz_long`.
+/// `cargo test -p bench-tests --test it -- --ignored --nocapture gyro_e2e::slcan_2khz_long`.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "takes GYRO_2KHZ_SECONDS (default 600) of real time"]
 async fn slcan_2khz_long() {

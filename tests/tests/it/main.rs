@@ -1,5 +1,6 @@
-//! The integration tests of the workspace (simulated bench, virtual ports, independent peers and fixture writers), one module per subject, built as one test binary:
-//! each binary links the whole dependency tree, so one instead of many saves minutes of CI.
+//! The integration tests of the workspace (simulated bench, virtual ports, independent peers and
+//! fixture writers), one module per subject, built as one test binary: each binary links the whole
+//! dependency tree, so one instead of many saves minutes of CI.
 
 mod abort_run;
 mod calibrate_run;
@@ -12,7 +13,6 @@ mod lab_calibrate;
 mod lab_diagnose;
 mod lab_fixture;
 mod lab_model_elsewhere;
-mod main;
 mod peers_bench_run;
 mod peers_chamber;
 mod peers_faults;
@@ -24,4 +24,5 @@ mod realtime_run;
 mod replay_roundtrip;
 mod replay_serve;
 mod seed_run;
+mod support;
 mod table_e2e;

@@ -5,13 +5,11 @@
 //! `bench run SCENARIO --bench peer.toml` does — then the recording and the peers' logs are
 //! checked. See docs/protocols/peers.md.
 
-use std::io::Cursor;
 use std::path::PathBuf;
-use std::sync::Arc;
 
+use crate::support::run_connected;
 use bench::bench_config::BenchSource;
-use bench::runner::{run, run_info, Bench, Pace, RunOptions};
-use bench_drivers::{Clock, SystemClock};
+use bench_drivers::Clock;
 use bench_recording::Recording;
 use bench_tests::peer::{read_log, Peer};
 use serde_json::Value;
@@ -39,25 +37,11 @@ async fn scenario_on_the_three_peers_through_peer_toml() {
     else {
         panic!("peer.toml names devices");
     };
-    let clock = SystemClock::new(config.bench.time_scale);
-    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
-    let (devices, caps) = config.connect(shared).await.expect("every peer answers");
     let scenario = bench_tests::workspace_root().join("tests/peers/scenario.toml");
-    let mut plan = bench::scenario::load(&scenario, &caps).expect("valid on the peers");
-    if let Some(site) = config.site() {
-        plan.site = site;
-    }
-    let info = run_info(&plan, 0);
-    let bench = Bench::Connected { devices, clock: clock.clone(), info: Box::new(info) };
-    let opts = RunOptions {
-        pace: Pace::RealTime(config.bench.time_scale),
-        policy: config.bench.policy(),
-        ..RunOptions::default()
-    };
-    // The run blocks its thread (the runtime's other worker carries the drivers' I/O).
-    let (report, cur) =
-        tokio::task::block_in_place(|| run(&plan, bench, Cursor::new(Vec::new()), opts))
-            .expect("run");
+    let (report, bytes, clock) = run_connected(&config, |caps| {
+        bench::scenario::load(&scenario, caps).expect("valid on the peers")
+    })
+    .await;
     // After the run: 35 s of bench time without keep-alive (see the table check below).
     clock.sleep(std::time::Duration::from_secs(35)).await;
     drop(peer);
@@ -65,7 +49,7 @@ async fn scenario_on_the_three_peers_through_peer_toml() {
     let (table, chamber, gyro) = (log("table.jsonl"), log("chamber.jsonl"), log("gyro.jsonl"));
     assert!(report.completed(), "{}; table log: {table:#?}", report.outcome);
 
-    let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
+    let rec = Recording::from_bytes(&bytes).expect("readable");
     let labels: Vec<&str> = rec
         .steps
         .iter()

@@ -5,13 +5,10 @@
 //! completed — reach the safe state and keep every sample received before. The peers' clocks
 //! time the detection: the first poll the table peer answers after it dropped the drive.
 
-use std::io::Cursor;
-use std::sync::Arc;
 use std::time::Duration;
 
+use crate::support::run_connected;
 use bench::bench_config::BenchSource;
-use bench::runner::{run, run_info, Bench, Pace, RunOptions};
-use bench_drivers::{Clock, SystemClock};
 use bench_recording::{status, Recording};
 use bench_tests::peer::{read_log, Peer};
 use serde_json::Value;
@@ -72,26 +69,12 @@ async fn run_on_peers(peer_args: &[&str], keep_alive: bool) -> Run {
     if !keep_alive {
         config.table.as_mut().expect("a table").keep_alive_s = 0.0;
     }
-    let clock = SystemClock::new(config.bench.time_scale);
-    let shared: Arc<dyn Clock> = Arc::new(clock.clone());
-    let (devices, caps) = config.connect(shared).await.expect("every peer answers");
-    let mut plan = bench::scenario::parse(SCENARIO, "peer-faults.toml", &caps).expect("valid");
-    if let Some(site) = config.site() {
-        plan.site = site;
-    }
-    let info = Box::new(run_info(&plan, 0));
-    let bench = Bench::Connected { devices, clock, info };
-    let opts = RunOptions {
-        pace: Pace::RealTime(config.bench.time_scale),
-        policy: config.bench.policy(),
-        ..RunOptions::default()
-    };
-    // The run blocks its thread (the runtime's other worker carries the drivers' I/O).
-    let (report, cur) =
-        tokio::task::block_in_place(|| run(&plan, bench, Cursor::new(Vec::new()), opts))
-            .expect("the run ends");
+    let (report, bytes, _) = run_connected(&config, |caps| {
+        bench::scenario::parse(SCENARIO, "peer-faults.toml", caps).expect("valid")
+    })
+    .await;
     drop(peer);
-    let rec = Recording::from_bytes(cur.get_ref()).expect("readable");
+    let rec = Recording::from_bytes(&bytes).expect("readable");
     assert_eq!(rec.outcome(), Some(report.outcome.clone()));
     Run {
         outcome: rec.outcome_text().unwrap_or_default().to_string(),
