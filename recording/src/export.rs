@@ -37,7 +37,8 @@ use std::sync::Arc;
 use serde_json::Value;
 
 use crate::message::{StepEvent, StepMsg};
-use crate::reader::{End, Item, RecordingError, RecordingReader};
+use crate::reader::engine::{Chan, Decode, Msg, Unit};
+use crate::reader::{ChannelInfo, End, Item, RecordingError, RecordingReader};
 
 /// Output format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -194,20 +195,91 @@ pub enum ColumnType {
 }
 
 impl ColumnType {
-    fn widen(self, v: &Value) -> Self {
+    fn widen(self, v: &Cell) -> Self {
         use ColumnType::*;
         let this = match v {
-            Value::Null => return self,
-            Value::Bool(_) => Bool,
-            Value::Number(n) if n.is_i64() => Int,
-            Value::Number(_) => Float,
-            _ => Text,
+            Cell::Null => return self,
+            Cell::Bool(_) => Bool,
+            Cell::Int(_) => Int,
+            Cell::Big(_) | Cell::Float(_) => Float,
+            Cell::Str(_) | Cell::Json(_) => Text,
         };
         match (self, this) {
             (Null, t) => t,
             (a, b) if a == b => a,
             (Int, Float) | (Float, Int) => Float,
             _ => Text,
+        }
+    }
+}
+
+/// One value of a message body, typed as the JSON has it (what `serde_json::Value` would hold,
+/// without its allocations for numbers and the keys).
+#[derive(Debug, Clone, PartialEq)]
+enum Cell {
+    Null,
+    Bool(bool),
+    /// An integer within i64.
+    Int(i64),
+    /// An integer above `i64::MAX`.
+    Big(u64),
+    Float(f64),
+    Str(Box<str>),
+    /// An array, as JSON text.
+    Json(Box<str>),
+}
+
+impl Cell {
+    fn from_value(v: Value) -> Cell {
+        match v {
+            Value::Null => Cell::Null,
+            Value::Bool(b) => Cell::Bool(b),
+            Value::Number(n) => match (n.as_i64(), n.as_u64(), n.as_f64()) {
+                (Some(i), _, _) => Cell::Int(i),
+                (_, Some(u), _) => Cell::Big(u),
+                (_, _, Some(f)) => Cell::Float(f),
+                _ => Cell::Json(n.to_string().into()),
+            },
+            Value::String(s) => Cell::Str(s.into()),
+            other => Cell::Json(other.to_string().into()),
+        }
+    }
+
+    fn as_str(&self) -> Option<&str> {
+        match self {
+            Cell::Str(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    fn as_bool(&self) -> Option<bool> {
+        match *self {
+            Cell::Bool(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    fn as_i64(&self) -> Option<i64> {
+        match *self {
+            Cell::Int(i) => Some(i),
+            _ => None,
+        }
+    }
+
+    fn as_u64(&self) -> Option<u64> {
+        match *self {
+            Cell::Int(i) => u64::try_from(i).ok(),
+            Cell::Big(u) => Some(u),
+            _ => None,
+        }
+    }
+
+    fn as_f64(&self) -> Option<f64> {
+        match *self {
+            Cell::Int(i) => Some(i as f64),
+            Cell::Big(u) => Some(u as f64),
+            Cell::Float(f) => Some(f),
+            _ => None,
         }
     }
 }
@@ -220,33 +292,172 @@ struct Channel {
     log: Vec<i64>,
     publish: Vec<i64>,
     sequence: Vec<i64>,
-    /// Row-major cells: per row, (column, value).
-    rows: Vec<Vec<(usize, Value)>>,
+    /// Row-major cells, (column, value), every row's after the one before.
+    cells: Vec<(u32, Cell)>,
+    /// Where each row's cells end in `cells`.
+    row_end: Vec<usize>,
 }
 
-/// A JSON object's members in the order the body has them (`serde_json::Map` sorts them).
-struct Ordered(Vec<(String, Value)>);
+/// One chunk's messages of one topic, parsed on a decoding thread: cells keyed by this part's
+/// own table of member names (each name allocated once per chunk, not per message).
+struct Part {
+    info: Arc<ChannelInfo>,
+    keys: Vec<Box<str>>,
+    log: Vec<i64>,
+    publish: Vec<i64>,
+    sequence: Vec<i64>,
+    cells: Vec<(u32, Cell)>,
+    row_end: Vec<usize>,
+    /// Messages of this part, parsed or not.
+    messages: usize,
+    /// The first body that is not a JSON object: its message's position in the part,
+    /// sequence, log time and the decoder's words. Rows stop there.
+    bad: Option<(usize, u32, u64, String)>,
+}
 
-impl<'de> serde::Deserialize<'de> for Ordered {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct Members;
-        impl<'de> serde::de::Visitor<'de> for Members {
-            type Value = Ordered;
-            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-                f.write_str("a JSON object")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                mut a: A,
-            ) -> Result<Ordered, A::Error> {
-                let mut members = Vec::new();
-                while let Some(member) = a.next_entry::<String, Value>()? {
-                    members.push(member);
-                }
-                Ok(Ordered(members))
+impl Part {
+    fn key(&mut self, name: &str) -> u32 {
+        match self.keys.iter().position(|k| &**k == name) {
+            Some(k) => k as u32,
+            None => {
+                self.keys.push(name.into());
+                (self.keys.len() - 1) as u32
             }
         }
-        d.deserialize_map(Members)
+    }
+
+    /// Parse one message's body into a row (every message, whatever its channel's encoding:
+    /// which encoding counts is the topic's first message's, known only in file order).
+    fn message(&mut self, log_time: u64, publish_time: u64, sequence: u32, data: &[u8]) {
+        self.messages += 1;
+        if self.bad.is_some() {
+            return;
+        }
+        let mark = self.cells.len();
+        let mut de = serde_json::Deserializer::from_slice(data);
+        let parsed =
+            serde::Deserializer::deserialize_map(&mut de, Members(self)).and_then(|()| de.end());
+        if let Err(e) = parsed {
+            self.cells.truncate(mark);
+            self.bad = Some((self.messages - 1, sequence, log_time, e.to_string()));
+            return;
+        }
+        self.log.push(ns(log_time));
+        self.publish.push(ns(publish_time));
+        self.sequence.push(i64::from(sequence));
+        self.row_end.push(self.cells.len());
+    }
+}
+
+/// A JSON object's members in the order the body has them, flattened into a [`Part`]'s row;
+/// a nested object's members sorted by name, as `serde_json::Map` has them.
+struct Members<'a>(&'a mut Part);
+
+impl<'de> serde::de::Visitor<'de> for Members<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a JSON object")
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut a: A) -> Result<(), A::Error> {
+        let part = self.0;
+        while let Some(k) = a.next_key_seed(Key(part))? {
+            match a.next_value_seed(Member)? {
+                Parsed::Cell(c) => part.cells.push((k, c)),
+                Parsed::Object(inner) => {
+                    let prefix = part.keys[k as usize].to_string();
+                    let mut fields = Vec::new();
+                    flatten(&prefix, inner, &mut fields);
+                    for (name, v) in fields {
+                        let k = part.key(&name);
+                        part.cells.push((k, Cell::from_value(v)));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A member's name, as its index in the part's key table.
+struct Key<'a>(&'a mut Part);
+
+impl<'de> serde::de::DeserializeSeed<'de> for Key<'_> {
+    type Value = u32;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<u32, D::Error> {
+        d.deserialize_str(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Key<'_> {
+    type Value = u32;
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a string")
+    }
+    fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<u32, E> {
+        Ok(self.0.key(v))
+    }
+}
+
+/// A member's value.
+enum Parsed {
+    Cell(Cell),
+    Object(serde_json::Map<String, Value>),
+}
+
+struct Member;
+
+impl<'de> serde::de::DeserializeSeed<'de> for Member {
+    type Value = Parsed;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Parsed, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Member {
+    type Value = Parsed;
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("any JSON value")
+    }
+    fn visit_bool<E>(self, v: bool) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Bool(v)))
+    }
+    fn visit_i64<E>(self, v: i64) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Int(v)))
+    }
+    fn visit_u64<E>(self, v: u64) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(i64::try_from(v).map_or(Cell::Big(v), Cell::Int)))
+    }
+    fn visit_f64<E>(self, v: f64) -> Result<Parsed, E> {
+        // As `Value`: a number that is not finite is null.
+        Ok(Parsed::Cell(if v.is_finite() { Cell::Float(v) } else { Cell::Null }))
+    }
+    fn visit_str<E>(self, v: &str) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Str(v.into())))
+    }
+    fn visit_string<E>(self, v: String) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Str(v.into())))
+    }
+    fn visit_unit<E>(self) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Null))
+    }
+    fn visit_none<E>(self) -> Result<Parsed, E> {
+        Ok(Parsed::Cell(Cell::Null))
+    }
+    fn visit_some<D: serde::Deserializer<'de>>(self, d: D) -> Result<Parsed, D::Error> {
+        d.deserialize_any(self)
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, a: A) -> Result<Parsed, A::Error> {
+        let v: Value =
+            serde::Deserialize::deserialize(serde::de::value::SeqAccessDeserializer::new(a))?;
+        Ok(Parsed::Cell(Cell::Json(v.to_string().into())))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, a: A) -> Result<Parsed, A::Error> {
+        let v: Value =
+            serde::Deserialize::deserialize(serde::de::value::MapAccessDeserializer::new(a))?;
+        Ok(match v {
+            Value::Object(m) => Parsed::Object(m),
+            other => Parsed::Cell(Cell::from_value(other)),
+        })
     }
 }
 
@@ -268,54 +479,177 @@ fn ns(v: u64) -> i64 {
     i64::try_from(v).unwrap_or(i64::MAX)
 }
 
+/// The part of `parts` for `info`'s topic, added if there is none yet.
+fn part<'a>(parts: &'a mut Vec<Part>, info: &Arc<ChannelInfo>) -> &'a mut Part {
+    let k = match parts.iter().position(|p| p.info.topic == info.topic) {
+        Some(k) => k,
+        None => {
+            parts.push(Part {
+                info: info.clone(),
+                keys: Vec::new(),
+                log: Vec::new(),
+                publish: Vec::new(),
+                sequence: Vec::new(),
+                cells: Vec::new(),
+                row_end: Vec::new(),
+                messages: 0,
+                bad: None,
+            });
+            parts.len() - 1
+        }
+    };
+    &mut parts[k]
+}
+
+/// Parses each chunk's message bodies on the decoding threads: one [`Part`] per topic.
+struct Parse;
+
+impl Decode for Parse {
+    type Out = Vec<Part>;
+
+    fn start(&self) -> Vec<Part> {
+        Vec::new()
+    }
+
+    fn message(&self, out: &mut Vec<Part>, chan: &Chan, m: Msg<'_>) {
+        let h = &m.header;
+        part(out, &chan.info).message(h.log_time, h.publish_time, h.sequence, m.data);
+    }
+
+    fn orphan(&self, _: &mut Vec<Part>, _: Msg<'_>) {}
+
+    fn channel(&self, _: &mut Vec<Part>, _: &Chan) {}
+}
+
 /// Every channel's messages by topic, and where the recording was cut.
 type Collected = (BTreeMap<String, Channel>, Option<(u64, String)>);
 
-/// Read every channel of a recording from any byte source into tables.
-fn collect<R: std::io::Read>(reader: RecordingReader<R>) -> Result<Collected, ExportError> {
-    let mut reader = reader.raw();
-    let mut channels: BTreeMap<String, Channel> = BTreeMap::new();
-    for item in reader.by_ref() {
-        let Item::Other(m) = item? else { continue };
-        let ch = channels.entry(m.channel.topic.clone()).or_insert_with(|| Channel {
-            encoding: m.channel.message_encoding.clone(),
+impl Channel {
+    fn new(encoding: String) -> Channel {
+        Channel {
+            encoding,
             columns: Vec::new(),
             index: HashMap::new(),
             log: Vec::new(),
             publish: Vec::new(),
             sequence: Vec::new(),
-            rows: Vec::new(),
-        });
-        if ch.encoding != "json" {
-            ch.log.push(0);
-            continue;
+            cells: Vec::new(),
+            row_end: Vec::new(),
         }
-        let Ordered(body) = serde_json::from_slice(&m.data).map_err(|e| ExportError::NotJson {
-            topic: m.channel.topic.clone(),
-            sequence: m.sequence,
-            log_time_ns: m.log_time_ns,
-            detail: e.to_string(),
-        })?;
-        let mut fields = Vec::new();
-        flatten("", body, &mut fields);
-        let mut row = Vec::with_capacity(fields.len());
-        for (name, v) in fields {
-            let col = match ch.index.get(&name) {
-                Some(&c) => c,
-                None => {
-                    ch.columns.push(name.clone());
-                    ch.index.insert(name, ch.columns.len() - 1);
-                    ch.columns.len() - 1
-                }
-            };
-            row.push((col, v));
-        }
-        ch.log.push(ns(m.log_time_ns));
-        ch.publish.push(ns(m.publish_time_ns));
-        ch.sequence.push(i64::from(m.sequence));
-        ch.rows.push(row);
     }
-    let cut = match reader.end() {
+
+    fn rows(&self) -> usize {
+        self.row_end.len()
+    }
+
+    fn row(&self, r: usize) -> &[(u32, Cell)] {
+        let start = r.checked_sub(1).map_or(0, |p| self.row_end[p]);
+        &self.cells[start..self.row_end[r]]
+    }
+
+    fn column(&mut self, name: &str) -> u32 {
+        if let Some(&c) = self.index.get(name) {
+            return c as u32;
+        }
+        self.columns.push(name.to_owned());
+        self.index.insert(name.to_owned(), self.columns.len() - 1);
+        (self.columns.len() - 1) as u32
+    }
+
+    fn end_row(&mut self, log: i64, publish: i64, sequence: i64) {
+        self.log.push(log);
+        self.publish.push(publish);
+        self.sequence.push(sequence);
+        self.row_end.push(self.cells.len());
+    }
+
+    /// Append a part in file order (its rows, its new columns in the order it met them);
+    /// the error of its first body that is not a JSON object, on a `json` channel.
+    fn append(&mut self, part: Part) -> Result<(), ExportError> {
+        if self.encoding != "json" {
+            self.log.extend(std::iter::repeat_n(0, part.messages));
+            return Ok(());
+        }
+        // Columns in the order the cells first use them (a key may name a nested object,
+        // which is no column).
+        let mut cols = vec![u32::MAX; part.keys.len()];
+        let base = self.cells.len();
+        self.cells.reserve(part.cells.len());
+        for (k, c) in part.cells {
+            let col = &mut cols[k as usize];
+            if *col == u32::MAX {
+                *col = self.column(&part.keys[k as usize]);
+            }
+            self.cells.push((*col, c));
+        }
+        self.row_end.extend(part.row_end.iter().map(|e| base + e));
+        self.log.extend_from_slice(&part.log);
+        self.publish.extend_from_slice(&part.publish);
+        self.sequence.extend_from_slice(&part.sequence);
+        match part.bad {
+            Some((_, sequence, log_time_ns, detail)) => Err(ExportError::NotJson {
+                topic: part.info.topic.clone(),
+                sequence,
+                log_time_ns,
+                detail,
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Add one chunk's parts to the tables.
+fn add_parts(
+    channels: &mut BTreeMap<String, Channel>,
+    parts: Vec<Part>,
+) -> Result<(), ExportError> {
+    for part in parts {
+        let ch = match channels.get_mut(&part.info.topic) {
+            Some(ch) => ch,
+            None => channels
+                .entry(part.info.topic.clone())
+                .or_insert_with(|| Channel::new(part.info.message_encoding.clone())),
+        };
+        ch.append(part)?;
+    }
+    Ok(())
+}
+
+/// Read every channel of a recording from any byte source into tables: the bodies parsed on
+/// the reader's decoding threads, chunk by chunk, and added in file order.
+fn collect<R: std::io::Read>(reader: RecordingReader<R>) -> Result<Collected, ExportError> {
+    let mut channels: BTreeMap<String, Channel> = BTreeMap::new();
+    let mut engine = match reader.into_engine(Parse) {
+        Ok(engine) => engine,
+        // Already started: the rest of its items, parsed here.
+        Err(reader) => {
+            let mut reader = *reader;
+            for item in reader.by_ref() {
+                let Item::Other(m) = item? else { continue };
+                let mut parts = Vec::new();
+                part(&mut parts, &m.channel).message(
+                    m.log_time_ns,
+                    m.publish_time_ns,
+                    m.sequence,
+                    &m.data,
+                );
+                add_parts(&mut channels, parts)?;
+            }
+            let cut = match reader.end() {
+                End::Cut { at_byte, reason } => Some((*at_byte, reason.clone())),
+                _ => None,
+            };
+            return Ok((channels, cut));
+        }
+    };
+    while let Some(unit) = engine.next_unit() {
+        match unit {
+            Unit::Out(parts) => add_parts(&mut channels, parts)?,
+            Unit::Error(e) => return Err(e.into()),
+            Unit::Metadata(_) | Unit::Attachment(_) | Unit::Damage(_) => {}
+        }
+    }
+    let cut = match engine.end() {
         End::Cut { at_byte, reason } => Some((*at_byte, reason.clone())),
         _ => None,
     };
@@ -403,7 +737,7 @@ pub fn export_with<R: std::io::Read>(
                 None
             }
         };
-        let rows = ch.rows.len();
+        let rows = ch.rows();
         report.tables.push(Table { topic: topic.to_owned(), path, rows, columns, units });
     }
     Ok(report)
@@ -413,8 +747,8 @@ pub fn export_with<R: std::io::Read>(
 /// narrowest that holds all its values.
 fn column_types(topic: &str, ch: &Channel) -> Vec<ColumnType> {
     let mut types = vec![ColumnType::Null; ch.columns.len()];
-    for (c, v) in ch.rows.iter().flatten() {
-        if let Some(t) = types.get_mut(*c) {
+    for (c, v) in &ch.cells {
+        if let Some(t) = types.get_mut(*c as usize) {
             *t = t.widen(v);
         }
     }
@@ -451,10 +785,13 @@ fn write_units(path: &Path, topic: &str, columns: &[String]) -> Result<(), Expor
     std::fs::write(path, bytes).map_err(io)
 }
 
-/// A log time as RFC 3339 UTC text with nanoseconds: `2026-11-27T10:00:00.050000000Z`.
-fn rfc3339_ns(ns: i64) -> String {
-    match time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ns)) {
-        Ok(t) => format!(
+/// A log time as RFC 3339 UTC text with nanoseconds: `2026-11-27T10:00:00.050000000Z`
+/// (empty out of range), into `out`.
+fn rfc3339_into(ns: i64, out: &mut String) {
+    use std::fmt::Write;
+    if let Ok(t) = time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ns)) {
+        let _ = write!(
+            out,
             "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:09}Z",
             t.year(),
             u8::from(t.month()),
@@ -463,8 +800,7 @@ fn rfc3339_ns(ns: i64) -> String {
             t.minute(),
             t.second(),
             t.nanosecond()
-        ),
-        Err(_) => String::new(),
+        );
     }
 }
 
@@ -480,7 +816,7 @@ fn timestamp_name(ch: &Channel) -> &'static str {
 
 /// A channel's rows in log-time order (stable: equal times keep file order).
 fn by_time(ch: &Channel) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..ch.rows.len()).collect();
+    let mut order: Vec<usize> = (0..ch.rows()).collect();
     order.sort_by_key(|&r| ch.log[r]);
     order
 }
@@ -493,15 +829,7 @@ fn by_time(ch: &Channel) -> Vec<usize> {
 /// first), and `record_window`: the label of the `record…` step whose start ≤ t < end (its
 /// abort, or the end of the recording when it has none), null outside.
 fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
-    let empty = Channel {
-        encoding: "json".into(),
-        columns: Vec::new(),
-        index: HashMap::new(),
-        log: Vec::new(),
-        publish: Vec::new(),
-        sequence: Vec::new(),
-        rows: Vec::new(),
-    };
+    let empty = Channel::new("json".into());
     let gyro = channels.get("/gyro/rate").filter(|c| c.encoding == "json").unwrap_or(&empty);
     let t0 = ["/gyro/rate", "/table/state", "/chamber/state", "/bench/step"]
         .iter()
@@ -509,14 +837,10 @@ fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
         .filter_map(|c| c.log.iter().min().copied())
         .min()
         .unwrap_or(0);
-    let mut out = empty.clone_empty();
-    let add = |out: &mut Channel, name: String| {
-        out.columns.push(name.clone());
-        out.index.insert(name, out.columns.len() - 1);
-        out.columns.len() - 1
-    };
+    let mut out = Channel::new(empty.encoding.clone());
+    let add = |out: &mut Channel, name: String| out.column(&name);
     let bench_time = add(&mut out, "bench_time_s".into());
-    let gyro_cols: Vec<usize> =
+    let gyro_cols: Vec<u32> =
         gyro.columns.iter().map(|c| add(&mut out, format!("gyro_{c}"))).collect();
     // (channel, its rows by time, its log times in that order, log-time column, field columns)
     let mut joined = Vec::new();
@@ -525,7 +849,7 @@ fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
         let order = by_time(ch);
         let times: Vec<i64> = order.iter().map(|&r| ch.log[r]).collect();
         let log_col = add(&mut out, format!("{prefix}_log_time_ns"));
-        let cols: Vec<usize> =
+        let cols: Vec<u32> =
             ch.columns.iter().map(|c| add(&mut out, format!("{prefix}_{c}"))).collect();
         joined.push((ch, order, times, log_col, cols));
     }
@@ -533,41 +857,27 @@ fn merge(channels: &BTreeMap<String, Channel>) -> Channel {
     let windows = record_windows(channels.get("/bench/step"));
     for r in by_time(gyro) {
         let t = gyro.log[r];
-        let mut row = vec![(bench_time, Value::from((t - t0) as f64 * 1e-9))];
-        row.extend(gyro.rows[r].iter().map(|(c, v)| (gyro_cols[*c], v.clone())));
+        out.cells.push((bench_time, Cell::Float((t - t0) as f64 * 1e-9)));
+        out.cells.extend(gyro.row(r).iter().map(|(c, v)| (gyro_cols[*c as usize], v.clone())));
         for (ch, order, times, log_col, cols) in &joined {
             // The last reading logged at or before t.
             let Some(k) = times.partition_point(|&x| x <= t).checked_sub(1) else { continue };
             let src = order[k];
-            row.push((*log_col, Value::from(ch.log[src])));
-            row.extend(ch.rows[src].iter().map(|(c, v)| (cols[*c], v.clone())));
+            out.cells.push((*log_col, Cell::Int(ch.log[src])));
+            out.cells.extend(ch.row(src).iter().map(|(c, v)| (cols[*c as usize], v.clone())));
         }
         let label = windows.iter().find(|(a, b, _)| *a <= t && t < *b);
-        row.push((window_col, label.map_or(Value::Null, |(_, _, l)| Value::from(l.as_str()))));
-        out.log.push(t);
-        out.publish.push(gyro.publish[r]);
-        out.sequence.push(gyro.sequence[r]);
-        out.rows.push(row);
+        out.cells
+            .push((window_col, label.map_or(Cell::Null, |(_, _, l)| Cell::Str(l.as_str().into()))));
+        out.end_row(t, gyro.publish[r], gyro.sequence[r]);
     }
     out
 }
 
 impl Channel {
-    fn clone_empty(&self) -> Channel {
-        Channel {
-            encoding: self.encoding.clone(),
-            columns: Vec::new(),
-            index: HashMap::new(),
-            log: Vec::new(),
-            publish: Vec::new(),
-            sequence: Vec::new(),
-            rows: Vec::new(),
-        }
-    }
-
-    fn field(&self, row: usize, name: &str) -> Option<&Value> {
-        let c = *self.index.get(name)?;
-        self.rows.get(row)?.iter().find(|(i, _)| *i == c).map(|(_, v)| v)
+    fn field(&self, row: usize, name: &str) -> Option<&Cell> {
+        let c = *self.index.get(name)? as u32;
+        (row < self.rows()).then(|| self.row(row).iter().find(|(i, _)| *i == c).map(|(_, v)| v))?
     }
 }
 
@@ -576,16 +886,16 @@ impl Channel {
 /// `end`/`abort` runs to the end of time.
 fn record_windows(steps: Option<&Channel>) -> Vec<(i64, i64, String)> {
     let Some(st) = steps.filter(|c| c.encoding == "json") else { return Vec::new() };
-    let events: Vec<(i64, StepMsg)> = (0..st.rows.len())
+    let events: Vec<(i64, StepMsg)> = (0..st.rows())
         .filter_map(|r| {
-            let event = match st.field(r, "event").and_then(Value::as_str)? {
+            let event = match st.field(r, "event").and_then(Cell::as_str)? {
                 "start" => StepEvent::Start,
                 "end" => StepEvent::End,
                 "abort" => StepEvent::Abort,
                 _ => return None,
             };
-            let index = st.field(r, "index").and_then(Value::as_u64).unwrap_or(u64::MAX);
-            let label = st.field(r, "label").and_then(Value::as_str).unwrap_or("").to_owned();
+            let index = st.field(r, "index").and_then(Cell::as_u64).unwrap_or(u64::MAX);
+            let label = st.field(r, "label").and_then(Cell::as_str).unwrap_or("").to_owned();
             Some((st.log[r], StepMsg { index, name: String::new(), event, label }))
         })
         .collect();
@@ -599,22 +909,57 @@ fn record_windows(steps: Option<&Channel>) -> Vec<(i64, i64, String)> {
 }
 
 /// A cell's text: integers as integers, floats in the shortest form that reads back the same,
-/// null as empty, strings as they are, anything else as JSON.
-fn cell(v: &Value) -> String {
-    match v {
-        Value::Null => String::new(),
-        Value::String(s) => s.clone(),
-        Value::Number(n) => match (n.as_i64(), n.as_u64(), n.as_f64()) {
-            (Some(i), _, _) => i.to_string(),
-            (_, Some(u), _) => u.to_string(),
-            (_, _, Some(f)) => format!("{f:?}"),
-            _ => n.to_string(),
-        },
-        other => other.to_string(),
+/// null as empty, strings as they are, arrays as JSON.
+fn cell(v: &Cell) -> String {
+    let mut s = String::new();
+    cell_into(v, &mut s);
+    s
+}
+
+/// [`cell`], into `out` (cleared first).
+fn cell_into(v: &Cell, out: &mut String) {
+    use std::fmt::Write;
+    out.clear();
+    let _ = match v {
+        Cell::Null => Ok(()),
+        Cell::Bool(b) => out.write_str(if *b { "true" } else { "false" }),
+        Cell::Int(i) => write!(out, "{i}"),
+        Cell::Big(u) => write!(out, "{u}"),
+        Cell::Float(f) => write!(out, "{f:?}"),
+        Cell::Str(s) | Cell::Json(s) => out.write_str(s),
+    };
+}
+
+/// Rows formatted per block, the blocks on the machine's threads and written in order.
+const CSV_BLOCK: usize = 32 * 1024;
+
+/// The CSV text of rows `rows` of a table (no header): the same bytes as one writer for the
+/// whole table writes for them.
+fn csv_rows(ch: &Channel, rows: std::ops::Range<usize>) -> Result<Vec<u8>, csv::Error> {
+    use std::fmt::Write;
+    let mut w = csv::Writer::from_writer(Vec::with_capacity(rows.len() * 96));
+    let mut cells = vec![String::new(); ch.columns.len()];
+    let mut fixed = [String::new(), String::new(), String::new(), String::new()];
+    for r in rows {
+        cells.iter_mut().for_each(String::clear);
+        for (c, v) in ch.row(r) {
+            if let Some(slot) = cells.get_mut(*c as usize) {
+                cell_into(v, slot);
+            }
+        }
+        let log = ch.log.get(r).copied().unwrap_or_default();
+        fixed.iter_mut().for_each(String::clear);
+        rfc3339_into(log, &mut fixed[0]);
+        let _ = write!(fixed[1], "{log}");
+        let _ = write!(fixed[2], "{}", ch.publish.get(r).copied().unwrap_or_default());
+        let _ = write!(fixed[3], "{}", ch.sequence.get(r).copied().unwrap_or_default());
+        w.write_record(fixed.iter().chain(cells.iter()))?;
     }
+    w.into_inner().map_err(|e| e.into_error().into())
 }
 
 fn write_csv(path: &Path, ch: &Channel) -> Result<(), ExportError> {
+    use std::io::Write;
     let io = |source| ExportError::Write { path: path.to_path_buf(), source };
     let file = File::create(path).map_err(io)?;
     let mut w = csv::Writer::from_writer(BufWriter::new(file));
@@ -626,25 +971,26 @@ fn write_csv(path: &Path, ch: &Channel) -> Result<(), ExportError> {
         vec![timestamp_name(ch), "log_time_ns", "publish_time_ns", "sequence"];
     header.extend(ch.columns.iter().map(String::as_str));
     w.write_record(&header).map_err(csv_err)?;
-    let mut cells = vec![String::new(); ch.columns.len()];
-    for (r, row) in ch.rows.iter().enumerate() {
-        cells.iter_mut().for_each(String::clear);
-        for (c, v) in row {
-            if let Some(slot) = cells.get_mut(*c) {
-                *slot = cell(v);
+    let mut out = w.into_inner().map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 4);
+    let blocks: Vec<std::ops::Range<usize>> =
+        (0..ch.rows()).step_by(CSV_BLOCK).map(|a| a..(a + CSV_BLOCK).min(ch.rows())).collect();
+    for round in blocks.chunks(threads) {
+        // One block here, the others beside it.
+        let texts: Vec<Result<Vec<u8>, csv::Error>> = std::thread::scope(|s| {
+            let others: Vec<_> =
+                round[1..].iter().map(|b| s.spawn(|| csv_rows(ch, b.clone()))).collect();
+            let mut texts = vec![csv_rows(ch, round[0].clone())];
+            for h in others {
+                texts.push(h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
             }
+            texts
+        });
+        for text in texts {
+            out.write_all(&text.map_err(csv_err)?).map_err(io)?;
         }
-        let log = ch.log.get(r).copied().unwrap_or_default();
-        let fixed = [
-            rfc3339_ns(log),
-            log.to_string(),
-            ch.publish.get(r).copied().unwrap_or_default().to_string(),
-            ch.sequence.get(r).copied().unwrap_or_default().to_string(),
-        ];
-        w.write_record(fixed.iter().chain(cells.iter())).map_err(csv_err)?;
     }
-    let inner = w.into_inner().map_err(|e| io(std::io::Error::other(e.to_string())))?;
-    inner.into_inner().map_err(|e| io(e.into_error()))?.sync_all().map_err(io)
+    out.into_inner().map_err(|e| io(e.into_error()))?.sync_all().map_err(io)
 }
 
 fn write_parquet(
@@ -723,12 +1069,10 @@ fn write_parquet(
     }
     for (c, t) in types.iter().enumerate() {
         // One column: the values present and the definition levels (1 present, 0 null).
-        let mut present: Vec<Option<&Value>> = vec![None; ch.rows.len()];
-        for (r, row) in ch.rows.iter().enumerate() {
-            if let (Some(slot), Some((_, v))) =
-                (present.get_mut(r), row.iter().find(|(i, _)| *i == c))
-            {
-                *slot = (!v.is_null()).then_some(v);
+        let mut present: Vec<Option<&Cell>> = vec![None; ch.rows()];
+        for (r, slot) in present.iter_mut().enumerate() {
+            if let Some((_, v)) = ch.row(r).iter().find(|(i, _)| *i as usize == c) {
+                *slot = (*v != Cell::Null).then_some(v);
             }
         }
         let def: Vec<i16> = present.iter().map(|v| i16::from(v.is_some())).collect();

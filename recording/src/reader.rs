@@ -15,7 +15,7 @@
 
 pub(crate) mod chunk;
 mod damage;
-mod engine;
+pub(crate) mod engine;
 mod notes;
 pub(crate) mod scan;
 
@@ -380,6 +380,16 @@ impl<R: Read> RecordingReader<R> {
     /// Bytes read so far (framing may run ahead of the items handed out).
     pub fn bytes_read(&self) -> u64 {
         self.engine.as_ref().map_or(0, |e| e.bytes_read())
+    }
+
+    /// The read loop of this reader, not started yet, decoding into `decoder`'s output instead
+    /// of items (every channel raw: [`Kind::Other`]); `None` once the reader has started.
+    #[cfg_attr(not(feature = "export"), allow(dead_code))]
+    pub(crate) fn into_engine<D: Decode>(mut self, decoder: D) -> Result<Engine<R, D>, Box<Self>> {
+        let Some(s) = self.start.take() else { return Err(Box::new(self)) };
+        let mut e = Engine::new(s.source, s.limit, s.file_len, decoder, true);
+        e.predefine(&s.summary);
+        Ok(e)
     }
 
     fn engine(&mut self) -> &mut Engine<R, Items> {

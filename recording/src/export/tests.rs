@@ -270,7 +270,9 @@ fn csv_merged_leaves_the_record_window_empty_outside_windows() {
 #[test]
 fn column_types_widen() {
     use serde_json::json;
-    let t = |vs: &[serde_json::Value]| vs.iter().fold(ColumnType::Null, |t, v| t.widen(v));
+    let t = |vs: &[serde_json::Value]| {
+        vs.iter().fold(ColumnType::Null, |t, v| t.widen(&Cell::from_value(v.clone())))
+    };
     assert_eq!(t(&[json!(1), json!(null), json!(2)]), ColumnType::Int);
     assert_eq!(t(&[json!(1), json!(2.5)]), ColumnType::Float);
     assert_eq!(t(&[json!(u64::MAX)]), ColumnType::Float);
@@ -288,24 +290,72 @@ fn the_merged_table_takes_the_latest_prior_readings_and_the_record_window() {
     let bytes = file();
     let mut channels = collect(RecordingReader::new(&bytes[..])).expect("collect").0;
     let chamber = channels.get_mut("/chamber/state").expect("chamber");
-    let keep: Vec<usize> = (0..chamber.rows.len()).filter(|r| r % 3 == 1).collect();
-    chamber.rows = keep.iter().map(|&r| chamber.rows[r].clone()).collect();
-    chamber.log = keep.iter().map(|&r| chamber.log[r]).collect();
+    let mut kept = Channel::new("json".into());
+    (kept.columns, kept.index) = (chamber.columns.clone(), chamber.index.clone());
+    for r in (0..chamber.rows()).filter(|r| r % 3 == 1) {
+        kept.cells.extend(chamber.row(r).iter().cloned());
+        kept.end_row(chamber.log[r], chamber.publish[r], chamber.sequence[r]);
+    }
+    *chamber = kept;
     let m = merge(&channels);
-    assert_eq!(m.rows.len(), 50);
+    assert_eq!(m.rows(), 50);
     let get = |r: usize, name: &str| m.field(r, name).cloned();
     // Sample 0 (t = 0) is before the first kept chamber reading (50 ms): none.
     assert_eq!(get(0, "chamber_log_time_ns"), None);
     // Sample 3 (150 ms): the reading of 50 ms, held (the next is at 200 ms).
-    assert_eq!(get(3, "chamber_log_time_ns"), Some(Value::from(EPOCH as i64 + 50_000_000)));
+    assert_eq!(get(3, "chamber_log_time_ns"), Some(Cell::Int(EPOCH as i64 + 50_000_000)));
     // Sample 4 (200 ms): the reading of 200 ms itself (at or before).
-    assert_eq!(get(4, "chamber_log_time_ns"), Some(Value::from(EPOCH as i64 + 200_000_000)));
-    assert_eq!(get(4, "chamber_setpoint"), Some(Value::from(21.25)));
-    assert_eq!(get(4, "gyro_seq"), Some(Value::from(1004)));
-    assert_eq!(get(4, "bench_time_s"), Some(Value::from(0.2)));
+    assert_eq!(get(4, "chamber_log_time_ns"), Some(Cell::Int(EPOCH as i64 + 200_000_000)));
+    assert_eq!(get(4, "chamber_setpoint"), Some(Cell::Float(21.25)));
+    assert_eq!(get(4, "gyro_seq"), Some(Cell::Int(1004)));
+    assert_eq!(get(4, "bench_time_s"), Some(Cell::Float(0.2)));
     // The step labelled `record, "quoted"` started at 0 and has no end: every sample is in it.
-    assert_eq!(get(49, "record_window"), Some(Value::from("record, \"quoted\"")));
+    assert_eq!(get(49, "record_window"), Some(Cell::Str("record, \"quoted\"".into())));
     assert_eq!(column_unit(MERGED, "chamber_setpoint"), Some("°C"));
     assert_eq!(column_unit(MERGED, "gyro_rate"), Some("rad/s"));
     assert_eq!(column_unit(MERGED, "record_window"), None);
+}
+
+fn parse(body: &str) -> Part {
+    let info = ChannelInfo {
+        id: 1,
+        topic: "/x".into(),
+        schema_name: String::new(),
+        schema_encoding: String::new(),
+        message_encoding: "json".into(),
+    };
+    let mut parts = Vec::new();
+    part(&mut parts, &Arc::new(info)).message(5, 6, 7, body.as_bytes());
+    parts.pop().expect("one part")
+}
+
+#[test]
+fn bodies_parse_into_cells_as_serde_json_values_flatten() {
+    // Members in body order, repeats kept; a nested object's members sorted and flattened
+    // with dots (as `serde_json::Map`), arrays as JSON text, integers above i64 apart.
+    let p = parse(
+        r#"{"b":1,"a":{"z":2,"y":[1,{"q":null}],"x":{}},"c":-5,"d":18446744073709551615,"e":"x\"\u00e9","b":2.5,"f":true,"g":null}"#,
+    );
+    assert!(p.bad.is_none(), "{:?}", p.bad);
+    let got: Vec<(&str, Cell)> =
+        p.cells.iter().map(|(k, c)| (&*p.keys[*k as usize], c.clone())).collect();
+    let want = vec![
+        ("b", Cell::Int(1)),
+        ("a.y", Cell::Json("[1,{\"q\":null}]".into())),
+        ("a.z", Cell::Int(2)),
+        ("c", Cell::Int(-5)),
+        ("d", Cell::Big(u64::MAX)),
+        ("e", Cell::Str("x\"é".into())),
+        ("b", Cell::Float(2.5)),
+        ("f", Cell::Bool(true)),
+        ("g", Cell::Null),
+    ];
+    assert_eq!(got, want);
+    assert_eq!((p.log, p.publish, p.sequence, p.row_end), (vec![5], vec![6], vec![7], vec![9]));
+    // Not an object, or trailing bytes: the decoder's words, no row.
+    for (body, words) in [("[1]", "expected a JSON object"), (r#"{"a":1} x"#, "trailing")] {
+        let p = parse(body);
+        let (at, _, _, detail) = p.bad.expect("bad");
+        assert!(at == 0 && detail.contains(words) && p.row_end.is_empty(), "{body}: {detail}");
+    }
 }
