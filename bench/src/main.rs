@@ -61,38 +61,8 @@ enum Command {
     Soak(cli::soak::SoakArgs),
 }
 
-/// Let a closed pipe end a printing command quietly, as it ends `ls` or `grep`: Rust ignores SIGPIPE, so a
-/// write to a pipe whose reader has gone (`bench info … | head`) returns EPIPE and `println!`
-/// panics. Restoring the default disposition makes the process end at that write instead.
-#[cfg(unix)]
-#[allow(unsafe_code)]
-fn default_sigpipe() {
-    // SAFETY: `signal` only sets the process's disposition for SIGPIPE to SIG_DFL; it takes no
-    // pointers and touches no Rust-managed memory. It runs first thing in `main`, before any
-    // thread exists, so no other thread can be racing on signal dispositions.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
-    }
-}
-
-#[cfg(not(unix))]
-fn default_sigpipe() {}
-
 fn main() -> ExitCode {
     let args = Args::parse();
-    // Only commands that read and print: a run, a replay or the simulators hold sockets whose
-    // peers may close, and must see EPIPE as an error (and finish their recording), not die.
-    if matches!(
-        args.command,
-        Command::Validate(_)
-            | Command::Info(_)
-            | Command::Model(_)
-            | Command::Ports(_)
-            | Command::Allan(_)
-            | Command::Completions { .. }
-    ) {
-        default_sigpipe();
-    }
     let result = match args.command {
         Command::Run(a) => cli::run::run(a, args.verbose),
         Command::Validate(a) => cli::validate::run(a),
@@ -111,7 +81,9 @@ fn main() -> ExitCode {
         Command::Allan(a) => cli::allan::run(a),
         Command::Completions { shell } => {
             use clap::CommandFactory as _;
-            clap_complete::generate(shell, &mut Args::command(), "bench", &mut std::io::stdout());
+            let mut script = Vec::new();
+            clap_complete::generate(shell, &mut Args::command(), "bench", &mut script);
+            cli::say::write(&String::from_utf8_lossy(&script));
             Ok(ExitCode::SUCCESS)
         }
     };

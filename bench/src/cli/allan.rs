@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench_analysis::allan_fit::{allan_fit, NoiseTerm};
 use bench_analysis::stats::line;
@@ -38,6 +39,10 @@ pub struct AllanArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 fn term(t: &NoiseTerm) -> serde_json::Value {
@@ -46,6 +51,10 @@ fn term(t: &NoiseTerm) -> serde_json::Value {
 
 /// Compute and print the deviation.
 pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.json.as_deref())?;
+    outputs.file(args.csv.as_deref())?;
     let rec = super::load_recording(&args.recording, args.quiet)?;
     let data = bench_report::load::load(&rec)
         .with_context(|| super::analysis_context(&rec, "read", &args.recording))?;
@@ -103,17 +112,17 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         format!("{}: the Allan deviation cannot be fitted", args.recording.display())
     })?;
     let (t0, t1) = (gt[0], gt[gt.len() - 1]);
-    println!(
+    say!(
         "{}: {what} {t0:.1}..{t1:.1} s, {} samples at {:.4} s, table rate {} °/s taken out",
         args.recording.display(),
         gr.len(),
         dt,
         display::sig(display::DEG_PER_S.of(table_rate), 6)
     );
-    println!("| τ | ADEV | terms |");
-    println!("| --- | --- | --- |");
+    say!("| τ | ADEV | terms |");
+    say!("| --- | --- | --- |");
     for p in &curve {
-        println!(
+        say!(
             "| {} s | {} °/h | {} |",
             bench_report::display::sig(p.tau_s, 4),
             display::sig(display::RATE.of(p.adev), 4),
@@ -121,7 +130,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
         );
     }
     let bound = |t: &NoiseTerm| if t.upper_bound { "≤ " } else { "" };
-    println!(
+    say!(
         "N (ARW) = {}{:.3e} °/√h [{:.3e}, {:.3e}], B = {}{:.3e} °/h (floor {:.3e} °/h), K = {}{:.3e} °/h/√h (95 %)",
         bound(&fit.arw),
         display::ARW.of(fit.arw.value),

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use super::exit::Exit;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench_analysis::joint_fit::Estimator;
 use bench_physics::ModelKey;
@@ -55,16 +56,24 @@ pub struct CalibrateArgs {
     /// too, as `bench verify` does (in the report, the JSON and the exit code).
     #[arg(long, value_name = "RECORDING")]
     pub verify: Option<PathBuf>,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Calibrate and write the outputs.
 pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
     let settings = CalibrateSettings {
         reference_temperature_c: args.reference_temperature_c,
         replicates: args.replicates,
         no_lag: args.no_lag,
         priors: args.priors.clone(),
     };
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.dir(&args.out)?;
+    outputs.file(args.json.as_deref())?;
     let started = std::time::Instant::now();
     let rec = super::load_recording(&args.recording, args.quiet)?;
     let working = bench::progress::Working::new(
@@ -82,16 +91,15 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     for m in &cal.missing {
         eprintln!("note: {m}");
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    outputs.prepare()?;
 
-    println!(
+    say!(
         "{name}: {} record windows, T0 = {} °C",
         cal.windows.len(),
         cal.options.reference_temperature_c
     );
     if let Ok(a) = &cal.allan {
-        println!(
+        say!(
             "noise: N = {} °/√h, B = {} °/h (floor {} °/h), K = {}{} °/h/√h",
             display::sig(a.fit.arw_deg_per_sqrt_h().value, 3),
             display::sig(a.fit.bias_instability_deg_per_h().value, 3),
@@ -101,7 +109,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if let Ok(j) = &cal.joint {
-        println!(
+        say!(
             "joint fit: {}{}",
             j.estimator.as_str().to_uppercase(),
             if j.whitened_residual_rms.is_finite() {
@@ -112,10 +120,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if let Some(Ok(a)) = &cal.angle {
-        println!(
+        say!(
             "angle-domain fit: GLS on {} angle misclosures over {} stretches (whitened residual \
              RMS {:.3})",
-            a.readings, a.stretches, a.whitened_residual_rms
+            a.readings,
+            a.stretches,
+            a.whitened_residual_rms
         );
     }
     let poor = out.quality.poor();
@@ -132,9 +142,9 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             args.recording.display()
         );
     } else if out.quality.checks.is_empty() || !out.quality.block_threshold.is_finite() {
-        println!("fit: not checked (the joint fit gave nothing to check)");
+        say!("fit: not checked (the joint fit gave nothing to check)");
     } else {
-        println!(
+        say!(
             "fit: {} ({} checks passed; no residual block beyond {:.2}σ)",
             if cal.incomplete() { "the coefficients estimated fit" } else { "sound" },
             out.quality.checks.len(),
@@ -153,12 +163,10 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     }
     let model_label = if out.truth.is_some() { "simulator's truth" } else { "recording's model" };
     if poor {
-        println!("(poor fit: values for inspection only)");
+        say!("(poor fit: values for inspection only)");
     }
-    println!(
-        "| coefficient | rate domain ± 1σ | angle domain ± 1σ | seed method | {model_label} |"
-    );
-    println!("| --- | --- | --- | --- | --- |");
+    say!("| coefficient | rate domain ± 1σ | angle domain ± 1σ | seed method | {model_label} |");
+    say!("| --- | --- | --- | --- | --- |");
     let seed = cal.seed.as_ref().ok();
     let joint = cal.joint.as_ref().ok();
     let angle = cal.angle.as_ref().and_then(|a| a.as_ref().ok());
@@ -186,7 +194,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
                 pm(angle.map(|a| a.estimates()[j]).map(|e| (e.value, e.std_err))),
             ),
         };
-        println!(
+        say!(
             "| {} | {rate} | {ang} | {} | {} |",
             key.key(),
             one(seed.and_then(|s| s.coefficient(key))),
@@ -195,7 +203,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(t) = &out.truth {
         if let (Some(j), Some(s)) = (t.joint_removal, t.seed_removal) {
-            println!(
+            say!(
                 "thermal error removed over the run: joint {:.1} %, seed method {:.1} %",
                 100.0 * j.removed(),
                 100.0 * s.removed()
@@ -205,7 +213,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
 
     if let Some(c) = &out.compensation {
         for l in bench_report::verify::summary_lines(c) {
-            println!("this run: {l}");
+            say!("this run: {l}");
         }
     }
     if let Some(path) = &args.verify {
@@ -215,9 +223,9 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
             let vrec = super::load_recording(path, args.quiet)?;
             let v = bench_report::verify::verify_recording(&vrec, &model_file)
                 .with_context(|| format!("cannot verify on {}", path.display()))?;
-            println!("verification on {}: {}", path.display(), v.verdict.text());
+            say!("verification on {}: {}", path.display(), v.verdict.text());
             for l in bench_report::verify::summary_lines(&v.compensation) {
-                println!("verification: {l}");
+                say!("verification: {l}");
             }
             let vname = path
                 .file_name()
@@ -237,7 +245,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         let file = calibration_file(&out, model, &name, poor);
         let path = args.out.join("calibration.toml");
         file.save(&path)?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     } else if out.model.is_some() {
         eprintln!(
             "no calibration file: the fit is poor (see above); --keep-poor-fit writes it anyway"
@@ -251,11 +259,11 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;
-        println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
+        say!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
     if !args.quiet {
         eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
@@ -343,7 +351,7 @@ fn print_acceptance(a: &bench_report::acceptance::Acceptance) {
         .filter_map(|k| a.station.get(*k).map(|v| format!("{} {v}", k.replace('_', " "))))
         .collect();
     if !who.is_empty() {
-        println!("{}", who.join(", "));
+        say!("{}", who.join(", "));
     }
     for p in &a.problems {
         eprintln!("note: {p}");
@@ -364,12 +372,12 @@ fn print_acceptance(a: &bench_report::acceptance::Acceptance) {
             }
             _ => "not estimated".to_string(),
         };
-        println!(
+        say!(
             "acceptance {}: {shown} vs limit {}: {}",
             c.key,
             display::si_value(u, c.limit, 4),
             c.judgement.key()
         );
     }
-    println!("acceptance: {}", a.result.key().to_uppercase());
+    say!("acceptance: {}", a.result.key().to_uppercase());
 }

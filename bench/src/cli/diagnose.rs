@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use super::exit::Exit;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::ModelKey;
@@ -56,6 +57,10 @@ pub struct DiagnoseArgs {
     /// `scan.json`) for `scripts/diagnose_numpy.py`.
     #[arg(long, value_name = "DIR", requires = "scan_only")]
     pub scan_inputs: Option<PathBuf>,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The family check and rate dependence of each finding, the effects not named for their
@@ -66,7 +71,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
         let strongest = c.strongest.as_ref().map_or(String::new(), |m| {
             format!("; strongest: {} (Wald {:.1}, threshold {:.1})", m.name, m.wald, m.threshold)
         });
-        println!(
+        say!(
             "  {} family check ({}, {} members): {}{strongest}; size moves {:.1}σ when it is freed",
             f.effect.key(),
             c.family,
@@ -75,7 +80,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
             c.size_change_z
         );
         if let Some(r) = &f.rate_dependence {
-            println!(
+            say!(
                 "  {} at {} cycles/rev belongs to the {}: rate-independent Wald {:.1}, \
                  ∝ table rate Wald {:.1} (threshold {:.1}, each with the other in)",
                 f.effect.key(),
@@ -93,7 +98,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
         }
     }
     for c in d.identifiability().iter().filter(|c| c.effect_accepted) {
-        println!(
+        say!(
             "  {} and {} are nearly collinear on this recording (ρ = {:.3}, σ ×{:.1})",
             c.effect.key(),
             c.with_name(),
@@ -102,7 +107,7 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
         );
     }
     for c in bench_report::diagnose::verdict_caveats(d) {
-        println!("caveat: {c}");
+        say!("caveat: {c}");
     }
 }
 
@@ -119,7 +124,7 @@ fn suggest_scenario(
     let latitude_deg = match rec.site().ok().flatten() {
         Some(site) => site.latitude_deg,
         None => {
-            println!("the recording has no site: the suggestion assumes latitude 45°");
+            say!("the recording has no site: the suggestion assumes latitude 45°");
             45.0
         }
     };
@@ -129,13 +134,13 @@ fn suggest_scenario(
         temp_range_c: (lo, hi),
     };
     let Some(mut s) = bench::suggest::suggest(d, &facts)? else {
-        println!("no terms are confounded on this recording: no scenario suggested");
+        say!("no terms are confounded on this recording: no scenario suggested");
         return Ok(());
     };
     bench::suggest::predict(&mut s, 1)?;
     std::fs::write(path, &s.text).with_context(|| format!("cannot write {}", path.display()))?;
     for w in &s.why {
-        println!("suggested: {w}");
+        say!("suggested: {w}");
     }
     for t in &s.targets {
         let unit = display::for_si(t.before.unit);
@@ -144,7 +149,7 @@ fn suggest_scenario(
         };
         // A pair the suggestion does not improve is said to stay confounded.
         let worse = t.after.as_ref().is_some_and(|a| a.sigma >= t.before.sigma && a.rho >= 0.9);
-        println!(
+        say!(
             "  {} vs {}: {} on this recording → {} on the suggested run{}",
             t.before.effect.key(),
             t.before.with_name(),
@@ -153,13 +158,22 @@ fn suggest_scenario(
             if worse { " (not separated by it)" } else { "" }
         );
     }
-    println!("wrote {} (bench validate passes; run it with `bench run`)", path.display());
+    say!("wrote {} (bench validate passes; run it with `bench run`)", path.display());
     Ok(())
 }
 
 /// Diagnose and write the outputs. Exit code 0 for `consistent`, 6 for `parameters_only`,
 /// 7 for `missing_physics` ([`Exit`]).
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.json.as_deref())?;
+    match &args.scan_inputs {
+        Some(dir) => outputs.dir(dir)?,
+        None if !args.scan_only => outputs.dir(&args.out)?,
+        None => {}
+    }
+    outputs.file(args.suggest_scenario.as_deref())?;
     let started = std::time::Instant::now();
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let opts = DiagnoseOptions {
@@ -170,7 +184,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     };
     let rec = super::load_recording(&args.recording, args.quiet)?;
     if args.scan_only {
-        return scan_only(&args, nominal, &opts, &rec, started);
+        return scan_only(&args, nominal, &opts, &rec, started, outputs);
     }
     let working = bench::progress::Working::new(
         &format!("diagnosing {}", args.recording.display()),
@@ -184,20 +198,20 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         .file_name()
         .map_or_else(|| args.recording.display().to_string(), |n| n.to_string_lossy().into_owned());
     let d = &out.diagnosis;
-    println!("{name}: verdict {} (nominal model: {})", d.verdict.key(), out.nominal.2);
+    say!("{name}: verdict {} (nominal model: {})", d.verdict.key(), out.nominal.2);
     let rms = |v: f64| display::si_value(display::RATE, v, 3);
-    println!(
+    say!(
         "residual RMS of {} bins: nominal {}, parameters refitted {}, with effects {}",
         display::si_value(display::SECONDS, opts.bin_s, 3),
         rms(d.rms.nominal),
         rms(d.rms.before),
         rms(d.rms.after)
     );
-    println!("| parameter | nominal | fitted ± 1σ | z |");
-    println!("| --- | --- | --- | --- |");
+    say!("| parameter | nominal | fitted ± 1σ | z |");
+    say!("| --- | --- | --- | --- |");
     for u in &d.parameter_updates {
         let unit = display::model_key_unit(u.key);
-        println!(
+        say!(
             "| {} | {} | {} | {} |",
             u.key.key(),
             display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name),
@@ -217,7 +231,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
                 )
             })
             .collect();
-        println!(
+        say!(
             "found {}: {} (ΔBIC {}, RMS {} → {}) — {}",
             f.effect.key(),
             params.join(", "),
@@ -236,7 +250,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
                 format!("{}–{}", display::sig(*a, 5), display::si_value(display::SECONDS, *b, 5))
             })
             .collect();
-        println!(
+        say!(
             "unexplained: {} window(s) ({}), RMS {}, correlates with {}",
             u.windows_s.len(),
             windows.join(", "),
@@ -245,14 +259,13 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if let Some(r) = &out.resimulated {
-        println!(
+        say!(
             "re-simulated with the updated model: residual RMS {}, verdict {}",
             rms(r.rms.nominal),
             r.verdict.key()
         );
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    outputs.prepare()?;
     let sigma = |key: ModelKey| {
         d.parameter_updates.iter().find(|u| u.key == key).map(|u| u.sigma).filter(|s| s.is_finite())
     };
@@ -276,18 +289,18 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     };
     let path = args.out.join("model.toml");
     file.save(&path)?;
-    println!("wrote {}", path.display());
+    say!("wrote {}", path.display());
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&json::to_json(&out, &name))?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     if let Some(path) = &args.suggest_scenario {
         suggest_scenario(d, &rec, &name, path)?;
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;
-        println!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
+        say!("wrote {} and {} PNG figures", files.html.display(), files.pngs.len());
     }
     if !args.quiet {
         eprintln!("done in {:.2} s", started.elapsed().as_secs_f64());
@@ -316,6 +329,7 @@ fn scan_only(
     opts: &DiagnoseOptions,
     rec: &bench_recording::Recording,
     started: std::time::Instant,
+    mut outputs: super::outputs::Outputs,
 ) -> anyhow::Result<ExitCode> {
     let read_s = started.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
@@ -353,16 +367,16 @@ fn scan_only(
         "best": best,
     });
     if !args.quiet {
-        println!(
+        say!(
             "residual scan of {}: {} samples, {} bins, {threads} thread(s)",
             args.recording.display(),
             scan.samples,
             scan.bins
         );
-        println!("| effect | grid values | best value | Wald | ΔRSS (rad/s)² |");
-        println!("| --- | --- | --- | --- | --- |");
+        say!("| effect | grid values | best value | Wald | ΔRSS (rad/s)² |");
+        say!("| --- | --- | --- | --- | --- |");
         for b in &scan.best {
-            println!(
+            say!(
                 "| {} | {} | {} | {:.3} | {:.6e} |",
                 b.effect.key(),
                 b.grid_values,
@@ -371,7 +385,7 @@ fn scan_only(
                 b.delta_rss
             );
         }
-        println!(
+        say!(
             "time: read {read_s:.3} s, load {load_s:.3} s, prepare {:.3} s, scan {:.3} s \
              (CPU of prepare and scan, every thread: {})",
             scan.prepare_s,
@@ -379,12 +393,12 @@ fn scan_only(
             cpu_s.map_or("unknown".into(), |c| format!("{c:.2} s"))
         );
     }
+    outputs.prepare()?;
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&out)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(dir) = &args.scan_inputs {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for (name, values) in &scan.inputs.arrays {
             let path = dir.join(format!("{name}.npy"));
             std::fs::write(&path, bench_report::npy::npy_f64(values))

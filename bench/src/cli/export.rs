@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::say::{asked, say};
 use anyhow::Context as _;
 use bench_recording::export::Format;
 
@@ -38,11 +39,20 @@ pub struct ExportArgs {
     /// Print nothing (errors aside).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Export and list the tables written.
 pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
     let out = args.out.clone().unwrap_or_else(|| args.recording.with_extension(""));
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.dir(&out)?;
+    outputs.file(args.json.as_deref())?;
+    outputs.prepare()?;
     let format = match args.format {
         FormatArg::Csv => Format::Csv,
         FormatArg::Parquet => Format::Parquet,
@@ -50,15 +60,15 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let report =
         bench_recording::export::export_file_with(&args.recording, &out, format, args.merged)
             .with_context(|| format!("cannot export {}", args.recording.display()))?;
-    if !args.quiet && args.json.as_deref() != Some(std::path::Path::new("-")) {
+    if args.json.as_deref() != Some(std::path::Path::new("-")) {
         for t in &report.tables {
-            println!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
+            say!("{:<16} {:>9} rows  {}", t.topic, t.rows, t.path.display());
         }
         for (topic, enc) in &report.skipped {
-            println!("{topic:<16} skipped: message encoding `{enc}` is not json");
+            say!("{topic:<16} skipped: message encoding `{enc}` is not json");
         }
         if let Some((at, reason)) = &report.cut {
-            println!("the recording is cut at byte {at} ({reason}): exported up to there");
+            say!("the recording is cut at byte {at} ({reason}): exported up to there");
         }
     }
     if let Some(path) = &args.json {
@@ -74,7 +84,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         });
         let text = serde_json::to_string_pretty(&v)?;
         if path.as_os_str() == "-" {
-            println!("{text}");
+            asked!("{text}");
         } else {
             std::fs::write(path, text)
                 .with_context(|| format!("cannot write {}", path.display()))?;

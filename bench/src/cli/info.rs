@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::say::asked;
 use anyhow::Context as _;
 use bench_recording::{ChannelReport, End, Gap, RecordingInfo};
 use serde_json::{json, Value};
@@ -18,6 +19,10 @@ pub struct InfoArgs {
     /// No text report on stdout (with `--json FILE`).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 fn gaps(g: &[Gap]) -> Value {
@@ -127,18 +132,20 @@ pub fn to_json(info: &RecordingInfo) -> Value {
 
 /// Print duration, channels with counts and rates, gaps, steps, metadata and outcome.
 pub fn run(args: InfoArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    super::outputs::Outputs::new(args.force).file(args.json.as_deref())?;
     let info = bench_recording::info(&args.recording)
         .with_context(|| format!("cannot read {}", args.recording.display()))?;
     match &args.json {
         Some(p) if p.as_os_str() == "-" => {
-            println!("{}", serde_json::to_string_pretty(&to_json(&info))?);
+            asked!("{}", serde_json::to_string_pretty(&to_json(&info))?);
             return Ok(ExitCode::SUCCESS);
         }
         Some(p) => super::write_json(p, &to_json(&info))?,
         None => {}
     }
     if !args.quiet {
-        print!("{info}");
+        super::say::write(&info.to_string());
     }
     Ok(ExitCode::SUCCESS)
 }

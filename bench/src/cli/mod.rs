@@ -8,15 +8,18 @@ pub mod export;
 pub mod info;
 pub mod model;
 pub mod monte_carlo;
+pub mod outputs;
 pub mod ports;
 pub mod recover;
 pub mod replay;
 pub mod run;
+pub mod say;
 pub mod sim;
 pub mod soak;
 pub mod validate;
 pub mod verify;
 
+use say::say;
 use tracing_subscriber::EnvFilter;
 
 /// The terminal log layer: warnings and errors by default, more with `-v`; `RUST_LOG` wins.
@@ -79,14 +82,14 @@ pub(crate) fn write_served_config(
 
 /// Print the ports of served devices, one per line.
 pub(crate) fn print_endpoints(e: &bench_sim::serve::bench::ServedEndpoints) {
-    println!("  table    Actidyn  {}", e.table_actidyn_pty);
-    println!("  table    Actidyn  {}", e.table_actidyn_tcp);
-    println!("  table    ACUTROL  {}", e.table_acutrol_tcp);
-    println!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
-    println!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
-    println!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
-    println!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
-    println!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
+    say!("  table    Actidyn  {}", e.table_actidyn_pty);
+    say!("  table    Actidyn  {}", e.table_actidyn_tcp);
+    say!("  table    ACUTROL  {}", e.table_acutrol_tcp);
+    say!("  chamber  Modbus RTU ({:?})  {}", e.chamber_preset, e.chamber_rtu);
+    say!("  chamber  Modbus TCP ({:?})  {}", e.chamber_preset, e.chamber_tcp);
+    say!("  gyro     SLCAN (bench CAN frames)  {}", e.gyro_slcan.path);
+    say!("  gyro     KVH 1750 format A         {}", e.gyro_kvh1750.path);
+    say!("  gyro     KVH DSP-3000 binary        {}", e.gyro_dsp3000.path);
 }
 
 /// Write `value` as pretty JSON to `path`.

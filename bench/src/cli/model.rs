@@ -6,6 +6,7 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
@@ -31,6 +32,10 @@ pub struct ModelArgs {
     /// Say nothing on success.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Whether the file at `path` starts like an MCAP file.
@@ -96,6 +101,10 @@ pub fn load_nominal(path: &Path) -> anyhow::Result<(GyroModel, Effects, String)>
 
 /// Write the recording's model out.
 pub fn run(args: ModelArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.out.as_deref())?;
+    outputs.file(args.json.as_deref())?;
     let meta = recorded_metadata(&args.recording)?;
     let (model, effects) = recorded_model(&args.recording)?;
     let name = args
@@ -116,15 +125,15 @@ pub fn run(args: ModelArgs) -> anyhow::Result<ExitCode> {
         Some(path) => {
             file.save(path)?;
             if !args.quiet {
-                println!("wrote {}", path.display());
+                say!("wrote {}", path.display());
             }
         }
-        None => print!("{}", file.to_toml()),
+        None => super::say::write(&file.to_toml()),
     }
     if let Some(path) = &args.json {
         super::write_json(path, &serde_json::json!({ META_GYRO_MODEL: meta }))?;
         if !args.quiet && args.out.is_some() {
-            println!("wrote {}", path.display());
+            say!("wrote {}", path.display());
         }
     }
     Ok(ExitCode::SUCCESS)

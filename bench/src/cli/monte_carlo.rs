@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench::study;
 use bench_physics::ModelKey;
@@ -45,6 +46,10 @@ pub struct MonteCarloArgs {
     /// this directory as `seed-N.mcap`.
     #[arg(long, requires = "diagnose")]
     pub keep: Option<PathBuf>,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Display unit (name, SI value of one unit) of a coefficient named by its key.
@@ -59,9 +64,11 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
     let started = std::time::Instant::now();
     let nominal = args.model.as_deref().map(super::model::load_nominal).transpose()?;
     let lab = args.lab.then(bench::study::lab::LabTraits::lab);
+    let mut outputs = super::outputs::Outputs::new(args.force);
     if let Some(dir) = &args.keep {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        outputs.dir(dir)?;
     }
+    outputs.prepare()?;
     let study = study::diagnose::run(
         &args.scenario,
         args.first_seed,
@@ -83,7 +90,7 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
         },
     )?;
     let truth: Vec<&str> = study.truth.ids().iter().map(|e| e.key()).collect();
-    println!(
+    say!(
         "{} seeds of {}{} in {:.0} s; concealed truth: [{}]",
         study.seeds.len(),
         args.scenario.display(),
@@ -91,31 +98,32 @@ fn run_diagnose(args: &MonteCarloArgs, jobs: usize) -> anyhow::Result<ExitCode> 
         started.elapsed().as_secs_f64(),
         truth.join(", ")
     );
-    println!("| figure | value |");
-    println!("| --- | --- |");
-    println!("| false-discovery rate | {:.1} % |", 100.0 * study.false_discovery_rate());
-    println!(
+    say!("| figure | value |");
+    say!("| --- | --- |");
+    say!("| false-discovery rate | {:.1} % |", 100.0 * study.false_discovery_rate());
+    say!(
         "| … false findings (an effect not in the truth) | {:.1} % |",
         100.0 * study.false_finding_rate()
     );
-    println!("| … seeds with unexplained windows | {:.1} % |", 100.0 * study.unexplained_rate());
-    println!("| exactly the truth's effects named | {:.1} % |", 100.0 * study.exact_rate());
+    say!("| … seeds with unexplained windows | {:.1} % |", 100.0 * study.unexplained_rate());
+    say!("| exactly the truth's effects named | {:.1} % |", 100.0 * study.exact_rate());
     let [c, p, m] = study.verdict_rates();
-    println!(
+    say!(
         "| verdicts: consistent / parameters_only / missing_physics | {:.0} / {:.0} / {:.0} % |",
         100.0 * c,
         100.0 * p,
         100.0 * m
     );
     if !truth.is_empty() {
-        println!("| fitted parameters within 3σ | {:.1} % |", 100.0 * study.within_3_sigma());
+        say!("| fitted parameters within 3σ | {:.1} % |", 100.0 * study.within_3_sigma());
     }
-    println!("| median diagnosis time | {:.2} s |", study.median_seconds());
+    say!("| median diagnosis time | {:.2} s |", study.median_seconds());
     Ok(ExitCode::SUCCESS)
 }
 
 /// Run the study and print the accuracy table.
 pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
+    super::outputs::Outputs::new(args.force).file(args.json.as_deref())?;
     let jobs =
         args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if args.diagnose {
@@ -148,15 +156,15 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
             )
         },
     )?;
-    println!(
+    say!(
         "{} seeds of {}{} in {:.0} s\n",
         mc.seeds.len(),
         args.scenario.display(),
         if mc.lab { " with a lab's traits" } else { "" },
         started.elapsed().as_secs_f64()
     );
-    println!("| coefficient | estimator | RMS error | RMS σ | 95 % coverage | mean z |");
-    println!("| --- | --- | --- | --- | --- | --- |");
+    say!("| coefficient | estimator | RMS error | RMS σ | 95 % coverage | mean z |");
+    say!("| --- | --- | --- | --- | --- | --- |");
     for c in &mc.coefficients {
         let (u, s) = unit(&c.key);
         for e in &c.estimators {
@@ -173,7 +181,7 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
                 }
             };
             let z = if e.mean_z.is_finite() { format!("{:+.2}", e.mean_z) } else { "—".into() };
-            println!(
+            say!(
                 "| {} | {} | {} | {} | {} | {} |",
                 c.key,
                 e.estimator,
@@ -186,12 +194,12 @@ pub fn run(args: MonteCarloArgs) -> anyhow::Result<ExitCode> {
     }
     let (a, b, c) = mc.joint_removed;
     let (d, e, f) = mc.seed_removed;
-    println!(
+    say!(
         "\nthermal error removed (min / median / max): rate-domain GLS {:.1} / {:.1} / {:.1} %, seed \
          method {:.1} / {:.1} / {:.1} %",
         100.0 * a, 100.0 * b, 100.0 * c, 100.0 * d, 100.0 * e, 100.0 * f
     );
-    println!(
+    say!(
         "fits judged poor by bench calibrate: {} of {} (on a scenario without concealed physics, \
          its false alarms)",
         mc.fits_poor,

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use super::say::say;
 use serde_json::json;
 
 /// Arguments of `bench ports`.
@@ -84,12 +85,12 @@ pub fn describe(port: &str, usb: Option<&UsbInfo>) -> String {
 pub fn run(args: PortsArgs) -> anyhow::Result<ExitCode> {
     let ports = bench_drivers::transport::list_serial_ports()?;
     if ports.is_empty() {
-        println!("no serial ports found (pseudo-terminals of `bench sim serve` are not listed)");
+        say!("no serial ports found (pseudo-terminals of `bench sim serve` are not listed)");
     }
     let mut list = Vec::new();
     for p in &ports {
         let usb = usb_info(&args.sysfs, p);
-        println!("{}", describe(p, usb.as_ref()));
+        say!("{}", describe(p, usb.as_ref()));
         list.push(json!({
             "port": p,
             "usb": usb.map(|u| json!({"vid": u.vid, "pid": u.pid, "serial": u.serial, "manufacturer": u.manufacturer, "product": u.product})),

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::say::say;
 use anyhow::Context as _;
 
 /// Arguments of `bench recover`.
@@ -26,6 +27,7 @@ pub struct RecoverArgs {
 /// Copy every complete record into a fresh indexed file; say how much was kept and where the
 /// input broke.
 pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
     if args.output.exists() && args.input.canonicalize().ok() == args.output.canonicalize().ok() {
         let e = super::exit::UsageError(format!(
             "{} is both the input and the output: recover into a new file",
@@ -33,16 +35,14 @@ pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
         ));
         return Err(e.into());
     }
-    anyhow::ensure!(
-        args.force || !args.output.exists(),
-        "{} exists: recover into a new file, or pass --force to overwrite it",
-        args.output.display()
-    );
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(Some(&args.output))?;
+    outputs.file(args.json.as_deref())?;
     let report = bench_recording::recover::recover_file(&args.input, &args.output)
         .with_context(|| format!("cannot recover {}", args.input.display()))?;
     if !args.quiet {
-        print!("{report}");
-        println!("written to {}", args.output.display());
+        super::say::write(&report.to_string());
+        say!("written to {}", args.output.display());
     }
     if let Some(path) = &args.json {
         let j = serde_json::json!({

@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::say::say;
 use bench::bench_config::for_served_bench;
 use bench::live_view::LiveView;
 use bench::replay::ReplayData;
@@ -81,16 +82,16 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 e,
                 &cfg,
             )?;
-            println!(
+            say!(
                 "replaying {} ({:.1} s of bench time) at {}× real time",
                 args.recording.display(),
                 d.duration().as_secs_f64(),
                 args.speed
             );
             super::print_endpoints(e);
-            println!("bench config written to {}; Ctrl-C stops", args.config_out.display());
+            say!("bench config written to {}; Ctrl-C stops", args.config_out.display());
             if !clock.is_started() {
-                println!(
+                say!(
                     "held at the first sample until the first request to the table or chamber \
                      (--start-now starts at once)"
                 );
@@ -111,13 +112,13 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
         tokio::select! {
             r = player => {
                 let n = r?;
-                println!(
+                say!(
                     "recording ended at {:.1} s of bench time{}",
                     shared.now().as_secs_f64(),
                     if live.is_some() { format!(" ({n} messages shown)") } else { String::new() }
                 );
                 if served.is_some() {
-                    println!("serving the last readings; Ctrl-C stops");
+                    say!("serving the last readings; Ctrl-C stops");
                     tokio::signal::ctrl_c().await?;
                 }
             }

@@ -7,6 +7,7 @@ use std::time::Duration;
 use super::exit::Exit;
 use std::sync::Arc;
 
+use super::say::{asked, say};
 use anyhow::Context as _;
 use bench::bench_config::{BenchConfig, BenchSource, ReplayBenchConfig};
 use bench::plan::RunPlan;
@@ -149,6 +150,7 @@ fn load_plan(path: &Path, caps: &Capabilities) -> anyhow::Result<Option<RunPlan>
 
 /// Run on the embedded simulated bench, or on the bench a config describes.
 pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
     args.recording_options()?;
     if let Some(scale) = args.time_scale {
         anyhow::ensure!(
@@ -156,12 +158,10 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
             "--time-scale must be a positive number, got {scale}"
         );
     }
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.out.as_deref())?;
+    outputs.file(args.json.as_deref())?;
     let out = match &args.out {
-        Some(out) if out.exists() && !args.force => anyhow::bail!(
-            "{} exists: bench does not overwrite a recording (--force does, or choose another \
-             --out)",
-            out.display()
-        ),
         Some(out) => out.clone(),
         None => {
             let stem = args.scenario.file_stem().map(|s| s.to_os_string()).unwrap_or_default();
@@ -211,7 +211,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     };
     let to_stdout = args.json.as_deref() == Some(Path::new("-"));
     if !to_stdout {
-        println!(
+        say!(
             "{}: {} — {} of bench time in {:.2} s wall ({:.0}× real time), {} gyro samples, \
              peak RSS {}",
             out.display(),
@@ -236,7 +236,7 @@ pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
         });
         let text = serde_json::to_string_pretty(&v)?;
         if to_stdout {
-            println!("{text}");
+            asked!("{text}");
         } else {
             std::fs::write(path, text)
                 .with_context(|| format!("cannot write {}", path.display()))?;
@@ -451,7 +451,7 @@ fn run_on_replay(
     let (report, writer) = bench::runner::run(&plan, Bench::Replay(data), writer, opts)?;
     finish_file(writer, out, paced)?;
     if let Some(c) = report.replay {
-        println!(
+        say!(
             "replay of {}: {} table command(s), {} disagreeing with the recording; {} chamber \
              target(s), {} disagreeing",
             rec.display(),

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use super::say::say;
 use anyhow::Context as _;
 use bench::bench_config::for_served_bench;
 use bench_drivers::{Clock, SystemClock};
@@ -84,14 +85,14 @@ fn serve(args: ServeArgs) -> anyhow::Result<ExitCode> {
             &bench,
         )?;
         let control = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
-        println!("simulated bench at {}× real time (seed {})", args.time_scale, args.seed);
+        say!("simulated bench at {}× real time (seed {})", args.time_scale, args.seed);
         super::print_endpoints(e);
-        println!("  faults   JSON lines on tcp {}", control.local_addr()?);
-        println!(
+        say!("  faults   JSON lines on tcp {}", control.local_addr()?);
+        say!(
             "           e.g. {{\"device\":\"table\",\"fault\":\"silence\"}}, \
              {{\"device\":\"gyro\",\"fault\":\"drop\",\"every\":10}}, {{\"device\":\"table\",\"clear\":true}}"
         );
-        println!("bench config written to {}; Ctrl-C stops", args.config_out.display());
+        say!("bench config written to {}; Ctrl-C stops", args.config_out.display());
         let faults = served.faults.clone();
         tokio::select! {
             r = control_loop(control, faults) => r?,

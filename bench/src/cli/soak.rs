@@ -11,6 +11,7 @@ use bench::soak::{FaultOutcome, SoakOptions, SoakReport};
 use bench_report::display;
 
 use super::exit::Exit;
+use super::say::{asked, say};
 
 /// Arguments of `bench soak`.
 #[derive(clap::Args, Debug)]
@@ -46,10 +47,21 @@ pub struct SoakArgs {
     /// No line per segment.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Run `bench soak`.
 pub fn run(args: SoakArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.json.as_deref())?;
+    if let Some(dir) = &args.keep {
+        outputs.dir(dir)?;
+    }
+    outputs.prepare()?;
     anyhow::ensure!(
         args.hours.is_finite() && args.hours > 0.0 && args.hours <= 24.0 * 365.0,
         "--hours must be a positive number of hours, got {}",
@@ -122,7 +134,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(path) = &args.json {
         if to_stdout {
-            println!("{}", serde_json::to_string_pretty(&report)?);
+            asked!("{}", serde_json::to_string_pretty(&report)?);
         } else {
             super::write_json(path, &report)?;
         }
@@ -131,7 +143,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn print_summary(r: &SoakReport) {
-    println!(
+    say!(
         "soak (seed {}): {:.2} h of bench time in {:.0} s wall ({:.0}× real time; asked {}×), {} \
          segment(s) of \"{}\"",
         r.seed,
@@ -142,19 +154,33 @@ fn print_summary(r: &SoakReport) {
         r.segments.len(),
         r.scenario
     );
-    println!(
+    say!(
         "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>6}",
-        "channel", "sent", "recorded", "dropped", "silenced", "corrupted", "outside", "lost"
+        "channel",
+        "sent",
+        "recorded",
+        "dropped",
+        "silenced",
+        "corrupted",
+        "outside",
+        "lost"
     );
     for c in &r.channels {
         let sent = c.sent.map_or("-".to_string(), |s| s.to_string());
-        println!(
+        say!(
             "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>6}",
-            c.topic, sent, c.recorded, c.dropped, c.silenced, c.corrupted, c.outside_run, c.lost
+            c.topic,
+            sent,
+            c.recorded,
+            c.dropped,
+            c.silenced,
+            c.corrupted,
+            c.outside_run,
+            c.lost
         );
     }
     let count = |o: FaultOutcome| r.faults.iter().filter(|f| f.outcome == o).count();
-    println!(
+    say!(
         "  faults: {} injected — {} recovered, {} aborted by design, {} overtaken by another's \
          abort, {} unexpected",
         r.faults.len(),
@@ -167,7 +193,7 @@ fn print_summary(r: &SoakReport) {
     let bounds = m
         .slope_bounds_mib_per_h
         .map_or(String::new(), |(lo, hi)| format!(" [{lo:+.2}, {hi:+.2}] at 95 %"));
-    println!(
+    say!(
         "  memory: RSS {:.1} → {:.1} MiB, peak {:.1} MiB, slope over {:.2}–{:.2} h {}{bounds} \
          (limit {} MiB/h): {}",
         m.start_mib,
@@ -180,13 +206,13 @@ fn print_summary(r: &SoakReport) {
         m.verdict
     );
     if !m.note.is_empty() {
-        println!("    ({})", m.note);
+        say!("    ({})", m.note);
     }
     if r.passed {
-        println!("  passed");
+        say!("  passed");
     } else {
         for p in &r.problems {
-            println!("  FAILED: {p}");
+            say!("  FAILED: {p}");
         }
     }
 }

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use super::exit::Exit;
 
+use super::say::say;
 use bench::bench_config::{BenchSource, ConfigError};
 use bench::scenario::{Capabilities, LoadError};
 use serde_json::json;
@@ -27,6 +28,10 @@ pub struct ValidateArgs {
     /// Print only errors.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Print every problem of a bench config, located; the exit code.
@@ -79,6 +84,8 @@ fn capabilities(args: &ValidateArgs) -> anyhow::Result<Result<(Capabilities, Str
 
 /// Validate; print every problem as `file:line:column: message`. Exit 3 if invalid.
 pub fn run(args: ValidateArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    super::outputs::Outputs::new(args.force).file(args.json.as_deref())?;
     let (caps, against) = match capabilities(&args)? {
         Ok(c) => c,
         Err(code) => return Ok(code),
@@ -92,7 +99,7 @@ pub fn run(args: ValidateArgs) -> anyhow::Result<ExitCode> {
                 .count();
             let estimate = plan.estimate();
             if !args.quiet {
-                println!(
+                say!(
                     "{}: ok against {against} — {} steps ({} record windows), about {} of bench \
                      time, gyro at {} Hz",
                     args.scenario.display(),

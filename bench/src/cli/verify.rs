@@ -11,6 +11,7 @@ use bench_report::verify::{
 };
 
 use super::exit::Exit;
+use super::say::say;
 
 /// Arguments of `bench verify`.
 #[derive(clap::Args, Debug)]
@@ -32,6 +33,10 @@ pub struct VerifyArgs {
     /// No progress bar, nothing on stdout.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Replace existing outputs: a file given here, and in an output folder exactly the files
+    /// bench wrote there before (any other file is kept).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The exit code of a verification: 0 pass, 11 worse, 12 beyond the stated σ, 9 beyond the
@@ -51,11 +56,18 @@ fn file_name(p: &std::path::Path) -> String {
 
 /// Verify and write the outputs.
 pub fn run(args: VerifyArgs) -> anyhow::Result<ExitCode> {
+    super::say::set_quiet(args.quiet);
+    let mut outputs = super::outputs::Outputs::new(args.force);
+    outputs.file(args.json.as_deref())?;
+    if !args.no_report {
+        outputs.dir(&args.out)?;
+    }
     let cal = CalibrationFile::load(&args.calibration)?;
     let rec = super::load_recording(&args.recording, args.quiet)?;
     let v = verify_recording(&rec, &cal)
         .with_context(|| format!("cannot verify on {}", args.recording.display()))?;
     let (name, cname) = (file_name(&args.recording), file_name(&args.calibration));
+    outputs.prepare()?;
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&verify_json(&v, &name, &cname))?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
@@ -63,32 +75,30 @@ pub fn run(args: VerifyArgs) -> anyhow::Result<ExitCode> {
     let files = if args.no_report {
         None
     } else {
-        std::fs::create_dir_all(&args.out)
-            .with_context(|| format!("cannot create {}", args.out.display()))?;
         Some(bench_report::verify_html::write_verify_report(&v, &name, &cname, &args.out)?)
     };
     if !args.quiet {
-        println!("{name}: calibration {cname} (made on {})", v.calibration.source.recording);
+        say!("{name}: calibration {cname} (made on {})", v.calibration.source.recording);
         for (k, h) in &v.calibration.held {
-            println!("held in the calibration: {k}: {}", h.reason);
+            say!("held in the calibration: {k}: {}", h.reason);
         }
         for l in summary_lines(&v.compensation) {
-            println!("{l}");
+            say!("{l}");
         }
         if let Some(a) = &v.acceptance {
-            println!(
+            say!(
                 "acceptance: bias after compensation within {} in every window: {} (worst `{}`)",
                 bench_report::display::si_value(bench_report::display::RATE, a.limit, 4),
                 a.result.key(),
                 a.window
             );
         }
-        println!("verification: {}", v.verdict.text());
+        say!("verification: {}", v.verdict.text());
         if let Some(p) = &args.json {
-            println!("wrote {}", p.display());
+            say!("wrote {}", p.display());
         }
         if let Some(f) = &files {
-            println!("wrote {}", f.html.display());
+            say!("wrote {}", f.html.display());
         }
     }
     Ok(exit_of(&v).into())

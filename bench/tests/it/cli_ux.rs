@@ -4,24 +4,9 @@
 //! physics, and the exit codes.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn bench(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bench"))
-        .args(args)
-        .current_dir(dir)
-        .env_remove("NO_COLOR")
-        .output()
-        .expect("bench runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn scenario(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios").join(name).display().to_string()
-}
+mod common;
+use common::{bench, json, scenario, text, text_of};
 
 /// A two-minute scenario: spin, record, stop.
 const SHORT: &str = "[scenario]\nname = \"short\"\n[site]\nlatitude_deg = 45\n\
@@ -133,7 +118,7 @@ fn a_pure_simulation_has_no_missing_physics_and_its_model_is_a_nominal_for_anoth
     let r = bench(&["run", &scenario("seed.toml"), "-q", "-o", "real.mcap", "--seed", "7"], d);
     assert!(r.status.success(), "{}", text(&r.stderr));
     let r = bench(
-        &["diagnose", "real.mcap", "--model", "sim.mcap", "-q", "--no-report", "-o", "d2"],
+        &["diagnose", "real.mcap", "--model", "sim.mcap", "--no-report", "-o", "d2"],
         d,
     );
     assert!(matches!(r.status.code(), Some(0 | 6)), "{}{}", text(&r.stdout), text(&r.stderr));
@@ -189,7 +174,7 @@ fn station_metadata_is_recorded_and_the_calibration_judged_against_its_limits() 
     assert_eq!(i["channels"][0]["timing_from"], "log_time");
 
     let r =
-        bench(&["calibrate", "st.mcap", "-q", "--no-report", "-o", "cal", "--json", "c.json"], d);
+        bench(&["calibrate", "st.mcap", "--no-report", "-o", "cal", "--json", "c.json"], d);
     // A failed unit is a failed test: exit 9 (the calibration itself is sound and written).
     assert_eq!(r.status.code(), Some(9), "{}", text_of(&r));
     assert!(d.join("cal/calibration.toml").exists());
@@ -259,14 +244,6 @@ fn completions_exit_codes_and_no_ansi_off_a_terminal() {
     assert_eq!(r.status.code(), Some(1));
 }
 
-fn text_of(r: &Output) -> String {
-    format!("{}{}", text(&r.stdout), text(&r.stderr))
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("json written")).expect("json")
-}
-
 #[test]
 fn a_connection_error_says_each_piece_of_context_once() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -330,7 +307,7 @@ fn export_is_quiet_on_request_and_reports_as_json() {
     let r = bench(&["export", &demo, "-o", "csv", "-q"], d);
     assert!(r.status.success(), "{}", text(&r.stderr));
     assert!(r.stdout.is_empty(), "-q: {}", text(&r.stdout));
-    let r = bench(&["export", &demo, "-o", "csv", "--json", "-"], d);
+    let r = bench(&["export", &demo, "-o", "csv", "--json", "-", "--force"], d);
     assert!(r.status.success(), "{}", text(&r.stderr));
     let j: serde_json::Value = serde_json::from_slice(&r.stdout).expect("only JSON on stdout");
     assert_eq!(j["format"], "csv");
@@ -361,4 +338,129 @@ fn run_reports_as_json() {
     let bench_s = j["bench_time_s"].as_f64().expect("bench time");
     assert!(bench_s >= 120.0 && (samples as f64 - 20.0 * bench_s).abs() <= 2.0, "{j}");
     assert!(d.join("short.mcap").exists());
+}
+
+/// Issue 30 item 1: one overwrite rule for every verb that writes. An existing output is
+/// refused unless `--force`; an output folder holds one run's outputs only: `--force` removes
+/// what bench wrote there before (its `.bench-outputs`), never a file bench did not write.
+#[test]
+fn every_verb_refuses_an_existing_output_and_a_folder_keeps_one_runs_outputs() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let refused = |args: &[&str], what: &str| {
+        let r = bench(args, d);
+        assert_eq!(r.status.code(), Some(1), "{args:?}: {}", text_of(&r));
+        let err = text(&r.stderr);
+        assert!(err.contains(what) && err.contains("--force"), "{args:?}: {err}");
+    };
+
+    // A calibration folder: a second run into it is refused, the first's file untouched.
+    let r = bench(&["calibrate", "r.mcap", "-q", "-o", "cal", "--json", "c.json"], d);
+    assert_eq!(r.status.code(), Some(0), "{}", text_of(&r));
+    assert!(d.join("cal/report.html").exists());
+    let before = std::fs::read(d.join("cal/calibration.toml")).expect("calibration.toml");
+    std::fs::write(d.join("cal/calibration.toml"), b"edited").expect("edit");
+    refused(&["calibrate", "r.mcap", "-q", "--no-report", "-o", "cal"], "cal holds");
+    refused(
+        &["calibrate", "r.mcap", "-q", "--no-report", "-o", "new", "--json", "c.json"],
+        "c.json exists",
+    );
+    assert_eq!(std::fs::read(d.join("cal/calibration.toml")).expect("kept"), b"edited");
+    assert!(!d.join("new").exists(), "nothing written when refused");
+
+    // --force: what bench wrote there before goes (no stale report beside the new file), a
+    // file bench did not write stays, and is named.
+    std::fs::write(d.join("cal/notes.txt"), b"mine").expect("notes");
+    let r = bench(&["calibrate", "r.mcap", "-q", "--no-report", "-o", "cal", "--force"], d);
+    assert_eq!(r.status.code(), Some(0), "{}", text_of(&r));
+    assert!(!d.join("cal/report.html").exists(), "a stale report was left");
+    assert!(!d.join("cal/fig1-raw-rate.png").exists(), "a stale figure was left");
+    assert_eq!(std::fs::read(d.join("cal/calibration.toml")).expect("new"), before);
+    assert_eq!(std::fs::read(d.join("cal/notes.txt")).expect("kept"), b"mine");
+    assert!(
+        text(&r.stderr).contains("notes.txt, which bench did not write: kept"),
+        "{}",
+        text_of(&r)
+    );
+    let listed = std::fs::read_to_string(d.join("cal/.bench-outputs")).expect("manifest");
+    assert!(listed.lines().any(|l| l == "calibration.toml"), "{listed}");
+    assert!(!listed.contains("notes.txt"), "{listed}");
+
+    // The other verbs that write, each with the same rule.
+    assert!(bench(&["export", "r.mcap", "-q", "-o", "csv"], d).status.success());
+    refused(&["export", "r.mcap", "-q", "-o", "csv"], "csv holds");
+    assert!(bench(&["export", "r.mcap", "-q", "-o", "csv", "--force"], d).status.success());
+    assert!(bench(&["model", "r.mcap", "-q", "-o", "m.toml"], d).status.success());
+    refused(&["model", "r.mcap", "-q", "-o", "m.toml"], "m.toml exists");
+    assert!(bench(&["allan", "r.mcap", "-q", "--csv", "a.csv"], d).status.success());
+    refused(&["allan", "r.mcap", "-q", "--csv", "a.csv"], "a.csv exists");
+    assert!(bench(&["info", "r.mcap", "-q", "--json", "i.json"], d).status.success());
+    refused(&["info", "r.mcap", "-q", "--json", "i.json"], "i.json exists");
+    assert!(bench(&["info", "r.mcap", "-q", "--json", "i.json", "--force"], d).status.success());
+    std::fs::create_dir(d.join("diag")).expect("diag");
+    std::fs::write(d.join("diag/old.html"), b"x").expect("foreign");
+    refused(
+        &["diagnose", "r.mcap", "-q", "--no-report", "-o", "diag"],
+        "diag holds files bench did not write",
+    );
+}
+
+/// Issue 30 item 3: `-q` leaves nothing on stdout for every verb but what was asked for;
+/// errors still on stderr.
+#[test]
+fn quiet_means_nothing_on_stdout_for_every_verb() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let runs: &[&[&str]] = &[
+        &["run", "short.toml", "-q", "-o", "s.mcap"],
+        &["validate", "short.toml", "-q"],
+        &["info", "r.mcap", "-q"],
+        &["calibrate", "r.mcap", "-q", "-o", "cal"],
+        &["verify", "r.mcap", "-q", "--calibration", "cal/calibration.toml", "-o", "ver"],
+        &["diagnose", "r.mcap", "-q", "-o", "diag", "--no-report"],
+        &["export", "r.mcap", "-q", "-o", "csv"],
+        &["model", "r.mcap", "-q", "-o", "m.toml"],
+        &["allan", "r.mcap", "-q"],
+    ];
+    for args in runs {
+        let r = bench(args, d);
+        assert!(matches!(r.status.code(), Some(0 | 5 | 6 | 7)), "{args:?}: {}", text_of(&r));
+        assert!(r.stdout.is_empty(), "{args:?} -q printed: {}", text(&r.stdout));
+    }
+    // What was asked for is printed with -q too; an error still goes to stderr.
+    let r = bench(&["info", "r.mcap", "-q", "--json", "-"], d);
+    assert!(serde_json::from_slice::<serde_json::Value>(&r.stdout).is_ok(), "{}", text_of(&r));
+    let r = bench(&["calibrate", "nothing.mcap", "-q", "-o", "x"], d);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(r.stdout.is_empty() && text(&r.stderr).contains("error:"), "{}", text_of(&r));
+}
+
+/// `bench calibrate REC | head`: a closed stdout ends the printing quietly (no panic), every
+/// file is still written, and the exit code is the command's own.
+#[test]
+fn a_closed_stdout_ends_printing_quietly_and_every_file_is_written() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let mut child = Command::new(common::exe())
+        .args(["calibrate", "r.mcap", "-o", "cal", "--json", "c.json"])
+        .current_dir(d)
+        .env("NO_COLOR", "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("bench runs");
+    // The reader goes away before bench prints: as `| head -0` does.
+    drop(child.stdout.take());
+    let r = child.wait_with_output().expect("bench ends");
+    let err = text(&r.stderr);
+    assert!(!err.contains("panicked") && !err.contains("Broken pipe"), "{err}");
+    assert_eq!(r.status.code(), Some(0), "{err}");
+    for f in ["cal/calibration.toml", "cal/report.html", "c.json"] {
+        assert!(d.join(f).exists(), "{f} not written: {err}");
+    }
 }

@@ -102,7 +102,7 @@ fn diagnose_shows_every_number_with_its_unit() {
     let rec =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../recordings/demo-once-per-revolution.mcap");
     let rec = rec.to_str().expect("utf-8 path");
-    let out = bench(&["diagnose", rec, "--out", "out", "--json", "d.json", "-q"], dir.path());
+    let out = bench(&["diagnose", rec, "--out", "out", "--json", "d.json"], dir.path());
     assert_eq!(out.status.code(), Some(7), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).expect("utf-8");
 

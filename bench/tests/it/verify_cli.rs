@@ -3,25 +3,8 @@
 //! values), and `bench verify` applying it to another run (exit 0), or failing a file that
 //! makes the gyro worse with the coefficient responsible named (exit 11).
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn bench(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bench"))
-        .args(args)
-        .current_dir(dir)
-        .env("NO_COLOR", "1")
-        .output()
-        .expect("bench runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn scenario(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios").join(name).display().to_string()
-}
+mod common;
+use common::{bench, scenario, text};
 
 #[test]
 fn a_soak_only_calibration_is_incomplete_and_verify_judges_it_on_a_ramp_run() {
