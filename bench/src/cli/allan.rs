@@ -129,9 +129,10 @@ pub fn run(args: AllanArgs) -> anyhow::Result<ExitCode> {
             p.n_terms
         );
     }
-    let bound = |t: &NoiseTerm| if t.upper_bound { "≤ " } else { "" };
+    // An upper bound reads "K ≤ 0.02", not "K = ≤ 0.02".
+    let bound = |t: &NoiseTerm| if t.upper_bound { "≤" } else { "=" };
     say!(
-        "N (ARW) = {}{:.3e} °/√h [{:.3e}, {:.3e}], B = {}{:.3e} °/h (floor {:.3e} °/h), K = {}{:.3e} °/h/√h (95 %)",
+        "N (ARW) {} {:.3e} °/√h [{:.3e}, {:.3e}], B {} {:.3e} °/h (floor {:.3e} °/h), K {} {:.3e} °/h/√h (95 %)",
         bound(&fit.arw),
         display::ARW.of(fit.arw.value),
         display::ARW.of(fit.arw.low),

@@ -100,11 +100,11 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     );
     if let Ok(a) = &cal.allan {
         say!(
-            "noise: N = {} °/√h, B = {} °/h (floor {} °/h), K = {}{} °/h/√h",
+            "noise: N = {} °/√h, B = {} °/h (floor {} °/h), K {} {} °/h/√h",
             display::sig(a.fit.arw_deg_per_sqrt_h().value, 3),
             display::sig(a.fit.bias_instability_deg_per_h().value, 3),
             display::sig(display::RATE.of(a.fit.flicker_floor().value), 3),
-            if a.fit.rate_random_walk.upper_bound { "≤ " } else { "" },
+            if a.fit.rate_random_walk.upper_bound { "≤" } else { "=" },
             display::sig(a.fit.rate_random_walk_deg_per_h_per_sqrt_h().value, 3),
         );
     }

@@ -59,16 +59,27 @@ pub(super) async fn run_steps(
             Err(fault) => {
                 step_event(ctx, step, StepEvent::Abort);
                 return Some(fault.context(format!(
-                    "step {} ({}{}) at {}",
+                    "step {} ({}) at {}",
                     step.index,
-                    step.name,
-                    if step.label.is_empty() { String::new() } else { format!(" {}", step.label) },
+                    step_title(&step.name, &step.label),
                     step.origin
                 )));
             }
         }
     }
     None
+}
+
+/// A step as the abort names it: its label when that starts with the action's name ("record cw
+/// ramp", not "record record cw ramp"), else the action's name and the label.
+fn step_title(name: &str, label: &str) -> String {
+    if label.is_empty() {
+        name.to_owned()
+    } else if label.split_whitespace().next() == Some(name) {
+        label.to_owned()
+    } else {
+        format!("{name} {label}")
+    }
 }
 
 /// A device's refusal of a command as a fault.

@@ -117,10 +117,7 @@ fn a_pure_simulation_has_no_missing_physics_and_its_model_is_a_nominal_for_anoth
     // A second run stands in for the real one; the first's model is the nominal.
     let r = bench(&["run", &scenario("seed.toml"), "-q", "-o", "real.mcap", "--seed", "7"], d);
     assert!(r.status.success(), "{}", text(&r.stderr));
-    let r = bench(
-        &["diagnose", "real.mcap", "--model", "sim.mcap", "--no-report", "-o", "d2"],
-        d,
-    );
+    let r = bench(&["diagnose", "real.mcap", "--model", "sim.mcap", "--no-report", "-o", "d2"], d);
     assert!(matches!(r.status.code(), Some(0 | 6)), "{}{}", text(&r.stdout), text(&r.stderr));
     assert!(
         text(&r.stdout).contains("nominal model: sim.mcap (bench.gyro_model)"),
@@ -173,8 +170,7 @@ fn station_metadata_is_recorded_and_the_calibration_judged_against_its_limits() 
     assert_eq!(i["duration"], "1 h 18 min 16 s");
     assert_eq!(i["channels"][0]["timing_from"], "log_time");
 
-    let r =
-        bench(&["calibrate", "st.mcap", "--no-report", "-o", "cal", "--json", "c.json"], d);
+    let r = bench(&["calibrate", "st.mcap", "--no-report", "-o", "cal", "--json", "c.json"], d);
     // A failed unit is a failed test: exit 9 (the calibration itself is sound and written).
     assert_eq!(r.status.code(), Some(9), "{}", text_of(&r));
     assert!(d.join("cal/calibration.toml").exists());
@@ -463,4 +459,47 @@ fn a_closed_stdout_ends_printing_quietly_and_every_file_is_written() {
     for f in ["cal/calibration.toml", "cal/report.html", "c.json"] {
         assert!(d.join(f).exists(), "{f} not written: {err}");
     }
+}
+
+/// Issue 30 item 7, the text defects: a device counter's time base in s per count (not "host
+/// clock -950000.0 ppm against it"), "K ≤" (not "K = ≤"), the abort naming a record step once,
+/// and `thermal_time_constant` null in result.json where the lag was not estimated, with the
+/// model's value the same in result.json and calibration.toml.
+#[test]
+fn counters_bounds_aborted_steps_and_the_lag_are_written_as_what_they_are() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let r = bench(&["calibrate", "r.mcap", "-o", "cal", "--json", "c.json"], d);
+    assert_eq!(r.status.code(), Some(0), "{}", text_of(&r));
+    let out = text(&r.stdout);
+    assert!(out.contains("K ≤ ") && !out.contains("= ≤"), "{out}");
+    let html = std::fs::read_to_string(d.join("cal/report.html")).expect("report");
+    assert!(html.contains("/gyro/rate: device counter, 0.500000 s per count"), "time bases");
+    assert!(
+        !html.contains("ppm against it, host stamps&#39; jitter 0 ms"),
+        "a counter read as a clock"
+    );
+    let c = json(&d.join("c.json"));
+    let counter = &c["time_bases"][0];
+    assert_eq!(counter["source"], "device_counter");
+    assert!(counter["drift_ppm"].is_null(), "{counter}");
+    assert_eq!(counter["s_per_count"].as_f64(), Some(0.5), "{counter}");
+    // The demo's gyro has its own sensor: no lag is estimated.
+    assert!(c["thermal_time_constant"].is_null(), "{}", c["thermal_time_constant"]);
+    let toml = std::fs::read_to_string(d.join("cal/calibration.toml")).expect("calibration");
+    let tau = c["gyro_model"]["thermal_time_constant"].as_f64().expect("model's τ");
+    assert!(toml.contains(&format!("thermal_time_constant_s = {tau:?}")), "{tau} vs {toml}");
+
+    // A record step aborted by an interlock is named once: "(record cw ramp …)".
+    let abort = "[scenario]\nname = \"abort\"\n[site]\nlatitude_deg = 45\n[interlocks]\n\
+                 setpoint_tolerance = \"0.01 °C\"\nsetpoint_not_tracked_for = \"1 s\"\n\
+                 [[step]]\nchamber = \"30 °C\"\nramp = \"5 °C/min\"\n\
+                 [[step]]\nlabel = \"record cw ramp\"\nrecord = \"5 min\"\n";
+    std::fs::write(d.join("abort.toml"), abort).expect("scenario");
+    let r = bench(&["run", "abort.toml", "-o", "a.mcap"], d);
+    assert_eq!(r.status.code(), Some(4), "{}", text_of(&r));
+    let all = text_of(&r);
+    assert!(all.contains("step 1 (record cw ramp) at abort.toml"), "{all}");
+    assert!(!all.contains("record record"), "{all}");
 }

@@ -85,8 +85,9 @@ pub struct CalibrationJson {
     /// The noise model carried into the coefficients' σ (least-squares fit of the whole Allan
     /// curve): `arw` rad/√s, `flicker_floor` rad/s, `rrw` rad/s/√s.
     pub noise_model: Option<BTreeMap<String, f64>>,
-    /// Thermal lag, s (0 = the measured temperature): fitted with the coefficients.
-    pub thermal_time_constant: f64,
+    /// Thermal lag, s, fitted with the coefficients; null where the lag was not estimated
+    /// (`gyro_model` then carries the model's value, as `calibration.toml` does).
+    pub thermal_time_constant: Option<f64>,
     /// Its 1σ, s, when fitted; null otherwise.
     pub thermal_time_constant_sigma: Option<f64>,
     /// The calibrated model as `bench.gyro_model` keys.
@@ -191,8 +192,10 @@ pub struct TimeBaseJson {
     pub topic: &'static str,
     /// `device_stamps`, `device_counter` or `host`.
     pub source: &'static str,
-    /// Host clock drift against the device's, ppm; null for host time.
+    /// Host clock drift against the device's, ppm; null for host time and a device counter.
     pub drift_ppm: Option<f64>,
+    /// A device counter's time base: host seconds per count; null otherwise.
+    pub s_per_count: Option<f64>,
     /// Robust scatter of the host stamps about the device clock's line, s.
     pub jitter: Option<f64>,
     /// Largest delay of a host stamp behind the line, s.
@@ -342,8 +345,8 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             ])
         }),
         thermal_time_constant: match &cal.lag {
-            Some(Ok(l)) => l.fitted_s(),
-            _ => 0.0,
+            Some(Ok(l)) => Some(l.fitted_s()),
+            _ => None,
         },
         thermal_time_constant_sigma: match &cal.lag {
             Some(Ok(l)) if l.sigma_s.is_finite() => Some(l.sigma_s),
@@ -391,7 +394,11 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             .map(|b| TimeBaseJson {
                 topic: b.topic,
                 source: b.source.key(),
-                drift_ppm: b.fit.map(|f| crate::display::PPM.of(f.rate - 1.0)),
+                drift_ppm: b
+                    .fit
+                    .filter(|_| !counter(b))
+                    .map(|f| crate::display::PPM.of(f.rate - 1.0)),
+                s_per_count: b.fit.filter(|_| counter(b)).map(|f| f.rate),
                 jitter: b.fit.map(|f| f.jitter_s),
                 max_late: b.fit.map(|f| f.max_late_s),
                 late_outliers: b.fit.map(|f| f.outliers),
@@ -467,4 +474,9 @@ fn angle_json(
             misclosure_rms_after: Some(misclosure.1).filter(|v| v.is_finite()),
         },
     }
+}
+
+/// Whether a time base is a device's sample counter (its fit is s per count, not a clock's rate).
+fn counter(b: &crate::load::TimeBase) -> bool {
+    b.source == crate::load::TimeSource::DeviceCounter
 }

@@ -328,6 +328,16 @@ fn exclusions(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(h, "<h2>Time bases</h2>\n<ul>");
     for b in &d.run.time_bases {
         let text = match &b.fit {
+            // A counter is a number of samples, not a clock: its time base is s per count.
+            Some(f) if b.source == crate::load::TimeSource::DeviceCounter => format!(
+                "{}: device counter, {} s per count on the host clock ({} Hz), host stamps' \
+                 jitter {} ms, latest {} ms",
+                b.topic,
+                sig(f.rate, 6),
+                sig(1.0 / f.rate, 6),
+                sig(MILLISECONDS.of(f.jitter_s), 3),
+                sig(MILLISECONDS.of(f.max_late_s), 3)
+            ),
             Some(f) => format!(
                 "{}: {}; host clock {:+.1} ppm against it, host stamps' jitter {} ms, latest {} ms",
                 b.topic,
