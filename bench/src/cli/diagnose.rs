@@ -166,6 +166,10 @@ fn suggest_scenario(
 /// 7 for `missing_physics` ([`Exit`]).
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    if let Some(m) = &args.model {
+        use super::kind::{expect, Kind};
+        expect(m, &[Kind::Model, Kind::Recording])?;
+    }
     let mut outputs = super::outputs::Outputs::new(args.force);
     outputs.file(args.json.as_deref())?;
     match &args.scan_inputs {

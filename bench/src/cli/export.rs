@@ -48,6 +48,7 @@ pub struct ExportArgs {
 /// Export and list the tables written.
 pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.recording, &[super::kind::Kind::Recording])?;
     let out = args.out.clone().unwrap_or_else(|| args.recording.with_extension(""));
     let mut outputs = super::outputs::Outputs::new(args.force);
     outputs.dir(&out)?;

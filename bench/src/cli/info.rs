@@ -133,6 +133,7 @@ pub fn to_json(info: &RecordingInfo) -> Value {
 /// Print duration, channels with counts and rates, gaps, steps, metadata and outcome.
 pub fn run(args: InfoArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.recording, &[super::kind::Kind::Recording])?;
     super::outputs::Outputs::new(args.force).file(args.json.as_deref())?;
     let info = bench_recording::info(&args.recording)
         .with_context(|| format!("cannot read {}", args.recording.display()))?;

@@ -6,6 +6,7 @@ pub mod diagnose;
 pub mod exit;
 pub mod export;
 pub mod info;
+pub mod kind;
 pub mod model;
 pub mod monte_carlo;
 pub mod outputs;
@@ -110,6 +111,7 @@ pub(crate) fn load_recording(
     quiet: bool,
 ) -> anyhow::Result<bench_recording::Recording> {
     use anyhow::Context as _;
+    kind::expect(path, &[kind::Kind::Recording])?;
     let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     let name = path
         .file_name()

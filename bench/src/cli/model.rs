@@ -102,6 +102,7 @@ pub fn load_nominal(path: &Path) -> anyhow::Result<(GyroModel, Effects, String)>
 /// Write the recording's model out.
 pub fn run(args: ModelArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.recording, &[super::kind::Kind::Recording])?;
     let mut outputs = super::outputs::Outputs::new(args.force);
     outputs.file(args.out.as_deref())?;
     outputs.file(args.json.as_deref())?;

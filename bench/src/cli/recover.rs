@@ -28,6 +28,7 @@ pub struct RecoverArgs {
 /// input broke.
 pub fn run(args: RecoverArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.input, &[super::kind::Kind::Recording])?;
     if args.output.exists() && args.input.canonicalize().ok() == args.output.canonicalize().ok() {
         let e = super::exit::UsageError(format!(
             "{} is both the input and the output: recover into a new file",

@@ -46,6 +46,7 @@ pub struct ReplayArgs {
 
 /// Run `bench replay`.
 pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
+    super::kind::expect(&args.recording, &[super::kind::Kind::Recording])?;
     if !(args.speed.is_finite() && args.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number, got {}", args.speed);
     }

@@ -151,6 +151,13 @@ fn load_plan(path: &Path, caps: &Capabilities) -> anyhow::Result<Option<RunPlan>
 /// Run on the embedded simulated bench, or on the bench a config describes.
 pub fn run(args: RunArgs, verbose: u8) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.scenario, &[super::kind::Kind::Scenario])?;
+    if let Some(b) = &args.bench {
+        super::kind::expect(b, &[super::kind::Kind::BenchConfig])?;
+    }
+    if let Some(m) = &args.gyro_model {
+        super::kind::expect(m, &[super::kind::Kind::Model])?;
+    }
     args.recording_options()?;
     if let Some(scale) = args.time_scale {
         anyhow::ensure!(

@@ -85,6 +85,10 @@ fn capabilities(args: &ValidateArgs) -> anyhow::Result<Result<(Capabilities, Str
 /// Validate; print every problem as `file:line:column: message`. Exit 3 if invalid.
 pub fn run(args: ValidateArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.scenario, &[super::kind::Kind::Scenario])?;
+    if let Some(b) = &args.bench {
+        super::kind::expect(b, &[super::kind::Kind::BenchConfig])?;
+    }
     super::outputs::Outputs::new(args.force).file(args.json.as_deref())?;
     let (caps, against) = match capabilities(&args)? {
         Ok(c) => c,

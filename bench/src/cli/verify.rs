@@ -57,6 +57,7 @@ fn file_name(p: &std::path::Path) -> String {
 /// Verify and write the outputs.
 pub fn run(args: VerifyArgs) -> anyhow::Result<ExitCode> {
     super::say::set_quiet(args.quiet);
+    super::kind::expect(&args.calibration, &[super::kind::Kind::Model])?;
     let mut outputs = super::outputs::Outputs::new(args.force);
     outputs.file(args.json.as_deref())?;
     if !args.no_report {

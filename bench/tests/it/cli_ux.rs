@@ -235,9 +235,9 @@ fn completions_exit_codes_and_no_ansi_off_a_terminal() {
     let r = bench(&["-v", "run", "short.toml", "-o", "v.mcap"], d);
     assert!(r.status.success(), "{}", text_of(&r));
     assert!(!r.stderr.contains(&0x1b), "{}", text(&r.stderr));
-    // The model file of a recording that has none is a clear error.
+    // A scenario given as a recording is named as one (exit 2, a usage error).
     let r = bench(&["model", "bad.toml"], d);
-    assert_eq!(r.status.code(), Some(1));
+    assert_eq!(r.status.code(), Some(2));
 }
 
 #[test]
@@ -502,4 +502,36 @@ fn counters_bounds_aborted_steps_and_the_lag_are_written_as_what_they_are() {
     let all = text_of(&r);
     assert!(all.contains("step 1 (record cw ramp) at abort.toml"), "{all}");
     assert!(!all.contains("record record"), "{all}");
+}
+
+/// Issue 30 item 5: a file of the wrong kind is named with the verbs that take it (exit 2).
+#[test]
+fn a_wrong_kind_of_file_is_named_with_the_verbs_that_take_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("seed.mcap")).expect("copy");
+    std::fs::write(d.join("soaks.toml"), SHORT).expect("scenario");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios/models/diagnose-demo-params-off.toml");
+    std::fs::copy(model, d.join("cal.toml")).expect("model");
+    std::fs::write(
+        d.join("lab.toml"),
+        "[table]\ndialect = \"actidyn\"\nendpoint = { tcp = { addr = \"127.0.0.1:9\" } }\n",
+    )
+    .expect("config");
+    for (args, says) in [
+        (&["validate", "seed.mcap"][..], "seed.mcap is an MCAP recording: use bench info / calibrate / diagnose / replay"),
+        (&["run", "seed.mcap"][..], "seed.mcap is an MCAP recording"),
+        (&["calibrate", "soaks.toml"][..], "soaks.toml is a scenario (TOML): use bench validate / run"),
+        (&["info", "soaks.toml"][..], "soaks.toml is a scenario (TOML)"),
+        (&["diagnose", "cal.toml"][..], "cal.toml is a model or calibration file (TOML, [gyro_model]): give it as --calibration to bench verify"),
+        (&["export", "lab.toml"][..], "lab.toml is a bench config (TOML): give it as --bench to bench run / validate"),
+        (&["validate", "soaks.toml", "--bench", "cal.toml"][..], "cal.toml is a model or calibration file"),
+        (&["verify", "seed.mcap", "--calibration", "soaks.toml"][..], "soaks.toml is a scenario"),
+        (&["diagnose", "seed.mcap", "--model", "lab.toml"][..], "lab.toml is a bench config"),
+    ] {
+        let r = bench(args, d);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {}", text_of(&r));
+        assert!(text(&r.stderr).contains(says), "{args:?}: {}", text(&r.stderr));
+    }
 }
