@@ -981,6 +981,24 @@ impl<'a> Builder<'a> {
             }
         }
         let Some(&(action, action_entry)) = found.first() else {
+            // A misspelt action (`spn = "10 °/min"`): named at its key, with the action meant.
+            let typo = t.entries.iter().find_map(|e| {
+                (!NOT_ACTIONS.contains(&e.key.as_str()))
+                    .then(|| closest(&e.key, &ACTIONS).map(|a| (e, a)))
+                    .flatten()
+            });
+            if let Some((e, meant)) = typo {
+                self.err(
+                    &e.key_span,
+                    format!(
+                        "unknown key `{}` in a step; did you mean `{meant}`? (a step needs one \
+                         action: `chamber`, `spin`, `stop`, `wait`, `wait_temperature`, \
+                         `record` or `for`)",
+                        e.key
+                    ),
+                );
+                return;
+            }
             self.err(
                 t.span,
                 "step has no action: give one of `chamber`, `spin`, `stop`, `wait`, \
@@ -1595,6 +1613,10 @@ pub(crate) fn substitute(s: &str, vars: &[(String, String)]) -> Result<String, S
     }
     Ok(out)
 }
+
+/// A step's keys that are not actions, never taken for a misspelt one.
+const NOT_ACTIONS: &[&str] =
+    &["label", "do", "direction", "ramp", "timeout", "band", "hold", "source", "accel", "decel"];
 
 /// The allowed key closest to `key` (edit distance ≤ 2), for "did you mean".
 fn closest<'k>(key: &str, allowed: &[&'k str]) -> Option<&'k str> {

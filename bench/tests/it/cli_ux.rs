@@ -535,3 +535,22 @@ fn a_wrong_kind_of_file_is_named_with_the_verbs_that_take_it() {
         assert!(text(&r.stderr).contains(says), "{args:?}: {}", text(&r.stderr));
     }
 }
+
+/// Issue 30 item 6: a misspelt action key gets "did you mean" at its own line and column, also
+/// inside a `for` step's `do`.
+#[test]
+fn a_misspelt_action_is_named_at_its_key_with_the_action_meant() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let typo = "[scenario]\nname = \"typo\"\n[site]\nlatitude_deg = 45\n\
+                [[step]]\nfor.dir = [\"cw\", \"ccw\"]\n  [[step.do]]\n  label = \"spin {dir}\"\n  \
+                spn = \"10 °/min\"\n  direction = \"{dir}\"\n  [[step.do]]\n  record = \"1 min\"\n";
+    std::fs::write(d.join("typo.toml"), typo).expect("scenario");
+    let r = bench(&["validate", "typo.toml"], d);
+    assert_eq!(r.status.code(), Some(3), "{}", text_of(&r));
+    let err = text(&r.stderr);
+    assert!(
+        err.contains("typo.toml:9:3: unknown key `spn` in a step; did you mean `spin`?"),
+        "{err}"
+    );
+}
