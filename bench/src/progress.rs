@@ -148,6 +148,13 @@ impl Drop for Progress {
     }
 }
 
+/// The time left to read `len` bytes at the rate `pos` bytes took `elapsed_s`: none until a
+/// rate is known (a second of reading and some bytes read), so a 2 s read never starts with an
+/// ETA of "70m" from its first few bytes.
+pub fn read_eta_s(pos: u64, len: u64, elapsed_s: f64) -> Option<f64> {
+    (pos > 0 && elapsed_s >= 1.0 && len >= pos).then(|| (len - pos) as f64 * elapsed_s / pos as f64)
+}
+
 /// A reader that shows how much of a file it has read on a progress bar (bytes read / size),
 /// on a terminal only.
 pub struct ReadProgress<R> {
@@ -161,9 +168,19 @@ impl<R: Read> ReadProgress<R> {
         let target = if show { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() };
         let bar = ProgressBar::with_draw_target(Some(size.max(1)), target);
         let style = ProgressStyle::with_template(
-            "reading {prefix} {bar:30} {binary_bytes}/{binary_total_bytes} ({eta})",
+            "reading {prefix} {bar:30} {binary_bytes}/{binary_total_bytes}{eta_known}",
         )
-        .unwrap_or_else(|_| ProgressStyle::default_bar());
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .with_key(
+            "eta_known",
+            |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                let left = read_eta_s(s.pos(), s.len().unwrap_or(0), s.elapsed().as_secs_f64());
+                if let Some(left) = left {
+                    let left = std::time::Duration::from_secs_f64(left.ceil());
+                    let _ = write!(w, " ({} left)", indicatif::HumanDuration(left));
+                }
+            },
+        );
         bar.set_style(style);
         bar.set_prefix(what.to_string());
         Self { inner, bar }
@@ -265,6 +282,13 @@ mod tests {
         assert!(m.contains("ETA 1:00:01"), "{m}");
         let (pos, left) = r.update(&snapshot(9100.0, 1));
         assert!((left - 1801.0).abs() < 1e-6 && (pos - 5400.0).abs() < 1e-6, "{pos} {left}");
+    }
+
+    #[test]
+    fn no_read_eta_before_a_rate_is_known() {
+        assert_eq!(read_eta_s(0, 1000, 5.0), None);
+        assert_eq!(read_eta_s(10, 1000, 0.2), None, "the first reads are no rate");
+        assert_eq!(read_eta_s(500, 1000, 2.0), Some(2.0));
     }
 
     #[test]

@@ -554,3 +554,27 @@ fn a_misspelt_action_is_named_at_its_key_with_the_action_meant() {
         "{err}"
     );
 }
+
+/// Issue 30 item 9: the read bar shows no ETA until it has a rate (not "(70m)" or "(0s)" from
+/// the first bytes of a 2 s job). stderr must be a terminal for the bar: `script` gives one.
+#[test]
+fn the_read_bar_shows_no_eta_before_it_has_a_rate() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let exe = common::exe();
+    let cmd = format!("{} diagnose r.mcap -o diag --no-report", exe.to_string_lossy());
+    let r = std::process::Command::new("script")
+        .args(["-qefc", &cmd, "/dev/null"])
+        .current_dir(d)
+        .env_remove("NO_COLOR")
+        .output()
+        .expect("`script` (util-linux) gives bench a terminal");
+    let shown = text(&r.stdout);
+    let frames: Vec<&str> =
+        shown.split(['\r', '\n']).filter(|f| f.contains("reading r.mcap")).collect();
+    assert!(!frames.is_empty(), "no read bar drawn: {shown}");
+    let first = frames[0];
+    assert!(first.contains(" 0 B/"), "{first}");
+    assert!(!first.contains('('), "an ETA before any rate: {first}");
+}
