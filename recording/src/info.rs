@@ -400,15 +400,35 @@ fn channel_report(
     };
     // A channel is periodic (a device stream) when nine in ten of its periods lie within 10 %
     // of the median; event channels (steps, log) have no gaps to speak of.
-    let periodic = median.is_some_and(|m| {
+    let steady = |periods: &[u64], m: u64| {
         let near =
             periods.iter().filter(|&&p| (p as f64 - m as f64).abs() <= 0.1 * m as f64).count();
         m > 0 && near * 10 >= periods.len() * 9
-    });
+    };
+    let mut periodic = median.is_some_and(|m| steady(&periods, m));
+    // A stream whose stamps are uneven (a paced run's polls, a busy host) is still a stream
+    // when the mean period over blocks of messages (a twentieth of them, 20 to 200) is steady: its rate is that mean and
+    // a gap is a period beyond 1.5 × the largest of its ordinary ones (the 99th percentile).
+    let block = (ts.len() / 20).clamp(20, 200);
+    let mut gap_after = median.map_or(f64::INFINITY, |m| 1.5 * m as f64);
+    let mut median = median;
+    if !periodic && ts.len() >= 10 * block {
+        let mut blocks: Vec<u64> =
+            ts.windows(block + 1).map(|w| (w[block] - w[0]) / block as u64).collect();
+        let mid = blocks.len() / 2;
+        let m = *blocks.select_nth_unstable(mid).1;
+        if steady(&blocks, m) {
+            periodic = true;
+            median = Some(m);
+            let at = (periods.len() * 99 / 100).min(periods.len() - 1);
+            let p99 = *periods.select_nth_unstable(at).1;
+            gap_after = 1.5 * p99.max(m) as f64;
+        }
+    }
     let gaps = match median.filter(|_| periodic) {
-        Some(m) => ts
+        Some(_) => ts
             .windows(2)
-            .filter(|w| (w[1].saturating_sub(w[0])) as f64 > 1.5 * m as f64)
+            .filter(|w| (w[1].saturating_sub(w[0])) as f64 > gap_after)
             .map(|w| Gap { from_s: rel(w[0]), to_s: rel(w[1]) })
             .collect(),
         None => Vec::new(),
@@ -554,6 +574,36 @@ impl fmt::Display for RecordingInfo {
         }
         writeln!(f, "channels:")?;
         for c in &self.channels {
+            // A paced or busy host stamps a steady device stream unevenly: its rate and gaps
+            // are then the device time's.
+            if let Some(d) = c.device_time.as_ref().filter(|d| !c.periodic && d.periodic) {
+                writeln!(
+                    f,
+                    "  {:<16} {:<20} {:>9} msgs  {} by device time (publish_time)  median \
+                     period {}  {} gap(s); host stamps uneven",
+                    c.topic,
+                    c.schema_name,
+                    c.count,
+                    d.mean_rate_hz
+                        .map(|r| format!("{r:>9.3} Hz"))
+                        .unwrap_or_else(|| "        - Hz".into()),
+                    opt_s(d.median_period_s),
+                    d.gaps.len()
+                )?;
+                for g in d.gaps.iter().take(10) {
+                    writeln!(
+                        f,
+                        "      gap {:.3} s .. {:.3} s ({:.3} s)",
+                        g.from_s,
+                        g.to_s,
+                        g.to_s - g.from_s
+                    )?;
+                }
+                if d.gaps.len() > 10 {
+                    writeln!(f, "      ... {} more", d.gaps.len() - 10)?;
+                }
+                continue;
+            }
             if !c.periodic {
                 writeln!(
                     f,

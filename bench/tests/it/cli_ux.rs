@@ -578,3 +578,34 @@ fn the_read_bar_shows_no_eta_before_it_has_a_rate() {
     assert!(first.contains(" 0 B/"), "{first}");
     assert!(!first.contains('('), "an ETA before any rate: {first}");
 }
+
+/// Issue 30 item 8: a paced run (`--time-scale 60`) keeps its 20 Hz streams' rates and gap
+/// checks in `bench info`, though a paced host stamps them unevenly.
+#[test]
+fn a_paced_run_keeps_its_channel_rates_in_info() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
+    let r = bench(&["run", "short.toml", "-q", "-o", "p.mcap", "--time-scale", "60"], d);
+    assert!(r.status.success(), "{}", text_of(&r));
+    let r = bench(&["info", "p.mcap", "--json", "-"], d);
+    let i: serde_json::Value = serde_json::from_slice(&r.stdout).expect("json");
+    for topic in ["/gyro/rate", "/table/state", "/chamber/state"] {
+        let c = i["channels"].as_array().and_then(|v| v.iter().find(|c| c["topic"] == topic));
+        let c = c.expect("channel");
+        // The gyro's own stamps (publish_time) carry its rate when the host's are uneven.
+        let c = if c["periodic"] == false { &c["device_time"] } else { c };
+        assert_eq!(c["periodic"], true, "{topic}: {c}");
+        let hz = c["mean_rate_hz"].as_f64().expect("rate");
+        assert!((hz - 20.0).abs() < 1.0, "{topic}: {hz}");
+        let period = c["median_period_s"].as_f64().expect("period");
+        assert!((period - 0.05).abs() < 0.005, "{topic}: {period}");
+    }
+    let r = bench(&["info", "p.mcap"], d);
+    let shown = text(&r.stdout);
+    let lines: Vec<&str> = shown
+        .lines()
+        .filter(|l| l.contains("/gyro/") || l.contains("/table/") || l.contains("/chamber/"))
+        .collect();
+    assert!(lines.len() == 3 && lines.iter().all(|l| l.contains(" Hz")), "{shown}");
+}
