@@ -5,8 +5,7 @@
 
 use std::path::Path;
 
-mod common;
-use common::{bench, json, scenario, text, text_of};
+use crate::common::{bench, json, scenario, text, text_of};
 
 /// A two-minute scenario: spin, record, stop.
 const SHORT: &str = "[scenario]\nname = \"short\"\n[site]\nlatitude_deg = 45\n\
@@ -343,7 +342,7 @@ fn run_reports_as_json() {
 fn every_verb_refuses_an_existing_output_and_a_folder_keeps_one_runs_outputs() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
     let refused = |args: &[&str], what: &str| {
         let r = bench(args, d);
         assert_eq!(r.status.code(), Some(1), "{args:?}: {}", text_of(&r));
@@ -408,7 +407,7 @@ fn every_verb_refuses_an_existing_output_and_a_folder_keeps_one_runs_outputs() {
 fn quiet_means_nothing_on_stdout_for_every_verb() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
     std::fs::write(d.join("short.toml"), SHORT).expect("scenario");
     let runs: &[&[&str]] = &[
         &["run", "short.toml", "-q", "-o", "s.mcap"],
@@ -441,8 +440,8 @@ fn a_closed_stdout_ends_printing_quietly_and_every_file_is_written() {
     use std::process::{Command, Stdio};
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
-    let mut child = Command::new(common::exe())
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let mut child = Command::new(crate::common::exe())
         .args(["calibrate", "r.mcap", "-o", "cal", "--json", "c.json"])
         .current_dir(d)
         .env("NO_COLOR", "1")
@@ -469,7 +468,7 @@ fn a_closed_stdout_ends_printing_quietly_and_every_file_is_written() {
 fn counters_bounds_aborted_steps_and_the_lag_are_written_as_what_they_are() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
     let r = bench(&["calibrate", "r.mcap", "-o", "cal", "--json", "c.json"], d);
     assert_eq!(r.status.code(), Some(0), "{}", text_of(&r));
     let out = text(&r.stdout);
@@ -509,7 +508,7 @@ fn counters_bounds_aborted_steps_and_the_lag_are_written_as_what_they_are() {
 fn a_wrong_kind_of_file_is_named_with_the_verbs_that_take_it() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("seed.mcap")).expect("copy");
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("seed.mcap")).expect("copy");
     std::fs::write(d.join("soaks.toml"), SHORT).expect("scenario");
     let model = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../scenarios/models/diagnose-demo-params-off.toml");
@@ -561,8 +560,8 @@ fn a_misspelt_action_is_named_at_its_key_with_the_action_meant() {
 fn the_read_bar_shows_no_eta_before_it_has_a_rate() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::copy(common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
-    let exe = common::exe();
+    std::fs::copy(crate::common::recording("demo-null.mcap"), d.join("r.mcap")).expect("copy");
+    let exe = crate::common::exe();
     let cmd = format!("{} diagnose r.mcap -o diag --no-report", exe.to_string_lossy());
     let r = std::process::Command::new("script")
         .args(["-qefc", &cmd, "/dev/null"])

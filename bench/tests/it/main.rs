@@ -4,6 +4,7 @@
 
 mod bad_inputs;
 mod cli_ux;
+mod common;
 mod damaged_files;
 mod diagnose_cli;
 mod estimate;

@@ -3,8 +3,7 @@
 //! values), and `bench verify` applying it to another run (exit 0), or failing a file that
 //! makes the gyro worse with the coefficient responsible named (exit 11).
 
-mod common;
-use common::{bench, scenario, text};
+use crate::common::{bench, scenario, text};
 
 #[test]
 fn a_soak_only_calibration_is_incomplete_and_verify_judges_it_on_a_ramp_run() {

@@ -1,5 +1,4 @@
 //! What the CLI tests share: run the `bench` binary in a folder and read what it printed.
-#![allow(dead_code)] // each test binary uses its own part
 
 use std::path::Path;
 use std::process::{Command, Output};
