@@ -89,7 +89,7 @@ fn sigterm_aborts_to_the_safe_state_like_a_first_ctrl_c() {
     let rec = Recording::load(&dir.path().join("out.mcap")).expect("a complete recording");
     assert!(rec.complete);
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
-    assert!(outcome.starts_with("aborted: step 1 (record record cw)"), "{outcome}");
+    assert!(outcome.starts_with("aborted: step 1 (record cw)"), "{outcome}");
     assert!(outcome.ends_with("interrupted by the operator (SIGTERM)"), "{outcome}");
     let last = rec.steps.last().expect("steps");
     assert_eq!((last.msg.label.as_str(), last.msg.event.as_str()), ("record cw", "abort"));

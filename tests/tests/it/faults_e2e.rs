@@ -135,7 +135,7 @@ async fn a_silent_table_aborts_to_the_safe_state_keeping_the_data() {
     // trips before the poller's budget of 5 consecutive errors (≈ 0.75 s of wall time).
     let rec = run_with(Duration::from_secs(30), |f| f.table.inject(Fault::Silence)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
-    assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
+    assert!(outcome.starts_with("aborted: step 1 (record cw 20C)"), "{outcome}");
     assert!(
         outcome.contains("stream_stale: rate table data stale: no good reading for"),
         "{outcome}"
@@ -205,7 +205,7 @@ async fn a_chamber_overshooting_through_the_wire_trips_chamber_over_temperature(
     })
     .await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
-    assert!(outcome.starts_with("aborted: step 1 (record record hot)"), "{outcome}");
+    assert!(outcome.starts_with("aborted: step 1 (record hot)"), "{outcome}");
     assert!(outcome.contains(": chamber_over_temperature: chamber air"), "{outcome}");
     assert!(outcome.contains("above the limit 35 °C"), "{outcome}");
     assert_eq!(last_step_event(&rec), ("record hot".into(), "abort".into()));
@@ -221,7 +221,7 @@ async fn a_drive_alarm_mid_window_aborts_at_the_next_poll_with_table_drive_fault
     // the rest of the window with the table at rest and mark it completed.
     let rec = run_with(Duration::from_secs(60), |f| f.table.inject(Fault::DriveAlarm)).await;
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
-    assert!(outcome.starts_with("aborted: step 1 (record record cw 20C)"), "{outcome}");
+    assert!(outcome.starts_with("aborted: step 1 (record cw 20C)"), "{outcome}");
     assert!(outcome.contains(": table_drive_fault: "), "{outcome}");
     assert_eq!(last_step_event(&rec), ("record cw 20C".into(), "abort".into()));
     assert!(!rec

@@ -164,7 +164,7 @@ fn assert_named(fault: &bench::run::Fault, rec: &Recording, name: &str) {
         .unwrap_or_else(|| panic!("no interlock named {name}"));
     assert_eq!(fault.cause, FaultCause::Interlock { name: constant });
     let outcome = rec.outcome_text().unwrap_or_default().to_string();
-    assert!(outcome.starts_with("aborted: step 2 (record record cw)"), "{outcome}");
+    assert!(outcome.starts_with("aborted: step 2 (record cw)"), "{outcome}");
     assert!(outcome.contains(&format!(": {name}: ")), "{outcome}");
 }
 

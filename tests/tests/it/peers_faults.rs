@@ -86,7 +86,7 @@ async fn run_on_peers(peer_args: &[&str], keep_alive: bool) -> Run {
 /// The record step ended in `abort`, never `end`; the outcome names `name`.
 fn assert_aborted_in_the_window(run: &Run, name: &str) {
     let o = &run.outcome;
-    assert!(o.starts_with("aborted: step 1 (record record cw)"), "{o}");
+    assert!(o.starts_with("aborted: step 1 (record cw)"), "{o}");
     assert!(o.contains(&format!(": {name}: ")), "{o}");
     let events: Vec<(&str, &str)> =
         run.rec.steps.iter().map(|s| (s.msg.label.as_str(), s.msg.event.as_str())).collect();
