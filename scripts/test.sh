@@ -10,4 +10,4 @@ BENCH_PYTHON="$(bash scripts/pyenv.sh)"
 export BENCH_PYTHON
 BENCH_CHROMIUM="$(bash scripts/browser.sh)"
 export BENCH_CHROMIUM
-cargo test --workspace --locked "$@"
+cargo test --workspace --locked --no-fail-fast "$@"

@@ -808,27 +808,55 @@ proptest! {
 #[test]
 fn every_effect_is_parsed_into_the_truth_and_the_nominal_model() {
     use bench_physics::effects::*;
-    let p = ok(r#"[gyro.model.effects]
-rate_squared = { coeff_s_per_rad = 1e-3 }
-warm_up = { amplitude_rad_s = 5e-8, time_constant_s = 60 }
+    // Chosen values for these; any effect added since is on at its parameters' examples.
+    let listed = [
+        EffectId::EarthRate,
+        EffectId::ThermalLag,
+        EffectId::TemperatureQuadratic,
+        EffectId::ScaleFactorTemperature,
+        EffectId::ThermalHysteresis,
+        EffectId::OncePerRevolution,
+        EffectId::TimeOffset,
+        EffectId::WarmUp,
+        EffectId::BiasStep,
+        EffectId::RateSquared,
+        EffectId::PeriodicBias,
+        EffectId::RateRipple,
+        EffectId::AngleHarmonic,
+    ];
+    let added: Vec<EffectId> =
+        EffectId::ALL.into_iter().filter(|id| !listed.contains(id)).collect();
+    let added_toml: String = added
+        .iter()
+        .map(|id| {
+            let params: Vec<String> =
+                id.params().iter().map(|p| format!("{} = {:e}", p.name, p.example())).collect();
+            format!("{} = {{ {} }}\n", id.key(), params.join(", "))
+        })
+        .collect();
+    let p = ok(&format!(
+        r#"[gyro.model.effects]
+rate_squared = {{ coeff_s_per_rad = 1e-3 }}
+warm_up = {{ amplitude_rad_s = 5e-8, time_constant_s = 60 }}
 [simulation.truth.effects]
 earth_rate = true
-thermal_lag = { time_constant_s = 300 }
-temperature_quadratic = { coeff_rad_s_per_c2 = 2e-11 }
-scale_factor_temperature = { coeff_per_c = -1e-6 }
-thermal_hysteresis = { half_width_rad_s = 4e-9, threshold_c_s = 0.001 }
-once_per_revolution = { amplitude_rad_s = 2e-8, phase_rad = 0.5 }
-time_offset = { offset_s = 0.01 }
-warm_up = { amplitude_rad_s = 1e-7, time_constant_s = 900 }
-bias_step = { time_s = 100, step_rad_s = 1e-6 }
-periodic_bias = { amplitude_rad_s = 3e-8, period_s = 1200, phase_rad = -1 }
-rate_ripple = { relative_amplitude = 1e-5, cycles_per_rev = 16, phase_rad = 0 }
-angle_harmonic = { amplitude_rad_s = 6e-8, cycles_per_rev = 2, phase_rad = -0.4 }
-[simulation.truth.effects.rate_squared]
+thermal_lag = {{ time_constant_s = 300 }}
+temperature_quadratic = {{ coeff_rad_s_per_c2 = 2e-11 }}
+scale_factor_temperature = {{ coeff_per_c = -1e-6 }}
+thermal_hysteresis = {{ half_width_rad_s = 4e-9, threshold_c_s = 0.001 }}
+once_per_revolution = {{ amplitude_rad_s = 2e-8, phase_rad = 0.5 }}
+time_offset = {{ offset_s = 0.01 }}
+warm_up = {{ amplitude_rad_s = 1e-7, time_constant_s = 900 }}
+bias_step = {{ time_s = 100, step_rad_s = 1e-6 }}
+periodic_bias = {{ amplitude_rad_s = 3e-8, period_s = 1200, phase_rad = -1 }}
+rate_ripple = {{ relative_amplitude = 1e-5, cycles_per_rev = 16, phase_rad = 0 }}
+angle_harmonic = {{ amplitude_rad_s = 6e-8, cycles_per_rev = 2, phase_rad = -0.4 }}
+{added_toml}[simulation.truth.effects.rate_squared]
 coeff_s_per_rad = 2e-3
 [[step]]
 wait = "1 s"
-"#);
+"#
+    ));
     let on = |list: &[(EffectId, &[f64])]| {
         let mut e = Effects::default();
         for (id, v) in list {
@@ -853,6 +881,11 @@ wait = "1 s"
         (EffectId::RateRipple, &[1e-5, 16.0, 0.0]),
         (EffectId::AngleHarmonic, &[6e-8, 2.0, -0.4]),
     ]);
+    let mut truth = truth;
+    for id in added {
+        let v: Vec<f64> = id.params().iter().map(Param::example).collect();
+        truth.set(id, &v).expect("count fits");
+    }
     assert_eq!(p.sim.truth_effects, truth);
     assert_eq!(p.sim.truth_effects.ids().len(), EffectId::ALL.len());
     // The base model is untouched by effects.
@@ -896,7 +929,11 @@ fn effect_errors_are_located() {
         ),
         "{e}"
     );
-    assert!(e.ends_with("`periodic_bias`, `rate_ripple`, `angle_harmonic`"), "{e}");
+    let known: Vec<String> = bench_physics::effects::EffectId::ALL
+        .into_iter()
+        .map(|id| format!("`{}`", id.key()))
+        .collect();
+    assert!(e.ends_with(&known.join(", ")), "{e}");
     // An unknown parameter and the missing one are both reported.
     let e = errs(&with_head(&format!(
         "{head}warm_up = {{ amplitude_rad_s = 1e-7, tau_s = 9 }}\n{step}"

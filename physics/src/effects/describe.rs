@@ -88,6 +88,17 @@ impl Param {
     pub const fn positive(name: &'static str, unit: &'static str, role: Role) -> Self {
         Self { name, unit, range: Range::Positive, role }
     }
+
+    /// A valid value of it, for examples and for tests that cover every effect (an effect
+    /// added later included): a phase 0.3, a positive one 123.5 (a time, a period, a number of
+    /// cycles), any other 2.5e-8 (a size in SI units).
+    pub fn example(&self) -> f64 {
+        match (self.role, self.range) {
+            (Role::Phase, _) => 0.3,
+            (_, Range::Positive) => 123.5,
+            _ => 2.5e-8,
+        }
+    }
 }
 
 /// How the diagnosis builds an effect's regressors over a recording's bins (each variant is

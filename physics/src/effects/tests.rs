@@ -33,17 +33,9 @@ fn every_effect() -> Effects {
     e
 }
 
-/// Valid values for any effect's parameters: a positive parameter 123.5 (a time, a period, a
-/// number of cycles), a finite one 2.5e-8 (a size in SI units), a phase 0.3.
+/// Valid values for any effect's parameters ([`Param::example`]).
 fn example_values(id: EffectId) -> Vec<f64> {
-    id.params()
-        .iter()
-        .map(|p| match (p.role, p.range) {
-            (Role::Phase, _) => 0.3,
-            (_, Range::Positive) => 123.5,
-            _ => 2.5e-8,
-        })
-        .collect()
+    id.params().iter().map(Param::example).collect()
 }
 
 #[test]
