@@ -503,6 +503,17 @@ impl RecordingInfo {
     }
 }
 
+/// The first 10 gaps of a stream, one line each, and how many more there are.
+fn write_gaps(f: &mut std::fmt::Formatter<'_>, gaps: &[Gap]) -> std::fmt::Result {
+    for g in gaps.iter().take(10) {
+        writeln!(f, "      gap {:.3} s .. {:.3} s ({:.3} s)", g.from_s, g.to_s, g.to_s - g.from_s)?;
+    }
+    if gaps.len() > 10 {
+        writeln!(f, "      ... {} more", gaps.len() - 10)?;
+    }
+    Ok(())
+}
+
 fn opt_s(v: Option<f64>) -> String {
     v.map(|s| format!("{s:.3} s")).unwrap_or_else(|| "-".to_string())
 }
@@ -590,18 +601,7 @@ impl fmt::Display for RecordingInfo {
                     opt_s(d.median_period_s),
                     d.gaps.len()
                 )?;
-                for g in d.gaps.iter().take(10) {
-                    writeln!(
-                        f,
-                        "      gap {:.3} s .. {:.3} s ({:.3} s)",
-                        g.from_s,
-                        g.to_s,
-                        g.to_s - g.from_s
-                    )?;
-                }
-                if d.gaps.len() > 10 {
-                    writeln!(f, "      ... {} more", d.gaps.len() - 10)?;
-                }
+                write_gaps(f, &d.gaps)?;
                 continue;
             }
             if !c.periodic {
@@ -633,18 +633,7 @@ impl fmt::Display for RecordingInfo {
                     d.gaps.len()
                 )?;
             }
-            for g in c.gaps.iter().take(10) {
-                writeln!(
-                    f,
-                    "      gap {:.3} s .. {:.3} s ({:.3} s)",
-                    g.from_s,
-                    g.to_s,
-                    g.to_s - g.from_s
-                )?;
-            }
-            if c.gaps.len() > 10 {
-                writeln!(f, "      ... {} more", c.gaps.len() - 10)?;
-            }
+            write_gaps(f, &c.gaps)?;
         }
         writeln!(f, "steps:")?;
         for s in &self.steps {

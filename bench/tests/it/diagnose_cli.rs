@@ -7,22 +7,12 @@
 use std::path::Path;
 use std::process::Command;
 
-fn bench(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_bench"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("bench runs")
-}
+use crate::common::{bench, json};
 
 fn scenario_with(effects: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/diagnose-demo.toml");
     let text = std::fs::read_to_string(path).expect("diagnose-demo.toml");
     format!("{text}\n{effects}\n")
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("json written")).expect("json")
 }
 
 #[test]

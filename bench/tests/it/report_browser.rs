@@ -8,16 +8,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::common::bench;
+
 const CHECK_JS: &str = include_str!("report_check.js");
 const WINDOW: (u32, u32) = (1400, 2200);
-
-fn bench(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_bench"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("bench runs")
-}
 
 /// The browser: `BENCH_CHROMIUM`, else `chromium` on the PATH; `None` when neither runs.
 fn chromium() -> Option<PathBuf> {
