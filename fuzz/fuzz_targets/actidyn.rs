@@ -16,7 +16,7 @@ fuzz_target!(|data: &[u8]| {
     for piece in [a, b] {
         cmds.push(piece);
         replies.push(piece);
-        while let Some(r) = cmds.next_line() {
+        while let Some(r) = cmds.next_message() {
             if let Ok(c) = r {
                 if let Ok(line) = encode_commands(&c) {
                     let again = parse_command_line(line.strip_suffix(b"\n").unwrap_or(&line));
@@ -24,7 +24,7 @@ fuzz_target!(|data: &[u8]| {
                 }
             }
         }
-        while let Some(r) = replies.next_line() {
+        while let Some(r) = replies.next_message() {
             if let Ok(rs) = r {
                 if let Ok(line) = encode_replies(&rs) {
                     let again = parse_reply_line(line.strip_suffix(b"\n").unwrap_or(&line));

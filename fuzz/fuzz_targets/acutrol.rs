@@ -13,7 +13,7 @@ fuzz_target!(|data: &[u8]| {
     for piece in [a, b] {
         cmds.push(piece);
         replies.push(piece);
-        while let Some(r) = cmds.next_command() {
+        while let Some(r) = cmds.next_message() {
             if let Ok(c) = r {
                 // Values are re-encoded with 6 decimals, so only the path and axis must survive.
                 if let Ok(line) = c.encode(Encoding::default()) {
@@ -22,6 +22,6 @@ fuzz_target!(|data: &[u8]| {
                 }
             }
         }
-        while replies.next_reply().is_some() {}
+        while replies.next_message().is_some() {}
     }
 });

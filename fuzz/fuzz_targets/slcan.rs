@@ -21,7 +21,7 @@ fuzz_target!(|data: &[u8]| {
                 assert_eq!(d.next_message().and_then(Result::ok), Some(m));
             }
         }
-        while let Some(r) = adapter.next_command() {
+        while let Some(r) = adapter.next_message() {
             if let Ok(c) = r {
                 let bytes = c.encode();
                 let again = HostCommand::parse(bytes.strip_suffix(b"\r").unwrap_or(&bytes));

@@ -26,15 +26,14 @@
 //! assert_eq!(line, b"ALC 0:PRV 1,?\n");
 //! let mut dec = ReplyDecoder::new();
 //! dec.push(b"ALC 0,0:PRV 1,3,12.5,0.25,0\n");
-//! let replies = dec.next_line().unwrap().unwrap();
+//! let replies = dec.next_message().unwrap().unwrap();
 //! let prv = replies[1].prv().unwrap();
 //! assert_eq!((prv.position_deg, prv.rate_deg_s, prv.accel_deg_s2), (12.5, 0.25, 0.0));
 //! ```
 
 use std::fmt::{self, Write as _};
 
-use super::line::LineSplitter;
-use super::{finite, parse_f64, DecodeError, EncodeError};
+use super::{finite, parse_f64, DecodeError, EncodeError, LineDecoder, LineFormat};
 
 /// Longest line accepted, bytes.
 pub const MAX_LINE: usize = 1024;
@@ -632,68 +631,39 @@ pub fn parse_reply_line(line: &[u8]) -> Result<Vec<Reply>, DecodeError> {
     split_offsets(s, ':').map(|(at, e)| parse_reply(at, e)).collect()
 }
 
-/// Incremental decoder of reply lines (host side). Lines that do not parse (including a partial
-/// line at the start of a connection) are reported with their stream offset and skipped.
-#[derive(Debug, Clone)]
-pub struct ReplyDecoder {
-    lines: LineSplitter,
-}
+/// Reply lines (host side): each line is the chained replies to one command line. A blank line is
+/// an error, not skipped: the controller answers every command line.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ReplyLines;
 
-impl Default for ReplyDecoder {
-    fn default() -> Self {
-        Self::new()
+impl LineFormat for ReplyLines {
+    type Message = Vec<Reply>;
+    const MAX_LINE: usize = MAX_LINE;
+    fn parse(line: &[u8]) -> Result<Vec<Reply>, DecodeError> {
+        parse_reply_line(line)
+    }
+    fn is_filler(_line: &[u8]) -> bool {
+        false
     }
 }
 
-impl ReplyDecoder {
-    /// A decoder at stream offset 0.
-    pub fn new() -> Self {
-        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
-    }
+/// Command lines (controller side, used by the simulator); blank lines are skipped.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CommandLines;
 
-    /// Feeds received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.lines.push(bytes);
-    }
-
-    /// The replies of the next complete line, or `None` until one is complete.
-    pub fn next_line(&mut self) -> Option<Result<Vec<Reply>, DecodeError>> {
-        let line = match self.lines.next_line()? {
-            Ok(l) => l,
-            Err(e) => return Some(Err(e)),
-        };
-        Some(parse_reply_line(&line.bytes).map_err(|e| e.shifted(line.offset)))
+impl LineFormat for CommandLines {
+    type Message = Vec<Command>;
+    const MAX_LINE: usize = MAX_LINE;
+    fn parse(line: &[u8]) -> Result<Vec<Command>, DecodeError> {
+        parse_command_line(line)
     }
 }
 
-/// Incremental decoder of command lines (controller side, used by the simulator).
-#[derive(Debug, Clone)]
-pub struct CommandDecoder {
-    lines: LineSplitter,
-}
+/// Incremental decoder of reply lines (host side).
+pub type ReplyDecoder = LineDecoder<ReplyLines>;
+/// Incremental decoder of command lines (controller side).
+pub type CommandDecoder = LineDecoder<CommandLines>;
 
-impl Default for CommandDecoder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl CommandDecoder {
-    /// A decoder at stream offset 0.
-    pub fn new() -> Self {
-        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
-    }
-
-    /// Feeds received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.lines.push(bytes);
-    }
-
-    /// The commands of the next complete non-empty line, or `None` until one is complete.
-    pub fn next_line(&mut self) -> Option<Result<Vec<Command>, DecodeError>> {
-        self.lines.next_parsed(parse_command_line)
-    }
-}
 /// Error codes of Actidyn `ERR` replies. **bench's own convention** (the controller's codes are
 /// unknown): the simulator answers with them and the driver maps them to an [`crate::ErrorKind`] with
 /// [`error_kind`]; codes not listed here are device faults.

@@ -18,8 +18,7 @@
 //! assert_eq!(c.encode(Encoding::default()).unwrap(), b":demand:rate 1, 010.000000\r\n");
 //! ```
 
-use super::line::LineSplitter;
-use super::{finite, parse_f64, DecodeError, EncodeError};
+use super::{finite, parse_f64, DecodeError, EncodeError, LineDecoder, LineFormat};
 
 /// Longest line accepted, bytes.
 pub const MAX_LINE: usize = 256;
@@ -332,63 +331,35 @@ pub fn parse_reply(line: &[u8]) -> Result<Reply, DecodeError> {
     parse_f64(t).map(Reply::Value).ok_or_else(|| err(0, "OK, a number or ERR <text>", line))
 }
 
+/// Reply lines (host side); blank lines are skipped.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ReplyLines;
+
+impl LineFormat for ReplyLines {
+    type Message = Reply;
+    const MAX_LINE: usize = MAX_LINE;
+    fn parse(line: &[u8]) -> Result<Reply, DecodeError> {
+        parse_reply(line)
+    }
+}
+
+/// Command lines (controller side, used by the simulator); blank lines are skipped.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CommandLines;
+
+impl LineFormat for CommandLines {
+    type Message = Command;
+    const MAX_LINE: usize = MAX_LINE;
+    fn parse(line: &[u8]) -> Result<Command, DecodeError> {
+        parse_command(line)
+    }
+}
+
 /// Incremental reply decoder (host side).
-#[derive(Debug, Clone)]
-pub struct ReplyDecoder {
-    lines: LineSplitter,
-}
+pub type ReplyDecoder = LineDecoder<ReplyLines>;
+/// Incremental command decoder (controller side).
+pub type CommandDecoder = LineDecoder<CommandLines>;
 
-impl Default for ReplyDecoder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl ReplyDecoder {
-    /// A decoder at stream offset 0.
-    pub fn new() -> Self {
-        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
-    }
-
-    /// Feeds received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.lines.push(bytes);
-    }
-
-    /// The next reply, or `None` until a line is complete. Empty lines are skipped.
-    pub fn next_reply(&mut self) -> Option<Result<Reply, DecodeError>> {
-        self.lines.next_parsed(parse_reply)
-    }
-}
-
-/// Incremental command decoder (controller side, used by the simulator).
-#[derive(Debug, Clone)]
-pub struct CommandDecoder {
-    lines: LineSplitter,
-}
-
-impl Default for CommandDecoder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl CommandDecoder {
-    /// A decoder at stream offset 0.
-    pub fn new() -> Self {
-        Self { lines: LineSplitter::new(b"\n", MAX_LINE) }
-    }
-
-    /// Feeds received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.lines.push(bytes);
-    }
-
-    /// The next command, or `None` until a line is complete. Empty lines are skipped.
-    pub fn next_command(&mut self) -> Option<Result<Command, DecodeError>> {
-        self.lines.next_parsed(parse_command)
-    }
-}
 /// The [`crate::ErrorKind`] of an ACUTROL `ERR <text>` reply, by keyword (the controller's error
 /// format is unknown; this reading is inferred): `interlock` → `InterlockTripped`, `range` or
 /// `limit` → `OutOfRange`, `remote`, `lockout` or `mode` → `NotReady`, anything else →

@@ -1,6 +1,82 @@
-//! Splits a byte stream into terminated lines, keeping each line's stream offset.
+//! Line protocols: a byte stream split into terminated lines, each line's stream offset kept, and
+//! [`LineDecoder`], the one incremental decoder of every protocol whose messages are lines (a
+//! protocol says only how its lines end and parse: [`LineFormat`]).
+
+use std::fmt;
+use std::marker::PhantomData;
 
 use super::DecodeError;
+
+/// One direction of a line protocol: what ends its lines, how long they may be, which lines carry
+/// nothing, and how a line parses.
+pub trait LineFormat {
+    /// What one line decodes to.
+    type Message;
+    /// Bytes that end a line (a `\r` before a `\n` terminator is dropped too).
+    const TERMINATORS: &'static [u8] = b"\n";
+    /// Longest line accepted, bytes; a longer one is an error and is skipped.
+    const MAX_LINE: usize;
+    /// Parses one line (terminator removed); error offsets count from the line's start.
+    fn parse(line: &[u8]) -> Result<Self::Message, DecodeError>;
+    /// Whether a line carries no message and is skipped (default: blank, only whitespace).
+    fn is_filler(line: &[u8]) -> bool {
+        line.iter().all(u8::is_ascii_whitespace)
+    }
+}
+
+/// Incremental decoder of a line protocol: feed bytes as they arrive ([`push`](Self::push)),
+/// take messages out ([`next_message`](Self::next_message)). A line that does not parse
+/// (including a partial line at the start of a connection) is an error with its stream offset,
+/// and decoding carries on with the next line.
+pub struct LineDecoder<F> {
+    lines: LineSplitter,
+    format: PhantomData<fn() -> F>,
+}
+
+impl<F: LineFormat> LineDecoder<F> {
+    /// A decoder at stream offset 0.
+    pub fn new() -> Self {
+        Self { lines: LineSplitter::new(F::TERMINATORS, F::MAX_LINE), format: PhantomData }
+    }
+
+    /// Feeds received bytes.
+    pub fn push(&mut self, bytes: &[u8]) {
+        self.lines.push(bytes);
+    }
+
+    /// The next message, an error for a line that is not one, or `None` until a line is
+    /// complete.
+    pub fn next_message(&mut self) -> Option<Result<F::Message, DecodeError>> {
+        loop {
+            let line = match self.lines.next_line()? {
+                Ok(l) => l,
+                Err(e) => return Some(Err(e)),
+            };
+            if F::is_filler(&line.bytes) {
+                continue;
+            }
+            return Some(F::parse(&line.bytes).map_err(|e| e.shifted(line.offset)));
+        }
+    }
+}
+
+impl<F: LineFormat> Default for LineDecoder<F> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<F> Clone for LineDecoder<F> {
+    fn clone(&self) -> Self {
+        Self { lines: self.lines.clone(), format: PhantomData }
+    }
+}
+
+impl<F> fmt::Debug for LineDecoder<F> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("LineDecoder").field("lines", &self.lines).finish()
+    }
+}
 
 /// One complete line, without its terminator.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -44,25 +120,6 @@ impl LineSplitter {
 
     fn overlong_error(&self) -> DecodeError {
         DecodeError::new(self.base, format!("a line of at most {} bytes", self.max_len), &self.buf)
-    }
-
-    /// The next line that is not blank (only whitespace), parsed by `parse` with its errors
-    /// shifted to stream offsets; an over-long line is an error; `None` when more bytes are
-    /// needed.
-    pub(crate) fn next_parsed<T>(
-        &mut self,
-        parse: impl Fn(&[u8]) -> Result<T, DecodeError>,
-    ) -> Option<Result<T, DecodeError>> {
-        loop {
-            let line = match self.next_line()? {
-                Ok(l) => l,
-                Err(e) => return Some(Err(e)),
-            };
-            if line.bytes.iter().all(u8::is_ascii_whitespace) {
-                continue;
-            }
-            return Some(parse(&line.bytes).map_err(|e| e.shifted(line.offset)));
-        }
     }
 
     /// The next complete line, an error for an over-long line, or `None` when more bytes are

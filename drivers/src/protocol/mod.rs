@@ -36,6 +36,8 @@ mod line;
 pub mod modbus_map;
 pub mod slcan;
 
+pub use line::{LineDecoder, LineFormat};
+
 use std::fmt;
 
 use serde::{Deserialize, Serialize};

@@ -25,7 +25,7 @@
 //! ```
 
 use super::line::LineSplitter;
-use super::{DecodeError, EncodeError};
+use super::{DecodeError, EncodeError, LineDecoder, LineFormat};
 
 /// End of every message.
 pub const CR: u8 = b'\r';
@@ -524,41 +524,22 @@ impl HostDecoder {
     }
 }
 
-/// Incremental decoder of host → adapter commands (adapter side, used by the simulator).
-/// Empty commands (a bare `\r`, which hosts send to flush the adapter) are skipped.
-#[derive(Debug, Clone)]
-pub struct AdapterDecoder {
-    lines: LineSplitter,
-}
+/// Host → adapter command lines (adapter side, used by the simulator). Empty commands (a bare
+/// `\r`, which hosts send to flush the adapter) are skipped; the adapter answers an error with BEL.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CommandLines;
 
-impl Default for AdapterDecoder {
-    fn default() -> Self {
-        Self::new()
+impl LineFormat for CommandLines {
+    type Message = HostCommand;
+    const TERMINATORS: &'static [u8] = &[CR];
+    const MAX_LINE: usize = MAX_LINE;
+    fn parse(line: &[u8]) -> Result<HostCommand, DecodeError> {
+        HostCommand::parse(line)
+    }
+    fn is_filler(line: &[u8]) -> bool {
+        line.is_empty()
     }
 }
 
-impl AdapterDecoder {
-    /// A decoder at stream offset 0.
-    pub fn new() -> Self {
-        Self { lines: LineSplitter::new(&[CR], MAX_LINE) }
-    }
-
-    /// Feeds received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.lines.push(bytes);
-    }
-
-    /// The next command, or `None` until one is complete. The adapter answers an error with BEL.
-    pub fn next_command(&mut self) -> Option<Result<HostCommand, DecodeError>> {
-        loop {
-            let line = match self.lines.next_line()? {
-                Ok(l) => l,
-                Err(e) => return Some(Err(e)),
-            };
-            if line.bytes.is_empty() {
-                continue;
-            }
-            return Some(HostCommand::parse(&line.bytes).map_err(|e| e.shifted(line.offset)));
-        }
-    }
-}
+/// Incremental decoder of host → adapter commands (adapter side).
+pub type AdapterDecoder = LineDecoder<CommandLines>;

@@ -14,6 +14,7 @@ use std::time::Duration;
 
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
+use crate::protocol::{LineDecoder, LineFormat};
 use crate::transport::{BoxStream, Endpoint};
 use crate::{DeviceError, ErrorKind};
 
@@ -104,48 +105,22 @@ pub struct LinkCounters {
     pub keep_alives: u64,
 }
 
-/// A decoder of a line protocol's replies, fed with the bytes as they come.
-pub(crate) trait LineDecoder: Send {
-    /// A decoder with nothing in it.
-    fn fresh() -> Self;
-    /// Append received bytes.
-    fn push(&mut self, bytes: &[u8]);
-}
-
-impl LineDecoder for crate::protocol::actidyn::ReplyDecoder {
-    fn fresh() -> Self {
-        Self::new()
-    }
-    fn push(&mut self, bytes: &[u8]) {
-        self.push(bytes);
-    }
-}
-
-impl LineDecoder for crate::protocol::acutrol::ReplyDecoder {
-    fn fresh() -> Self {
-        Self::new()
-    }
-    fn push(&mut self, bytes: &[u8]) {
-        self.push(bytes);
-    }
-}
-
 /// Readable form of a request line for messages: no terminator.
 pub(crate) fn shown(line: &[u8]) -> String {
     String::from_utf8_lossy(line).trim_end_matches(['\r', '\n']).to_owned()
 }
 
-/// A request–reply text link over a serial port or TCP: the stream, the reply decoder `D` and
+/// A request–reply text link over a serial port or TCP: the stream, the decoder of reply lines in format `F` and
 /// what the link has coped with. After a timeout or an unreadable reply the next send first
 /// drains what is waiting (late replies); after a link fault the stream is dropped, and the
 /// driver reopens it before its next attempt.
-pub(crate) struct LineLink<D> {
+pub(crate) struct LineLink<F> {
     /// Where the device is reached.
     pub(crate) endpoint: Endpoint,
     reply_timeout: Duration,
     stream: Option<BoxStream>,
     /// The reply decoder (restarted whenever the stream is).
-    pub(crate) decoder: D,
+    pub(crate) decoder: LineDecoder<F>,
     /// Bytes received since the stream was opened.
     rx_total: u64,
     /// `rx_total` when the decoder was last restarted (its offsets count from there).
@@ -158,14 +133,14 @@ pub(crate) struct LineLink<D> {
     pub(crate) policy: RetryPolicy,
 }
 
-impl<D: LineDecoder> LineLink<D> {
+impl<F: LineFormat> LineLink<F> {
     /// A closed link to `endpoint`.
     pub(crate) fn new(endpoint: Endpoint, reply_timeout: Duration, policy: RetryPolicy) -> Self {
         Self {
             endpoint,
             reply_timeout,
             stream: None,
-            decoder: D::fresh(),
+            decoder: LineDecoder::new(),
             rx_total: 0,
             rx_base: 0,
             resync: false,
@@ -185,7 +160,7 @@ impl<D: LineDecoder> LineLink<D> {
     }
 
     fn reset_decoder(&mut self) {
-        self.decoder = D::fresh();
+        self.decoder = LineDecoder::new();
         self.rx_base = self.rx_total;
     }
 

@@ -46,10 +46,10 @@ use bench_physics::units::{ARCSEC, DEG};
 use serde::{Deserialize, Serialize};
 
 pub use super::link::LinkCounters;
-use super::link::{shown, Attempt, LineDecoder, LineLink, RetryPolicy};
+use super::link::{shown, Attempt, LineLink, RetryPolicy};
 use crate::clock::{Clock, SystemClock};
-use crate::protocol::Dialect;
 use crate::protocol::{actidyn, acutrol};
+use crate::protocol::{Dialect, LineFormat};
 use crate::transport::Endpoint;
 use crate::{
     DeviceError, DeviceInfo, DeviceResult, ErrorKind, RateTable, TableCapabilities, TableMode,
@@ -287,10 +287,10 @@ trait Controller: Send {
 /// A dialect on its line link.
 #[async_trait]
 trait OnLine: Send {
-    /// Its reply decoder.
-    type Decoder: LineDecoder;
+    /// The format of its reply lines.
+    type Replies: LineFormat;
     /// The link.
-    fn link(&mut self) -> &mut LineLink<Self::Decoder>;
+    fn link(&mut self) -> &mut LineLink<Self::Replies>;
     /// Take remote control on an open link, one attempt.
     async fn session(&mut self) -> DeviceResult<()>;
 }
@@ -348,7 +348,7 @@ where
 /// The Actidyn dialect (ST1300 class): `MNEMONIC axis,args` commands joined by `:` on one
 /// line, a keep-alive `ALC 0` within the controller's 30 s.
 struct ActidynLine {
-    link: LineLink<actidyn::ReplyDecoder>,
+    link: LineLink<actidyn::ReplyLines>,
     axis: u8,
     clock: Arc<dyn Clock>,
     keep_alive_s: f64,
@@ -358,8 +358,8 @@ struct ActidynLine {
 
 #[async_trait]
 impl OnLine for ActidynLine {
-    type Decoder = actidyn::ReplyDecoder;
-    fn link(&mut self) -> &mut LineLink<actidyn::ReplyDecoder> {
+    type Replies = actidyn::ReplyLines;
+    fn link(&mut self) -> &mut LineLink<actidyn::ReplyLines> {
         &mut self.link
     }
 
@@ -382,7 +382,7 @@ impl ActidynLine {
         self.link.send(&line).await?;
         let deadline = self.link.deadline();
         loop {
-            match self.link.decoder.next_line() {
+            match self.link.decoder.next_message() {
                 None => self.link.fill(&line, deadline).await?,
                 Some(Err(e)) => return Err(self.link.protocol_error(&line, e)),
                 Some(Ok(replies)) => {
@@ -533,7 +533,7 @@ impl Controller for ActidynLine {
 
 /// The ACUTROL dialect (SCPI-like keywords, one command a line, `OK`, a value or `ERR`).
 struct AcutrolLine {
-    link: LineLink<acutrol::ReplyDecoder>,
+    link: LineLink<acutrol::ReplyLines>,
     axis: u8,
     encoding: acutrol::Encoding,
     alarm: bool,
@@ -541,8 +541,8 @@ struct AcutrolLine {
 
 #[async_trait]
 impl OnLine for AcutrolLine {
-    type Decoder = acutrol::ReplyDecoder;
-    fn link(&mut self) -> &mut LineLink<acutrol::ReplyDecoder> {
+    type Replies = acutrol::ReplyLines;
+    fn link(&mut self) -> &mut LineLink<acutrol::ReplyLines> {
         &mut self.link
     }
 
@@ -569,7 +569,7 @@ impl AcutrolLine {
         self.link.send(&line).await?;
         let deadline = self.link.deadline();
         loop {
-            let reply = match self.link.decoder.next_reply() {
+            let reply = match self.link.decoder.next_message() {
                 None => {
                     self.link.fill(&line, deadline).await?;
                     continue;

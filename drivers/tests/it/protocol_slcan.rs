@@ -51,7 +51,7 @@ fn host_commands_byte_exact() {
     for (cmd, bytes) in &cases {
         assert_eq!(cmd.encode(), *bytes, "{cmd:?}");
         dec.push(bytes);
-        assert_eq!(dec.next_command().unwrap().unwrap(), *cmd);
+        assert_eq!(dec.next_message().unwrap().unwrap(), *cmd);
     }
     assert_eq!(Bitrate::K500.bits_per_s(), 500_000);
     assert_eq!(Bitrate::from_bits_per_s(125_000), Some(Bitrate::K125));
@@ -114,8 +114,8 @@ fn partial_input_and_errors_with_offsets() {
 fn adapter_side_skips_empty_commands() {
     let mut dec = AdapterDecoder::new();
     dec.push(b"\r\r\rS6\rO\r");
-    assert_eq!(dec.next_command().unwrap().unwrap(), HostCommand::SetBitrate(Bitrate::K500));
-    assert_eq!(dec.next_command().unwrap().unwrap(), HostCommand::Open);
+    assert_eq!(dec.next_message().unwrap().unwrap(), HostCommand::SetBitrate(Bitrate::K500));
+    assert_eq!(dec.next_message().unwrap().unwrap(), HostCommand::Open);
 }
 
 fn any_id() -> impl Strategy<Value = CanId> {
@@ -177,7 +177,7 @@ proptest! {
         while h.next_message().is_some() {}
         let mut a = AdapterDecoder::new();
         a.push(&bytes);
-        while a.next_command().is_some() {}
+        while a.next_message().is_some() {}
     }
 }
 

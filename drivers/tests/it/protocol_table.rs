@@ -38,7 +38,7 @@ fn actidyn_commands_byte_exact() {
     for (c, bytes) in &cases {
         assert_eq!(c.encode().unwrap(), *bytes, "{c:?}");
         dec.push(bytes);
-        assert_eq!(dec.next_line().unwrap().unwrap(), vec![*c]);
+        assert_eq!(dec.next_message().unwrap().unwrap(), vec![*c]);
     }
     let chained =
         [Command::Remote, Command::ClearAlarms, Command::SetMode { axis: A1, mode: Mode::Rate }];
@@ -75,7 +75,7 @@ fn actidyn_replies_byte_exact() {
     );
     let mut dec = actidyn::ReplyDecoder::new();
     dec.push(&bytes);
-    let got = dec.next_line().unwrap().unwrap();
+    let got = dec.next_message().unwrap().unwrap();
     assert_eq!(got, replies);
     assert!(got[0].answers(&Command::ClearAlarms));
     assert!(got[1].answers(&prv));
@@ -91,14 +91,14 @@ fn actidyn_reply_errors_carry_stream_offsets() {
     let mut dec = actidyn::ReplyDecoder::new();
     // Mid-line start, then a count that does not match, then a good line, split anywhere.
     dec.push(b"5,0\nPRV 1,3,1,2\nPOS 1,1,");
-    let e = dec.next_line().unwrap().unwrap_err();
+    let e = dec.next_message().unwrap().unwrap_err();
     assert_eq!(e.offset, 0);
-    let e = dec.next_line().unwrap().unwrap_err();
+    let e = dec.next_message().unwrap().unwrap_err();
     // "PRV 1,3,1,2" starts at 4; the count is at 4 + 6.
     assert_eq!(e.offset, 10);
-    assert!(dec.next_line().is_none());
+    assert!(dec.next_message().is_none());
     dec.push(b"45.5\n");
-    assert_eq!(dec.next_line().unwrap().unwrap()[0].position_deg(), Some(45.5));
+    assert_eq!(dec.next_message().unwrap().unwrap()[0].position_deg(), Some(45.5));
     // Bad number in a chained command line: offset within the line.
     let e = parse_command_line(b"ALC 0:RAT 1,x,5").unwrap_err();
     assert_eq!((e.offset, e.received.as_slice()), (12, &b"x"[..]));
@@ -146,7 +146,7 @@ fn issue17_acutrol_short_form_only_where_known() {
         (b":D:P 1, 090.000\r\n", C::DemandPosition { axis: 1, position_deg: 90.0 }),
     ] {
         dec.push(line);
-        assert_eq!(dec.next_command().unwrap().unwrap(), c);
+        assert_eq!(dec.next_message().unwrap().unwrap(), c);
     }
 }
 
@@ -187,8 +187,8 @@ fn acutrol_commands_byte_exact() {
         assert_eq!(c.encode(short3).unwrap(), *short, "{c:?}");
         dec.push(long);
         dec.push(short);
-        assert_eq!(dec.next_command().unwrap().unwrap(), *c);
-        assert_eq!(dec.next_command().unwrap().unwrap(), *c);
+        assert_eq!(dec.next_message().unwrap().unwrap(), *c);
+        assert_eq!(dec.next_message().unwrap().unwrap(), *c);
     }
     // Default: 6 decimals, long form.
     assert_eq!(
@@ -203,13 +203,13 @@ fn acutrol_commands_byte_exact() {
 fn acutrol_replies_and_errors() {
     let mut dec = acutrol::ReplyDecoder::new();
     dec.push(b"OK\r\n010.500\r\nERR axis 3 not present\r\nK\r\n");
-    assert_eq!(dec.next_reply().unwrap().unwrap(), acutrol::Reply::Ok);
-    assert_eq!(dec.next_reply().unwrap().unwrap(), acutrol::Reply::Value(10.5));
+    assert_eq!(dec.next_message().unwrap().unwrap(), acutrol::Reply::Ok);
+    assert_eq!(dec.next_message().unwrap().unwrap(), acutrol::Reply::Value(10.5));
     assert_eq!(
-        dec.next_reply().unwrap().unwrap(),
+        dec.next_message().unwrap().unwrap(),
         acutrol::Reply::Error("axis 3 not present".into())
     );
-    let e = dec.next_reply().unwrap().unwrap_err();
+    let e = dec.next_message().unwrap().unwrap_err();
     assert_eq!((e.offset, e.received.as_slice()), (37, &b"K"[..]));
     assert_eq!(
         acutrol::Reply::Value(-1.25).encode(Encoding::default()).unwrap(),
@@ -293,7 +293,7 @@ proptest! {
         let line = encode_commands(&cmds).unwrap();
         let mut dec = actidyn::CommandDecoder::new();
         dec.push(&line);
-        prop_assert_eq!(dec.next_line().unwrap().unwrap(), cmds);
+        prop_assert_eq!(dec.next_message().unwrap().unwrap(), cmds);
     }
 
     #[test]
@@ -314,22 +314,22 @@ proptest! {
         let enc = Encoding { form: if short { Form::Short } else { Form::Long }, decimals: 6 };
         let mut dec = acutrol::CommandDecoder::new();
         dec.push(&c.encode(enc).unwrap());
-        prop_assert_eq!(dec.next_command().unwrap().unwrap(), c);
+        prop_assert_eq!(dec.next_message().unwrap().unwrap(), c);
     }
 
     #[test]
     fn never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
         let mut a = actidyn::CommandDecoder::new();
         a.push(&bytes);
-        while a.next_line().is_some() {}
+        while a.next_message().is_some() {}
         let mut b = actidyn::ReplyDecoder::new();
         b.push(&bytes);
-        while b.next_line().is_some() {}
+        while b.next_message().is_some() {}
         let mut c = acutrol::CommandDecoder::new();
         c.push(&bytes);
-        while c.next_command().is_some() {}
+        while c.next_message().is_some() {}
         let mut d = acutrol::ReplyDecoder::new();
         d.push(&bytes);
-        while d.next_reply().is_some() {}
+        while d.next_message().is_some() {}
     }
 }

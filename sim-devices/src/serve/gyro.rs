@@ -315,7 +315,7 @@ where
                 }
                 dec.push(buf.get(..n).unwrap_or_default());
                 out.clear();
-                while let Some(cmd) = dec.next_command() {
+                while let Some(cmd) = dec.next_message() {
                     if gate.dead() {
                         continue;
                     }

@@ -594,11 +594,11 @@ impl<T: RateTable> TableController<T> {
             }
             loop {
                 let request = match self.opts.dialect {
-                    Dialect::Actidyn => match actidyn_dec.next_line() {
+                    Dialect::Actidyn => match actidyn_dec.next_message() {
                         None => break,
                         Some(r) => r.map(Request::Actidyn),
                     },
-                    Dialect::Acutrol => match acutrol_dec.next_command() {
+                    Dialect::Acutrol => match acutrol_dec.next_message() {
                         None => break,
                         Some(r) => r.map(Request::Acutrol),
                     },
