@@ -78,14 +78,16 @@ pub fn model_key_unit(key: ModelKey) -> Unit {
 }
 
 /// The display unit of a quantity the analysis names by its SI unit (an effect's parameter:
-/// `rad/s`, `rad`, `deg`, `s`, `1/°C`, `rad/s/°C²`, `s/rad`, `1`); an unknown unit is shown
-/// as it is.
+/// `rad/s`, `rad/s²`, `rad`, `deg`, `s`, `1/°C`, `rad/s/°C²`, `s/rad`, `1`); an unknown unit
+/// is shown as it is.
 pub fn for_si(si: &'static str) -> Unit {
     match si {
         "rad/s" => RATE,
         "rad/s/°C" => TEMP_COEFF,
         "rad/s/(°C/s)" => TEMP_RATE_COEFF,
         "rad/s/°C²" => Unit { name: "°/h/°C²", per_si: 1.0 / DEG_PER_H },
+        // A rate's trend in time: °/h per hour.
+        "rad/s²" => Unit { name: "°/h/h", per_si: 3600.0 / DEG_PER_H },
         "1/°C" => Unit { name: "ppm/°C", per_si: 1e6 },
         // A relative error per rate: ppm per °/s.
         "s/rad" => Unit { name: "ppm/(°/s)", per_si: 1e6 * DEG },
@@ -103,8 +105,8 @@ pub fn for_si(si: &'static str) -> Unit {
 /// (`amplitude_rad_s` → `amplitude`, `time_constant_s` → `time constant`): the value beside it
 /// is in display units.
 pub fn parameter_name(key: &str) -> String {
-    const SUFFIXES: [&str; 7] =
-        ["_rad_s_per_c2", "_s_per_rad", "_per_c", "_rad_s", "_rad", "_deg", "_s"];
+    const SUFFIXES: [&str; 8] =
+        ["_rad_s_per_c2", "_s_per_rad", "_per_c", "_rad_s2", "_rad_s", "_rad", "_deg", "_s"];
     let bare = SUFFIXES.iter().find_map(|s| key.strip_suffix(s)).unwrap_or(key);
     bare.replace('_', " ")
 }
@@ -224,5 +226,8 @@ mod tests {
         assert_eq!(parameter_name("time_constant_s"), "time constant");
         assert_eq!(parameter_name("coeff_per_c"), "coeff");
         assert_eq!(parameter_name("gain"), "gain");
+        assert_eq!(parameter_name("slope_rad_s2"), "slope");
+        // 1 °/h per hour.
+        assert!((for_si("rad/s²").of(DEG_PER_H / 3600.0) - 1.0).abs() < 1e-12);
     }
 }

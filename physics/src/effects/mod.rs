@@ -23,20 +23,6 @@
 mod describe;
 mod set;
 
-mod angle_harmonic;
-mod bias_step;
-mod earth_rate;
-mod once_per_revolution;
-mod periodic_bias;
-mod rate_ripple;
-mod rate_squared;
-mod scale_factor_temperature;
-mod temperature_quadratic;
-mod thermal_hysteresis;
-mod thermal_lag;
-mod time_offset;
-mod warm_up;
-
 pub use describe::{
     Columns, Family, Grid, Order, Owner, Param, Procedure, Range, Refinement, Reported, Rival, Role,
 };
@@ -164,8 +150,11 @@ impl<T: LinearEffect> Effect for T {
 
 /// The registry: one line per effect, `Id => module::Type`, in library order (the order of
 /// reports, files and metadata; an id's position also seeds its scan, so new effects go last).
+/// The line declares the effect's module (`module.rs` in this folder) too.
 macro_rules! registry {
     ($($id:ident => $module:ident::$ty:ident),* $(,)?) => {
+        $(mod $module;)*
+
         /// The effects of the library, by their place in the registry.
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub enum EffectId {
@@ -254,10 +243,22 @@ impl EffectId {
         self.effect().regressors(s, p, out);
     }
 
-    /// The effects it can be confused with ([`Effect::rivals`]) that are effects of the
-    /// library.
+    /// The effects it can be confused with: those its [`Effect::rivals`] name and those that
+    /// name it (a rivalry is declared once, by either effect), in library order.
     pub fn rival_effects(self) -> Vec<EffectId> {
-        self.effect().rivals().iter().filter_map(|r| EffectId::from_key(r.with)).collect()
+        let names =
+            |a: EffectId, b: EffectId| a.effect().rivals().iter().any(|r| r.with == b.key());
+        Self::ALL.into_iter().filter(|&o| o != self && (names(self, o) || names(o, self))).collect()
+    }
+
+    /// The declared rivalry of this effect with term `with` (an effect's or a nominal
+    /// parameter's key), by either side: when the two cannot be told apart, in words.
+    pub fn rivalry_with(self, with: &str) -> Option<&'static str> {
+        let own = self.effect().rivals().iter().find(|r| r.with == with).map(|r| r.when);
+        own.or_else(|| {
+            let other = EffectId::from_key(with)?;
+            other.effect().rivals().iter().find(|r| r.with == self.key()).map(|r| r.when)
+        })
     }
 }
 

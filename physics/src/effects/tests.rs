@@ -4,9 +4,10 @@ use proptest::prelude::*;
 
 use super::*;
 
-/// Every effect on, parameters in `params()` order.
+/// Every effect on, parameters in `params()` order: the listed ones at chosen values, any other
+/// (an effect added since) at [`example_values`].
 fn every_effect() -> Effects {
-    let on: [(EffectId, &[f64]); COUNT] = [
+    let on: &[(EffectId, &[f64])] = &[
         (EffectId::EarthRate, &[]),
         (EffectId::ThermalLag, &[312.5]),
         (EffectId::TemperatureQuadratic, &[2.1e-11]),
@@ -22,10 +23,27 @@ fn every_effect() -> Effects {
         (EffectId::AngleHarmonic, &[6e-8, 2.0, -0.4]),
     ];
     let mut e = Effects::default();
-    for (id, v) in on {
+    for &(id, v) in on {
         e.set(id, v).expect("count fits");
     }
+    let rest: Vec<EffectId> = EffectId::ALL.into_iter().filter(|&id| !e.has(id)).collect();
+    for id in rest {
+        e.set(id, &example_values(id)).expect("count fits");
+    }
     e
+}
+
+/// Valid values for any effect's parameters: a positive parameter 123.5 (a time, a period, a
+/// number of cycles), a finite one 2.5e-8 (a size in SI units), a phase 0.3.
+fn example_values(id: EffectId) -> Vec<f64> {
+    id.params()
+        .iter()
+        .map(|p| match (p.role, p.range) {
+            (Role::Phase, _) => 0.3,
+            (_, Range::Positive) => 123.5,
+            _ => 2.5e-8,
+        })
+        .collect()
 }
 
 #[test]
@@ -56,6 +74,22 @@ fn every_effect_is_registered_once_with_its_own_key() {
 }
 
 #[test]
+fn a_rivalry_is_declared_once_and_holds_both_ways() {
+    for id in EffectId::ALL {
+        for other in id.rival_effects() {
+            assert!(other.rival_effects().contains(&id), "{} / {}", id.key(), other.key());
+            assert!(id.rivalry_with(other.key()).is_some(), "{} / {}", id.key(), other.key());
+        }
+    }
+    assert!(EffectId::WarmUp.rival_effects().contains(&EffectId::BiasStep));
+    assert_eq!(
+        EffectId::RateSquared.rivalry_with("bias"),
+        Some("a run at one |rate| without rests")
+    );
+    assert_eq!(EffectId::WarmUp.rivalry_with("once_per_revolution"), None);
+}
+
+#[test]
 fn owners_split_what_travels_with_a_model() {
     let e = every_effect();
     let t = e.travelling();
@@ -83,8 +117,10 @@ fn metadata_keys_and_values_are_the_documented_ones() {
     );
     assert_eq!(m.get("effect.bias_step.time_s").map(String::as_str), Some("1e2"));
     assert_eq!(m.get("effect.warm_up.time_constant_s").map(String::as_str), Some("9e2"));
-    // 1 + every parameter of the twelve parametrised effects.
-    assert_eq!(m.len(), 1 + 22);
+    // One key per parameter, and one per effect without parameters.
+    let keys: usize = EffectId::ALL.iter().map(|id| id.params().len().max(1)).sum();
+    assert_eq!(m.len(), keys);
+    assert!(m.len() >= 1 + 22, "the thirteen first effects' keys at least");
     assert!(m.keys().all(|k| k.starts_with(METADATA_PREFIX)));
     assert!(Effects::default().to_metadata().is_empty());
 }
