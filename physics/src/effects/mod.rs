@@ -195,6 +195,7 @@ registry! {
     PeriodicBias => periodic_bias::PeriodicBias,
     RateRipple => rate_ripple::RateRipple,
     AngleHarmonic => angle_harmonic::AngleHarmonic,
+    BiasDrift => bias_drift::BiasDrift,
 }
 
 impl EffectId {
