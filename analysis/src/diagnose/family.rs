@@ -13,7 +13,7 @@
 //! | `warm_up` τ | decays with τ/3 and 3τ, a linear drift |
 //! | `bias_step` t_s | a second step (every grid instant), a ramp from t_s |
 //! | temperature terms | (T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating only, (T − T0)·Ω, the lag at τ/2 and 2τ |
-//! | `rate_squared`, `scale_factor_temperature` | \|Ω\|, Ω·(T − T0)² |
+//! | `rate_squared`, `scale_factor_asymmetry` | the other's shape (\|Ω\| or Ω²), Ω·(T − T0)² |
 //! | `time_offset` | \|dΩ/dt\| (a bias at rate changes), dΩ/dt by direction |
 //!
 //! With the effect in the model each member is tested (Wald, noise model) at the effect's
@@ -261,14 +261,16 @@ pub(super) fn members(
         }
         Family::Temperature => temperature_members(prep, id, p, model),
         Family::RateShape => {
-            let v = vec![
-                m(
-                    "|Ω_in| (linear in speed, either direction)".into(),
-                    one(prep, |i| input(i).abs()),
-                ),
-                m("Ω_in·(T − T0)²".into(), one(prep, |i| input(i) * dtemp(i).powi(2))),
-            ];
-            ("|Ω|, Ω·(T − T0)²".into(), v)
+            // The library's other rate shapes, by their own regressors (|Ω_in| for rate², Ω_in²
+            // for the asymmetry), and Ω·(T − T0)².
+            let mut v: Vec<Member> = EffectId::ALL
+                .into_iter()
+                .filter(|&o| o != id && o.effect().family() == Family::RateShape)
+                .filter(|&o| o.effect().columns() == Columns::PerSample)
+                .map(|o| m(o.effect().shape().into(), candidate_columns(prep, o, f64::NAN, model)))
+                .collect();
+            v.push(m("Ω_in·(T − T0)²".into(), one(prep, |i| input(i) * dtemp(i).powi(2))));
+            ("|Ω|, Ω², Ω·(T − T0)²".into(), v)
         }
         Family::RateChange => {
             let bins = &prep.bins;

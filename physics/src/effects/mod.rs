@@ -196,6 +196,7 @@ registry! {
     RateRipple => rate_ripple::RateRipple,
     AngleHarmonic => angle_harmonic::AngleHarmonic,
     BiasDrift => bias_drift::BiasDrift,
+    ScaleFactorAsymmetry => scale_factor_asymmetry::ScaleFactorAsymmetry,
 }
 
 impl EffectId {
