@@ -4,6 +4,14 @@ table in docs/diagnose.md): per preset, how often the concealed physics is found
 and its parameters within 3 sigma; false findings and false unexplained windows on nulls.
 
     python3 scripts/lab_diagnose_study.py [--seeds N] [--jobs J] [--set KEY=VALUE] [PRESET ...]
+    python3 scripts/lab_diagnose_study.py random [--files N] [--first-seed S] [--classes ...]
+
+`random` (issue 26): procedures drawn at random (scripts/calibrate_study.py's drawing, plus the
+gyro at 10–200 Hz, telemetry at 1–20 Hz, stop-start or continuous reversals, a lab's traits or
+not) crossed with the physics — null, each library effect the writer conceals, two effects,
+effects outside the library (a kink in k_t, a noise burst) — and judged per class: false
+findings and false unexplained (nulls), wrong names, found, "not told apart", parameters
+within 3σ. One worker by default; `--deadline S` stops starting files after S seconds.
 
 Needs the pinned Python (scripts/pyenv.sh) and a release build (cargo build --release -p bench).
 Every lab file holds a real 9 ms stamping offset of the gyro against the table, so
@@ -14,6 +22,7 @@ import concurrent.futures as cf
 import json
 import math
 import os
+import random
 import subprocess
 import sys
 import tempfile
@@ -141,7 +150,250 @@ def one(preset, seed, tmp, sets=()):
     return verdict + (secs,)
 
 
+# ---------------------------------------------------------------------------------------------
+# The randomised study (issue 26): procedures drawn at random, crossed with the physics.
+# ---------------------------------------------------------------------------------------------
+
+# The writer's effect -> (the library effect that names it, [(writer's parameter, bench's)],
+# a draw of its size: the writer's default times a factor, its sign at random).
+RANDOM_EFFECTS = {
+    "bias_drift": ("bias_drift", [("slope", "slope_rad_s2")]),
+    "sf_asymmetry": ("scale_factor_asymmetry", [("coeff", "asymmetry")]),
+    "warm_up": ("warm_up", [("amplitude", "amplitude_rad_s"),
+                            ("time_constant_s", "time_constant_s")]),
+    "bias_step": ("bias_step", [("step", "step_rad_s"), ("time_s", "time_s")]),
+    "rate_squared": ("rate_squared", [("coeff", "coeff_s_per_rad")]),
+    "periodic_bias": ("periodic_bias", [("amplitude", "amplitude_rad_s"),
+                                        ("period_s", "period_s")]),
+    "temperature_quadratic": ("temperature_quadratic", [("coeff", "coeff_rad_s_per_c2")]),
+    "sf_temperature": ("scale_factor_temperature", [("coeff_per_c", "coeff_per_c")]),
+    "hysteresis": ("thermal_hysteresis", [("half_width", "half_width_rad_s")]),
+    "once_per_rev": ("once_per_revolution", [("amplitude", "amplitude_rad_s")]),
+    "twice_per_rev": ("angle_harmonic", [("amplitude", "amplitude_rad_s")]),
+    "rate_ripple": ("rate_ripple", [("relative_amplitude", "relative_amplitude")]),
+    "earth_rate": ("earth_rate", []),
+}
+# Effects outside the library: the right answer is "unexplained", never a library name.
+OUTSIDE = ["kt_kink", "noise_burst"]
+CLASSES = ["null", "effect", "pair", "outside"]
+
+
+def draw_random(seed, cls):
+    """A random procedure (calibrate_study.draw: chamber ramps or soaks, 1–3 rates of 2–30
+    °/min, reversals every 4–15 min) with the diagnosis's extras drawn from a second stream:
+    gyro 10–200 Hz, table and chamber telemetry 1–20 Hz, stop-start reversals or continuous,
+    a lab's traits or not; and the physics of class `cls`. Returns (config, truth of names)."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import calibrate_study
+    # Each class draws its own procedures (the writer's seed is the procedure's too).
+    pseed = seed * len(CLASSES) + CLASSES.index(cls)
+    kind, cfg = calibrate_study.draw(pseed)
+    g = random.Random(pseed * 104729 + 26)
+    traits = g.random() < 0.5
+    cfg["gyro"]["sample_rate_hz"] = g.choice([10.0, 20.0, 25.0, 50.0, 100.0, 200.0])
+    if traits:
+        cfg["traits"]["table_rate_hz"] = g.choice([1.0, 2.0, 5.0, 10.0, 20.0])
+    else:
+        cfg["traits"] = {}
+    seg = cfg["procedure"]["segment_s"]
+    if g.random() < 0.5:
+        cfg["procedure"]["stop_s"] = round(g.uniform(60.0, seg / 3.0))
+    preset = "lab-null" if traits else "lab-clean"
+    names = []
+    if cls == "effect":
+        names = [sorted(RANDOM_EFFECTS)[(seed - 1) % len(RANDOM_EFFECTS)]]
+    elif cls == "pair":
+        names = g.sample([k for k in sorted(RANDOM_EFFECTS) if k != "earth_rate"], 2)
+    elif cls == "outside":
+        names = [OUTSIDE[(seed - 1) % len(OUTSIDE)]]
+    fx = {}
+    for n in names:
+        if n == "earth_rate":
+            cfg["nominal_earth_rate"] = False
+            continue
+        e = {"enabled": True}
+        size = g.uniform(0.5, 2.0) * g.choice([-1.0, 1.0])
+        scaled = {"bias_drift": "slope", "sf_asymmetry": "coeff", "warm_up": "amplitude",
+                  "bias_step": "step", "rate_squared": "coeff", "periodic_bias": "amplitude",
+                  "temperature_quadratic": "coeff", "sf_temperature": "coeff_per_c",
+                  "hysteresis": "half_width", "once_per_rev": "amplitude",
+                  "twice_per_rev": "amplitude", "rate_ripple": "relative_amplitude",
+                  "kt_kink": "coeff"}
+        defaults = {"bias_drift": 1e-10, "sf_asymmetry": 2e-5, "warm_up": 3e-7,
+                    "bias_step": 1e-7, "rate_squared": 1e-2, "periodic_bias": 5e-8,
+                    "temperature_quadratic": 4e-11, "sf_temperature": 1e-6,
+                    "hysteresis": 5e-8, "once_per_rev": 5e-8, "twice_per_rev": 5e-8,
+                    "rate_ripple": 3e-5, "kt_kink": 5e-9}
+        if n in scaled:
+            e[scaled[n]] = defaults[n] * size
+        if n == "warm_up":
+            e["time_constant_s"] = round(g.uniform(300.0, 2000.0))
+        if n == "bias_step":
+            e["time_fraction"] = round(g.uniform(0.2, 0.8), 3)
+        if n == "periodic_bias":
+            e["period_s"] = round(g.uniform(600.0, 3000.0))
+        if n == "kt_kink":
+            e["temp_c"] = round(g.uniform(-10.0, 40.0))
+        if n == "noise_burst":
+            e.update({"start_fraction": round(g.uniform(0.1, 0.8), 3),
+                      "duration_s": round(g.uniform(300.0, 1800.0)),
+                      "factor": round(g.uniform(3.0, 8.0), 2)})
+        fx[n] = e
+    cfg["effects"] = fx
+    return preset, kind, cfg, names, traits
+
+
+def allowed_names(names, traits, sensor):
+    """The library names that are right for a file: its concealed effects', the lab's
+    stamping offset (real in every file with a lab's traits) and, for a gyro without its own
+    temperature sensor, the coil's lag behind the chamber air (the writer's lag is drawn
+    200–1200 s, the lab's model says 300 s)."""
+    lib = {RANDOM_EFFECTS[n][0] for n in names if n in RANDOM_EFFECTS}
+    return lib, lib | ({"time_offset"} if traits else set()) | \
+        (set() if sensor else {"thermal_lag"})
+
+
+def judge_random(d, truth, names, traits, sensor):
+    """(false finding, false unexplained, wrong name, found, params within 3σ or None,
+    not told apart) for one file; names are the writer's concealed effects."""
+    acc = [f for f in d["findings"] if f.get("accepted", True) and not f.get("rejected_because")]
+    lib, allowed = allowed_names(names, traits, sensor)
+    named = [f["effect"] for f in acc]
+    unexpl = [u["correlates_with"] for u in d["unexplained"]]
+    apart = [u for u in unexpl if u.startswith("not told apart")]
+    wrong = any(e not in allowed for e in named)
+    # An honest "not told apart: A or B" naming the truth is not a wrong name.
+    found = bool(lib) and all(e in named for e in lib)
+    ok = None
+    if found:
+        ok = True
+        for n in names:
+            if n not in RANDOM_EFFECTS:
+                continue
+            effect, params = RANDOM_EFFECTS[n]
+            if not params:
+                continue  # Earth's rate: named or not, no parameter of the writer's to compare
+            f = next(f for f in acc if f["effect"] == effect)
+            t = dict(truth["effects"][n]["parameters"])
+            if n == "bias_step" and t.get("time_s") is None:
+                t["time_s"] = truth["effects"]["bias_step"].get("time_s")
+            for a, b in params:
+                p = f["parameters"].get(b)
+                if p is None or t.get(a) is None:
+                    continue
+                v = abs(p["value"]) if b in ("amplitude_rad_s", "relative_amplitude") else p["value"]
+                w = abs(t[a]) if b in ("amplitude_rad_s", "relative_amplitude") else t[a]
+                ok = ok and abs(v - w) <= 3.0 * p["sigma"]
+    false_finding = not names and any(e not in allowed for e in named)
+    false_unexplained = not names and bool(unexpl)
+    return false_finding, false_unexplained, wrong, found, ok, bool(apart), named, unexpl
+
+
+def one_random(args, cls, seed):
+    preset, kind, cfg, names, traits = draw_random(seed, cls)
+    d = os.path.join(args.work, f"{cls}-{seed}")
+    os.makedirs(d, exist_ok=True)
+    conf = os.path.join(d, "config.json")
+    with open(conf, "w") as f:
+        json.dump(cfg, f, indent=1)
+    mcap = os.path.join(d, "run.mcap")
+    pseed = seed * len(CLASSES) + CLASSES.index(cls)
+    w = subprocess.run([PY, WRITER, mcap, "--preset", preset, "--seed", str(pseed),
+                        "--config", conf, "-q"], capture_output=True, text=True)
+    if w.returncode != 0:
+        return {"class": cls, "seed": seed, "error": "writer: " + w.stderr.strip()[-300:]}
+    import time
+    out = os.path.join(d, "result.json")
+    t0 = time.time()
+    r = subprocess.run([BENCH, "diagnose", mcap, "-q", "--no-report", "--json", out,
+                        "-o", os.path.join(d, "out")], capture_output=True, text=True)
+    secs = time.time() - t0
+    if not os.path.exists(out):
+        return {"class": cls, "seed": seed, "error": f"bench exit {r.returncode}: "
+                                                     f"{r.stderr.strip()[-300:]}"}
+    truth = json.load(open(mcap[:-5] + ".truth.json"))
+    res = json.load(open(out))
+    if not args.keep:
+        os.remove(mcap)
+    sensor = cfg["gyro"]["sensor"]
+    ff, fu, wrong, found, ok, apart, named, unexpl = judge_random(res, truth, names, traits,
+                                                                  sensor)
+    return {"class": cls, "seed": seed, "writer_seed": pseed, "names": names, "kind": kind,
+            "traits": traits, "sensor": sensor,
+            "hz": cfg["gyro"]["sample_rate_hz"], "rates": cfg["procedure"]["rates_deg_min"],
+            "stop_s": cfg["procedure"].get("stop_s", 0), "hours": truth["duration_s"] / 3600,
+            "false_finding": ff, "false_unexplained": fu, "wrong": wrong, "found": found,
+            "within": ok, "not_told_apart": apart, "named": named, "unexplained": unexpl,
+            "secs": secs}
+
+
+def random_table(rows):
+    print("| class | files | false findings | false unexplained | wrong names | found "
+          "| not told apart | parameters within 3σ | median diagnose s |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    groups = {}
+    for r in rows:
+        if "error" in r:
+            continue
+        key = r["class"] if r["class"] != "effect" else "effect " + r["names"][0]
+        groups.setdefault(key, []).append(r)
+    for key in sorted(groups, key=lambda k: (CLASSES.index(k.split()[0]), k)):
+        g = groups[key]
+        n = len(g)
+        cnt = lambda f: sum(1 for r in g if r[f])
+        pct = lambda f: f"{cnt(f)} ({100 * cnt(f) / n:.0f} %)"
+        oks = [r["within"] for r in g if r["within"] is not None]
+        within = f"{sum(oks)}/{len(oks)}" if oks else "—"
+        null = g[0]["class"] == "null"
+        secs = sorted(r["secs"] for r in g)[n // 2]
+        print(f"| {key} | {n} | {pct('false_finding') if null else '—'} "
+              f"| {pct('false_unexplained') if null else '—'} | {pct('wrong')} "
+              f"| {'—' if null else pct('found')} | {pct('not_told_apart')} | {within} "
+              f"| {secs:.1f} |")
+
+
+def main_random(argv):
+    ap = argparse.ArgumentParser(prog="lab_diagnose_study.py random")
+    ap.add_argument("--files", type=int, default=20, help="files per class")
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--classes", default=",".join(CLASSES))
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--work", default=None)
+    ap.add_argument("--keep", action="store_true")
+    ap.add_argument("--deadline", type=float, default=None,
+                    help="stop starting files after this many seconds")
+    ap.add_argument("--table", metavar="RESULTS.jsonl", default=None,
+                    help="print the table of earlier runs' results (one or more files, "
+                         "comma-separated) and stop")
+    args = ap.parse_args(argv)
+    if args.table:
+        rows = [json.loads(line) for path in args.table.split(",") for line in open(path)]
+        random_table(rows)
+        return
+    args.work = args.work or tempfile.mkdtemp(prefix="diag-random-")
+    import time
+    start = time.time()
+    jobs = [(c, s) for s in range(args.first_seed, args.first_seed + args.files)
+            for c in args.classes.split(",")]
+    rows = []
+    with open(os.path.join(args.work, "results.jsonl"), "a") as log:
+        for c, s in jobs:
+            if args.deadline and time.time() - start > args.deadline:
+                print(f"deadline: {len(rows)} of {len(jobs)} files run", file=sys.stderr)
+                break
+            row = one_random(args, c, s)
+            rows.append(row)
+            log.write(json.dumps(row) + "\n")
+            log.flush()
+            print(f"{c} seed {s}: {row.get('names')} named {row.get('named')} unexplained "
+                  f"{row.get('unexplained')} {row.get('error', '')}", file=sys.stderr, flush=True)
+    print(f"work: {args.work}", file=sys.stderr)
+    random_table(rows)
+
+
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "random":
+        return main_random(sys.argv[2:])
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)

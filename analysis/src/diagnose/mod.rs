@@ -32,7 +32,8 @@
 //! noise model), [`candidates`] (each effect's regressors and grid, from its registry entry),
 //! [`search`] (one round of step 4), [`stepwise`] (the rounds: hold-out, partners, drops, the
 //! family check), [`refine`] and [`regrid`] (grid values below the grid and refitted),
-//! [`holdout`], [`nuisance`] (structure a family check did not confirm), [`final_fit`],
+//! [`holdout`], [`nuisance`] (structure a family check did not confirm), [`rivals`] (an
+//! effect the recording cannot tell from a declared rival), [`final_fit`],
 //! [`locate`] (step 5), [`identify`]; [`residual_scan`] is the first round alone, timed.
 
 mod candidates;
@@ -49,6 +50,7 @@ mod prepare;
 mod refine;
 mod regrid;
 mod residual_scan;
+mod rivals;
 pub mod scan;
 mod search;
 pub mod series;

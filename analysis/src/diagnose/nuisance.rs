@@ -64,12 +64,17 @@ pub(super) struct FamilyState<'a> {
     pub(super) rejected: &'a mut Vec<Finding>,
     pub(super) downgraded: &'a mut Vec<Downgraded>,
     pub(super) thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
+    /// The search's candidates ([`rivals`]).
+    pub(super) tested: &'a [EffectId],
+    /// The candidates still to test: a rival the data prefer goes back to them.
+    pub(super) candidates: &'a mut Vec<EffectId>,
 }
 
 /// The family check ([`family`]) of each accepted effect in `ids` against the rest of the
-/// model: its result goes into the finding; an effect that fails leaves the findings for the
-/// rejected, becomes [`Unexplained`] structure, and its columns with the significant members'
-/// stay in the design as nuisance terms. Returns whether any effect failed.
+/// model, then its declared rivals ([`rivals`]): its result goes into the finding; an effect
+/// that fails either leaves the findings for the rejected, becomes [`Unexplained`] structure
+/// ("not told apart: E or R" for a rival), and its columns with the significant members' (or
+/// the rival's) stay in the design as nuisance terms. Returns whether any effect failed.
 pub(super) fn check_families(
     prep: &Prepared,
     model: &GyroModel,
@@ -118,20 +123,68 @@ pub(super) fn check_families(
         let Some(pos) = st.findings.iter().position(|f| f.effect == id) else { continue };
         st.findings[pos].family = Some(g.check.clone());
         st.findings[pos].rate_dependence = rd;
-        if g.check.passed {
+        let rival = if g.check.passed {
+            let accepted: Vec<EffectId> = st.accepted.iter().map(|a| a.id).collect();
+            let ctx = rivals::RivalCtx {
+                prep,
+                model,
+                tested: st.tested,
+                accepted: &accepted,
+                thresholds: st.thresholds,
+                level,
+            };
+            rivals::judge_rivals(&ctx, id, &cols, &others, y, noise)
+        } else {
+            None
+        };
+        let rival = match rival {
+            Some(rivals::RivalVerdict::Prefer(r, e_beside, r_beside)) => {
+                // The rival explains what the effect did and more: the effect leaves, the
+                // rival is searched for again.
+                changed = true;
+                st.accepted.remove(i);
+                let mut f = st.findings.remove(pos);
+                f.accepted = false;
+                f.rejected_because = Some(format!(
+                    "its rival {} explains the data better: with it in the model {} keeps \
+                     Wald {:.1} ≤ {:.1}, beside {} it keeps Wald {:.1} > {:.1}",
+                    r.key(),
+                    id.key(),
+                    e_beside.value,
+                    e_beside.threshold,
+                    id.key(),
+                    r_beside.value,
+                    r_beside.threshold
+                ));
+                st.rejected.push(f);
+                if !st.candidates.contains(&r) {
+                    st.candidates.push(r);
+                }
+                continue;
+            }
+            Some(rivals::RivalVerdict::NotToldApart(n)) => Some(n),
+            None => None,
+        };
+        if g.check.passed && rival.is_none() {
             continue;
         }
         changed = true;
         st.accepted.remove(i);
         let mut f = st.findings.remove(pos);
         f.accepted = false;
-        f.rejected_because = Some(format!("not named: {}", g.check.reason()));
+        f.rejected_because = Some(match &rival {
+            Some(r) => r.words(id),
+            None => format!("not named: {}", g.check.reason()),
+        });
+        // The nuisance blocks beside the effect: its significant relatives, or the rival.
+        let extra: Vec<Vec<f64>> = match &rival {
+            Some(r) => r.cols.clone(),
+            None => g.nuisance.iter().flat_map(|m| m.cols.iter().cloned()).collect(),
+        };
         // What the effect and its significant relatives hold together, as unexplained.
         let mut design = others.clone();
         design.extend(cols.iter().cloned());
-        for m in &g.nuisance {
-            design.extend(m.cols.iter().cloned());
-        }
+        design.extend(extra.iter().cloned());
         // Fitted values are stable where a split of coefficients between near-collinear
         // columns is not: the contribution is what the extra columns add to the fit.
         let fitted_gain = |d: &[Vec<f64>]| Projector::new(d, &all).map(|pd| pd.residual(y, n));
@@ -144,8 +197,9 @@ pub(super) fn check_families(
             .iter()
             .find(|q| q.unit == "rad/s")
             .map_or(String::new(), |q| format!(" of {}", family::deg_h(q.value)));
-        let correlates_with = match &g.check.strongest {
-            Some(m) if m.wald > m.threshold => format!(
+        let correlates_with = match (&rival, &g.check.strongest) {
+            (Some(r), _) => r.words(id),
+            (None, Some(m)) if m.wald > m.threshold => format!(
                 "{}, {} (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
                 m.name,
                 family::deg_h(m.size_rad_s),
@@ -153,20 +207,18 @@ pub(super) fn check_families(
                 m.threshold,
                 id.key()
             ),
-            Some(m) => format!(
+            (None, Some(m)) => format!(
                 "a {}-like term{effect_size} whose size moves {:.1}σ when {} is freed",
                 id.key(),
                 g.check.size_change_z,
                 m.name
             ),
-            None => format!("a {}-like term{effect_size}", id.key()),
+            (None, None) => format!("a {}-like term{effect_size}", id.key()),
         };
         let sel: Vec<f64> = contribution.iter().copied().filter(|v| *v != 0.0).collect();
         let before = st.base_design.len();
         st.base_design.extend(cols);
-        for m in g.nuisance {
-            st.base_design.extend(m.cols);
-        }
+        st.base_design.extend(extra);
         st.downgraded.push(Downgraded {
             unexplained: Unexplained {
                 windows_s: windows_of(&prep.bins, &contribution),

@@ -360,6 +360,8 @@ impl<'a> Search<'a> {
             rejected: &mut self.rejected,
             downgraded: &mut self.downgraded,
             thresholds: &self.thresholds,
+            tested: &self.tested,
+            candidates: &mut self.candidates,
         };
         let (y, noise, level) = (&self.y, &self.noise, self.level);
         if check_families(prep, model, &ids, &mut state, y, noise, level) {

@@ -124,6 +124,9 @@ pub struct Finding {
     pub family: Option<FamilyCheck>,
     /// For a per-revolution term: whether it belongs to the gyro or to the table's rate.
     pub rate_dependence: Option<RateDependence>,
+    /// What names it beyond its fit, in words (Earth's rate: the bias shift against the site's
+    /// Ω_E·sin(latitude)).
+    pub remark: Option<String>,
 }
 
 /// Structure no effect explains.

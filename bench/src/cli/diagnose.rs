@@ -242,7 +242,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
             display::sig(f.delta_bic, 3),
             rms(f.rms_before),
             rms(f.rms_after),
-            f.effect.description()
+            f.remark.as_deref().unwrap_or(f.effect.description())
         );
     }
     print_checks(d);

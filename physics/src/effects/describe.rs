@@ -247,6 +247,27 @@ pub enum Procedure {
     AxisTurnedOver,
 }
 
+impl Procedure {
+    /// The run in words, for a diagnosis that names two rivals ("the run that separates
+    /// them: …").
+    pub fn words(self) -> &'static str {
+        match self {
+            Procedure::ThermalRamps => {
+                "chamber ramps at two rates (0.5 and 2 °C/min), each followed by a hold, in both \
+                 directions of rotation"
+            }
+            Procedure::TurnsAtTwoRates => {
+                "full revolutions in both directions at two table rates (10 and 30 °/min), with \
+                 rests at zero rate"
+            }
+            Procedure::LongerRun => "a longer run (time is the only axis these live on)",
+            Procedure::AxisTurnedOver => {
+                "the sensing axis turned over (Earth's rate changes sign, a bias does not)"
+            }
+        }
+    }
+}
+
 /// A parameter of a diagnosed effect as the diagnosis reports it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Reported {

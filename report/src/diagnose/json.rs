@@ -44,6 +44,9 @@ fn finding(f: &Finding) -> Value {
     if let Some(why) = &f.rejected_because {
         o.insert("rejected_because".into(), json!(why));
     }
+    if let Some(remark) = &f.remark {
+        o.insert("remark".into(), json!(remark));
+    }
     if let Some(c) = &f.family {
         o.insert(
             "family_check".into(),

@@ -1,0 +1,145 @@
+//! Rivals: an accepted effect that this recording cannot tell from one of its declared rivals
+//! ([`bench_physics::effects::EffectId::rival_effects`]: step / warm-up / drift, lag /
+//! hysteresis, rate² / asymmetry, 1/rev / 2/rev …) is not named alone.
+//!
+//! Judged on the recording's own design and noise model, with the search's own thresholds:
+//! the rival `R`, fitted at its best grid value with the rest of the model in, explains the
+//! residual too (its Wald passes its threshold), and with `R` in the model the effect `E` is no
+//! longer significant (its Wald at most its threshold). Then, when `R` stays significant with
+//! `E` in the model, the data prefer the rival: `E` leaves the model and `R` is searched again.
+//! When neither stays significant beside the other, either explains what is there and the data
+//! cannot say which: the diagnosis reports "not told apart: E or R" with the run that
+//! separates them, and keeps both shapes in the design as nuisance terms so that nothing else
+//! is named for them.
+
+use super::*;
+
+/// What the rivals of an accepted effect say of it.
+pub(super) enum RivalVerdict {
+    /// The data prefer this rival: it stays significant beside the effect, the effect does not
+    /// beside it. The effect's Wald with the rival in, and the rival's with the effect in.
+    Prefer(EffectId, WaldTest, WaldTest),
+    /// Neither stays significant beside the other.
+    NotToldApart(NotToldApart),
+}
+
+/// A declared rival the recording cannot tell from an accepted effect.
+pub(super) struct NotToldApart {
+    /// The rival.
+    pub rival: EffectId,
+    /// Its columns at its best grid value.
+    pub cols: Vec<Vec<f64>>,
+    /// The effect's test with the rival in the model.
+    pub effect: WaldTest,
+    /// The rival's test with the rest of the model (without the effect).
+    pub alone: WaldTest,
+}
+
+impl NotToldApart {
+    /// The report for effect `id`: the two names, why, and the run that separates them (the
+    /// procedure of the side that declared the rivalry).
+    pub fn words(&self, id: EffectId) -> String {
+        let r = self.rival;
+        let when = id.rivalry_with(r.key()).unwrap_or("this procedure");
+        let declared_by_id = id.effect().rivals().iter().any(|x| x.with == r.key());
+        let run = if declared_by_id { id.effect() } else { r.effect() }.separated_by();
+        format!(
+            "not told apart: {} or {} (alike on {when}: {} alone explains the residual, Wald \
+             {:.1} > {:.1}, and with it in the model {} keeps Wald {:.1} ≤ {:.1}); the run that \
+             separates them: {}",
+            id.key(),
+            r.key(),
+            r.key(),
+            self.alone.value,
+            self.alone.threshold,
+            id.key(),
+            self.effect.value,
+            self.effect.threshold,
+            run.words()
+        )
+    }
+}
+
+/// What [`not_told_apart`] judges with.
+pub(super) struct RivalCtx<'a> {
+    pub prep: &'a Prepared,
+    pub model: &'a GyroModel,
+    /// The search's candidates (a rival outside them — already in the nominal model, or
+    /// Earth's rate — is not judged).
+    pub tested: &'a [EffectId],
+    /// The effects in the model.
+    pub accepted: &'a [EffectId],
+    /// The search's thresholds by effect.
+    pub thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
+    /// The family-wise level split over the candidates.
+    pub level: f64,
+}
+
+/// The declared rival of effect `id` (columns `cols`, the rest of the model `others`) that
+/// takes its place or that this recording cannot tell apart from it (module docs), the one
+/// that leaves the effect the least Wald; `None` when the effect is told apart from every
+/// rival (or none is declared).
+pub(super) fn judge_rivals(
+    ctx: &RivalCtx<'_>,
+    id: EffectId,
+    cols: &[Vec<f64>],
+    others: &[Vec<f64>],
+    y: &[f64],
+    noise: &BinNoise,
+) -> Option<RivalVerdict> {
+    let all: Vec<usize> = (0..ctx.prep.bins.len()).collect();
+    let proj_o = Projector::new(others, &all).ok()?;
+    let threshold = |e: EffectId, k: usize| {
+        ctx.thresholds.get(&e).copied().unwrap_or_else(|| chi2_quantile(1.0 - ctx.level, k as f64))
+    };
+    let thr_e = threshold(id, cols.len());
+    let no_cache = ColumnCache::new();
+    let mut best: Option<NotToldApart> = None;
+    for r in id.rival_effects() {
+        if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
+            continue;
+        }
+        let r_cols = if grid(ctx.prep, r).len() == 1 {
+            candidate_columns(ctx.prep, r, f64::NAN, ctx.model)
+        } else {
+            match refit_grid(ctx.prep, r, &proj_o, y, noise, ctx.model, &no_cache) {
+                Some(f) => f.cols,
+                None => continue,
+            }
+        };
+        let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
+        let thr_r = threshold(r, r_cols.len());
+        if t_r.wald <= thr_r {
+            continue;
+        }
+        let mut with_r = others.to_vec();
+        with_r.extend(r_cols.iter().cloned());
+        // Spanned by the rest and the rival: nothing of the effect is left to test.
+        let w_e = Projector::new(&with_r, &all)
+            .ok()
+            .and_then(|p| p.test(cols, y, noise))
+            .map_or(0.0, |t| t.wald);
+        if w_e > thr_e || best.as_ref().is_some_and(|b| b.effect.value <= w_e) {
+            continue;
+        }
+        best = Some(NotToldApart {
+            rival: r,
+            cols: r_cols,
+            effect: WaldTest { value: w_e, threshold: thr_e },
+            alone: WaldTest { value: t_r.wald, threshold: thr_r },
+        });
+    }
+    let best = best?;
+    // The rival beside the effect: still significant, the data prefer it.
+    let mut with_e = others.to_vec();
+    with_e.extend(cols.iter().cloned());
+    let w_r = Projector::new(&with_e, &all)
+        .ok()
+        .and_then(|p| p.test(&best.cols, y, noise))
+        .map_or(0.0, |t| t.wald);
+    if w_r > best.alone.threshold {
+        let beside = WaldTest { value: w_r, threshold: best.alone.threshold };
+        return Some(RivalVerdict::Prefer(best.rival, best.effect, beside));
+    }
+    Some(RivalVerdict::NotToldApart(best))
+}
