@@ -235,6 +235,10 @@ def columns(inp, binner, effect, grid):
     if effect == "warm_up":
         t = binner.sel(a["t"])
         return binner.mean(np.exp(-np.divide.outer(t, grid)))[:, :, None]
+    if effect == "bias_drift":
+        return binner.mean(binner.sel(a["t"]))[:, None, None]
+    if effect == "scale_factor_asymmetry":
+        return binner.mean(np.abs(inp_rate))[:, None, None]
     raise ValueError(f"no regressor for {effect}")
 
 
