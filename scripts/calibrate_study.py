@@ -5,6 +5,7 @@ the shapes we tried.
 
     python3 scripts/calibrate_study.py nulls    [--files N] [--first-seed S] [--jobs J]
     python3 scripts/calibrate_study.py coverage [--files N] [--first-seed S] [--jobs J]
+    python3 scripts/calibrate_study.py seed     [--files N] [--first-seed S] [--jobs J]
 
 `nulls`: complete models (nothing concealed), procedures drawn at random — ramps or soaks,
 1–3 table rates of 2–30 °/min, reversals every 4–15 min, the gyro at 10–50 Hz, every lab trait
@@ -15,6 +16,10 @@ called poor, by which check, and every coefficient's z against the truth.
 `coverage`: gyros without a temperature sensor whose coil lags the air by 200–1200 s, on the
 same random procedures; per coefficient and domain the coverage of the stated 95 % interval
 (|z| ≤ 1.96) and the RMS of z.
+
+`seed`: bench's own recordings of `scenarios/seed.toml` (`bench run --seed N`), calibrated;
+the same table against the recording's `bench.gyro_model`. The seed has only 360 s of
+constant-temperature windows, so its noise model comes from every window's residual.
 
 Needs the pinned Python (scripts/pyenv.sh) and a release build (cargo build --release -p bench);
 BENCH_BIN names another build. Each file: the writer's config and truth in WORK/seed-N/, the
@@ -83,8 +88,51 @@ def draw(seed, no_sensor=None):
     return kind, cfg
 
 
+def zs_of(res, t, held, row):
+    """Each estimated coefficient's z against the truth `t`, both domains, into `row`."""
+    for k in KEYS:
+        c = res["coefficients"].get(k)
+        if c and k not in held and c.get("sigma"):
+            row["z"][k] = (c["value"] - t[k]) / c["sigma"]
+        a = ((res.get("angle_domain") or {}).get("coefficients") or {}).get(k)
+        if a and k not in held and a.get("sigma"):
+            row["z_angle"][k] = (a["value"] - t[k]) / a["sigma"]
+    return row
+
+
+def one_seed(args, seed):
+    """`scenarios/seed.toml` run by bench's simulated bench with `--seed seed`, calibrated."""
+    d = os.path.join(args.work, f"seed-{seed}")
+    os.makedirs(d, exist_ok=True)
+    mcap = os.path.join(d, "run.mcap")
+    w = subprocess.run([BENCH, "run", os.path.join(ROOT, "scenarios/seed.toml"), "--seed",
+                        str(seed), "--out", mcap, "--force", "-q"], capture_output=True, text=True)
+    if w.returncode != 0:
+        return {"seed": seed, "error": "run: " + w.stderr.strip()[-400:]}
+    out = os.path.join(d, "result.json")
+    r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
+                        "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
+    if not os.path.exists(out):
+        return {"seed": seed, "error": f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"}
+    res = json.load(open(out))
+    if not args.keep:
+        os.remove(mcap)
+    held = set((res.get("held") or {}).keys())
+    row = {"seed": seed, "kind": "seed", "exit": r.returncode, "verdict": res["fit"]["verdict"],
+           "failed": [c["key"] for c in res["fit"]["checks"] if not c["passed"]],
+           "checks": {c["key"]: c["value"] for c in res["fit"]["checks"]},
+           "sensor": True, "lag_true": None, "lag_fit": None, "lag_sigma": None,
+           "rates": [10.0], "segment_s": 720, "hz": 20.0, "held": sorted(held),
+           "z": {}, "z_angle": {}}
+    return zs_of(res, res["truth"]["coefficients"], held, row)
+
+
 def one(args, seed):
+    if args.study == "seed":
+        return one_seed(args, seed)
     kind, cfg = draw(seed, no_sensor=args.study == "coverage" or None)
+    if args.flicker_history_s:
+        cfg["gyro"]["flicker_history_s"] = args.flicker_history_s
     d = os.path.join(args.work, f"seed-{seed}")
     os.makedirs(d, exist_ok=True)
     conf = os.path.join(d, "config.json")
@@ -114,14 +162,7 @@ def one(args, seed):
            "lag_sigma": res.get("thermal_time_constant_sigma"),
            "rates": cfg["procedure"]["rates_deg_min"], "segment_s": cfg["procedure"]["segment_s"],
            "hz": cfg["gyro"]["sample_rate_hz"], "held": sorted(held), "z": {}, "z_angle": {}}
-    for k in KEYS:
-        c = res["coefficients"].get(k)
-        if c and k not in held and c.get("sigma"):
-            row["z"][k] = (c["value"] - t[k]) / c["sigma"]
-        a = ((res.get("angle_domain") or {}).get("coefficients") or {}).get(k)
-        if a and k not in held and a.get("sigma"):
-            row["z_angle"][k] = (a["value"] - t[k]) / a["sigma"]
-    return row
+    return zs_of(res, t, held, row)
 
 
 def table(rows, study):
@@ -178,12 +219,15 @@ def table(rows, study):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("study", choices=["nulls", "coverage"])
+    ap.add_argument("study", choices=["nulls", "coverage", "seed"])
     ap.add_argument("--files", type=int, default=100)
     ap.add_argument("--first-seed", type=int, default=1)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--work", default=None, help="folder for the files (default: a temp dir)")
     ap.add_argument("--keep", action="store_true", help="keep the recordings")
+    ap.add_argument("--flicker-history-s", type=float, default=0.0,
+                    help="the gyro's flicker has run this long before the record (labwriter "
+                         "gyro.flicker_history_s; default 0: it starts at the first sample)")
     args = ap.parse_args()
     args.work = args.work or tempfile.mkdtemp(prefix=f"calib-{args.study}-")
     os.makedirs(args.work, exist_ok=True)

@@ -65,30 +65,40 @@ fn usable_points(points: &[AdevPoint]) -> Vec<&AdevPoint> {
 }
 
 /// One Allan point as a row of the noise fit: the terms `(1/τ, g(τ), τ/3)` whose weights are
-/// `(N², B_f², K²)`, the point's Allan variance, and its weight `1/sd` (sd ≈ avar·√(2/edf)).
-fn noise_row(p: &AdevPoint) -> ([f64; 3], f64, f64) {
+/// `(N², B_f², K²)`, the point's Allan variance, and its weight `1/sd` with sd ≈
+/// `expected·√(2/edf)`: `expected` is the curve's Allan variance at τ under the current fit
+/// ([`spec_avar`]), the point's own on the first pass.
+fn noise_row(p: &AdevPoint, expected: Option<f64>) -> ([f64; 3], f64, f64) {
     use bench_physics::allan::NoiseType;
     use bench_physics::noise::bias_instability_adev;
     let avar = p.adev * p.adev;
-    let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / avar;
+    let sd_of = expected.filter(|e| e.is_finite() && *e > 0.0).unwrap_or(avar);
+    let w = (p.edf(NoiseType::FlickerRate) / 2.0).sqrt() / sd_of;
     ([1.0 / p.tau_s, bias_instability_adev(p.tau_s, 1.0).powi(2), p.tau_s / 3.0], avar, w)
 }
+
+/// Allan variance at `tau_s` of the noise model `spec`.
+fn spec_avar(spec: &NoiseSpec, tau_s: f64) -> f64 {
+    use bench_physics::noise::bias_instability_adev;
+    spec.arw * spec.arw / tau_s
+        + bias_instability_adev(tau_s, spec.flicker_floor).powi(2)
+        + spec.rrw * spec.rrw * tau_s / 3.0
+}
+
+/// Reweighting passes of [`fit_noise_spec_once`]: each point's weight from the previous pass's
+/// curve instead of its own value.
+const NOISE_FIT_PASSES: usize = 4;
 
 /// [`fit_noise_spec`] and whether the curve resolves the flicker floor.
 fn fit_noise_spec_resolved(points: &[&AdevPoint], with_rrw: bool) -> Option<(NoiseSpec, bool)> {
     use bench_physics::allan::NoiseType;
-    use bench_physics::noise::bias_instability_adev;
     let mut pts: Vec<&AdevPoint> = points.to_vec();
     loop {
         let spec = fit_noise_spec_once(&pts, with_rrw)?;
         if pts.len() <= 3 {
             return Some(with_flicker_limit(spec, &pts, with_rrw));
         }
-        let model = |tau: f64| {
-            spec.arw * spec.arw / tau
-                + bias_instability_adev(tau, spec.flicker_floor).powi(2)
-                + spec.rrw * spec.rrw * tau / 3.0
-        };
+        let model = |tau: f64| spec_avar(&spec, tau);
         let worst = pts
             .iter()
             .enumerate()
@@ -123,7 +133,7 @@ fn with_flicker_limit(
     }
     let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols);
     for (i, p) in pts.iter().enumerate() {
-        let (f, _, w) = noise_row(p);
+        let (f, _, w) = noise_row(p, Some(spec_avar(&spec, p.tau_s)));
         for j in 0..cols {
             a[(i, j)] = f[j] * w;
         }
@@ -153,8 +163,27 @@ pub fn fit_noise_spec_all_points(points: &[AdevPoint], with_rrw: bool) -> Option
 /// [`fit_noise_spec`] leaves it out.
 pub const NOISE_FIT_OUTLIER_Z: f64 = 3.0;
 
-/// One weighted least-squares fit of [`fit_noise_spec`]'s curve to `pts`.
+/// [`fit_noise_spec`]'s curve fitted to `pts` by iteratively reweighted least squares: the
+/// first pass weights each point by its own Allan variance, the next ones by the fitted
+/// curve's. Weights from the points' own values favour the points that came out low — an
+/// estimate biased low by about the points' relative variance (2/edf), which short windows
+/// make large: the flicker floor of `seed.toml`'s 360 s of windows came out 0.917 of the truth
+/// on average over 30 seeds (±0.024), and every σ with it.
 fn fit_noise_spec_once(pts: &[&AdevPoint], with_rrw: bool) -> Option<NoiseSpec> {
+    let mut spec = fit_noise_spec_weighted(pts, with_rrw, None)?;
+    for _ in 1..NOISE_FIT_PASSES {
+        spec = fit_noise_spec_weighted(pts, with_rrw, Some(&spec))?;
+    }
+    Some(spec)
+}
+
+/// One weighted least-squares fit of the curve to `pts`, weights from `current`'s curve (the
+/// points' own values without one); negative terms dropped and the rest refitted.
+fn fit_noise_spec_weighted(
+    pts: &[&AdevPoint],
+    with_rrw: bool,
+    current: Option<&NoiseSpec>,
+) -> Option<NoiseSpec> {
     if pts.len() < 3 {
         return None;
     }
@@ -167,7 +196,7 @@ fn fit_noise_spec_once(pts: &[&AdevPoint], with_rrw: bool) -> Option<NoiseSpec> 
         let mut a = nalgebra::DMatrix::<f64>::zeros(pts.len(), cols.len());
         let mut b = nalgebra::DVector::<f64>::zeros(pts.len());
         for (i, p) in pts.iter().enumerate() {
-            let (f, avar, w) = noise_row(p);
+            let (f, avar, w) = noise_row(p, current.map(|c| spec_avar(c, p.tau_s)));
             for (c, &j) in cols.iter().enumerate() {
                 a[(i, c)] = f[j] * w;
             }
@@ -313,6 +342,43 @@ mod tests {
             assert!((robust - 1.0).abs() < 0.2, "seed {seed}: floor ratio {robust}");
             assert!((naive / robust - 1.0).abs() < 0.03, "seed {seed}: {naive} vs {robust}");
         }
+    }
+}
+
+#[cfg(test)]
+mod reweighting_tests {
+    use super::*;
+
+    /// Short windows (the seed's: six of 3 min at 20 Hz, τ to ≈ 22 s) give Allan points of few
+    /// degrees of freedom. Weighted by their own values the fit's flicker floor comes out low
+    /// on average (0.961 of the truth over these 40 runs); reweighted by the fitted curve,
+    /// 0.984, within the scatter of the mean of 40 runs (≈ ±0.02).
+    #[test]
+    fn the_noise_fit_of_short_windows_is_not_biased_low() {
+        let (arw, floor, dt) = (2.9e-8, 9.25e-9, 0.05);
+        let n = (180.0 / dt) as usize;
+        let (mut own, mut reweighted) = (0.0, 0.0);
+        let runs = 40;
+        for seed in 0..runs {
+            let ws: Vec<RecordWindow> = (0..6)
+                .map(|k| {
+                    let mut gen = bench_physics::noise::GyroNoise::new(arw, floor, dt, seed, k);
+                    let t: Vec<f64> = (0..n).map(|i| 3000.0 * k as f64 + i as f64 * dt).collect();
+                    let v: Vec<f64> = t.iter().map(|_| 1e-3 + gen.next_sample()).collect();
+                    RecordWindow::new("r", t, v, vec![1e-3; n], None, vec![20.0; n])
+                        .expect("window")
+                })
+                .collect();
+            let refs: Vec<&RecordWindow> = ws.iter().collect();
+            let pts = pooled_adev(&refs);
+            let all: Vec<&AdevPoint> = usable_points(&pts);
+            own += fit_noise_spec_weighted(&all, false, None).expect("fit").flicker_floor / floor;
+            reweighted += fit_noise_spec_once(&all, false).expect("fit").flicker_floor / floor;
+        }
+        let (own, reweighted) = (own / runs as f64, reweighted / runs as f64);
+        assert!(own < 0.97, "weights from the points' own values: mean floor ratio {own}");
+        assert!((reweighted - 1.0).abs() < 0.03, "reweighted: mean floor ratio {reweighted}");
+        assert!(reweighted > own + 0.01, "{reweighted} against {own}");
     }
 }
 

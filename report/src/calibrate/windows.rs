@@ -229,20 +229,18 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
                 s.table_time_s.partition_point(|&t| t <= b),
             );
             // The angle-domain reference: the readout through the steady motion at the reading
-            // times; its slope may be off by a readout step over the part, or by what the
-            // readings' scatter allows.
-            let segment = &motion.segments[seg];
+            // times; its slope is off by the steady line's own error, the same σ the rate
+            // domain carries (`rate_sigma_rad_s`: the readings' scatter, white or in blocks).
+            // A whole readout step over the part (`quantum/T`, the bound used before) stated
+            // k_sf's angle-domain σ 2.4× its scatter over 32 lab files.
             let time_s: Vec<f64> = s.table_time_s[ta..tb].to_vec();
             let angle_rad: Vec<f64> =
                 time_s.iter().map(|&t| motion.angle(t).unwrap_or(f64::NAN)).collect();
-            let duration = (b - a).max(1.0);
-            let from_scatter = segment.scatter_rad * 12f64.sqrt()
-                / (duration * (segment.readings.max(1) as f64).sqrt());
             readings.push(TableReadings {
                 time_s,
                 angle_rad,
                 sigma_rad: 1e-9,
-                drift_sigma_rad_s: (motion.quantum_rad / duration).max(from_scatter),
+                drift_sigma_rad_s: motion.segments[seg].rate_sigma_rad_s,
             });
             windows.push(w);
             spans.push(span);
