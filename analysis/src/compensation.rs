@@ -238,26 +238,10 @@ mod tests {
     /// Windows of a gyro following `truth` exactly, at 20, 40 °C and on a 1 °C/min ramp.
     fn windows(truth: [f64; 4]) -> Vec<RecordWindow> {
         let w = 10.0 * DEG_PER_MIN;
-        [(w, 20.0, 0.0, 0.0), (-w, 40.0, 0.0, 5000.0), (w, 20.0, 1.0 / 60.0, 9000.0)]
-            .into_iter()
-            .enumerate()
-            .map(|(k, (rate, temp0, slope, start))| {
-                let n = 1200;
-                let t: Vec<f64> = (0..n).map(|i| start + i as f64 * 0.5).collect();
-                let temp: Vec<f64> = (0..n).map(|i| temp0 + slope * i as f64 * 0.5).collect();
-                let v: Vec<f64> = temp
-                    .iter()
-                    .map(|tc| {
-                        (1.0 + truth[1]) * rate
-                            + truth[0]
-                            + truth[2] * (tc - 20.0)
-                            + truth[3] * slope
-                    })
-                    .collect();
-                RecordWindow::new(format!("w{k}"), t, v, vec![rate; n], Some(temp.clone()), temp)
-                    .expect("window")
-            })
-            .collect()
+        let specs = [(w, 20.0, 0.0, 0.0), (-w, 40.0, 0.0, 5000.0), (w, 20.0, 1.0 / 60.0, 9000.0)];
+        crate::windows::synthetic_windows(&specs, |rate, tc, slope| {
+            (1.0 + truth[1]) * rate + truth[0] + truth[2] * (tc - 20.0) + truth[3] * slope
+        })
     }
 
     fn opts(coefficients: [f64; 4], sigma: f64) -> CompensationOptions {

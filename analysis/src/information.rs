@@ -284,24 +284,7 @@ mod tests {
             specs.push((-w, 20.0, 1.0 / 60.0, 2000.0));
             specs.push((w, 40.0, -1.0 / 60.0, 5000.0));
         }
-        specs
-            .into_iter()
-            .enumerate()
-            .map(|(k, (rate, temp0, slope, start))| {
-                let n = 1200;
-                let t: Vec<f64> = (0..n).map(|i| start + i as f64 * 0.5).collect();
-                let temp: Vec<f64> = (0..n).map(|i| temp0 + slope * i as f64 * 0.5).collect();
-                RecordWindow::new(
-                    format!("w{k}"),
-                    t,
-                    vec![0.0; n],
-                    vec![rate; n],
-                    Some(temp.clone()),
-                    temp,
-                )
-                .expect("window")
-            })
-            .collect()
+        crate::windows::synthetic_windows(&specs, |_, _, _| 0.0)
     }
 
     fn opts(expected_kdt: f64) -> InformationOptions {

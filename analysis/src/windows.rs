@@ -250,6 +250,28 @@ pub(crate) fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
+/// Synthetic record windows for tests: per `(table rate rad/s, temperature °C at the start,
+/// its slope °C/s, start time s)` a window of 1200 samples at 2 Hz whose gyro sensor and
+/// chamber air both follow that temperature, and whose output is `output(rate, temp, slope)`.
+#[cfg(test)]
+pub(crate) fn synthetic_windows(
+    specs: &[(f64, f64, f64, f64)],
+    output: impl Fn(f64, f64, f64) -> f64,
+) -> Vec<RecordWindow> {
+    specs
+        .iter()
+        .enumerate()
+        .map(|(k, &(rate, temp0, slope, start))| {
+            let n = 1200;
+            let t: Vec<f64> = (0..n).map(|i| start + i as f64 * 0.5).collect();
+            let temp: Vec<f64> = (0..n).map(|i| temp0 + slope * i as f64 * 0.5).collect();
+            let v: Vec<f64> = temp.iter().map(|&tc| output(rate, tc, slope)).collect();
+            RecordWindow::new(format!("w{k}"), t, v, vec![rate; n], Some(temp.clone()), temp)
+                .expect("window")
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -150,7 +150,7 @@ pub fn verify_recording(
     cal: &CalibrationFile,
 ) -> Result<VerifyOutcome, CalibrateError> {
     let data = calibration_data(crate::load::load(rec)?)?;
-    let rate_window_s = bench_analysis::calibrate::CalibrateOptions::default().rate_window_s;
+    let rate_window_s = bench_analysis::calibrate::CalibrateOptions::default().joint.rate_window_s;
     let windows = model_windows(&data, cal, rate_window_s);
     let model = cal.model();
     let noise = NoiseSpec { arw: model.arw, flicker_floor: model.bias_instability, rrw: 0.0 };

@@ -164,11 +164,12 @@ pub fn fit_lag(
         });
     }
     let earth = opts
+        .joint
         .latitude_deg
-        .map_or(0.0, |lat| bench_physics::earth::vertical_rate_rad_s(lat, opts.axis_up));
-    let t0 = opts.reference_temperature_c;
+        .map_or(0.0, |lat| bench_physics::earth::vertical_rate_rad_s(lat, opts.joint.axis_up));
+    let t0 = opts.joint.reference_temperature_c;
     let eval = |tau: f64| -> Result<(f64, usize, usize), AnalysisError> {
-        joint_rss(&with_lag(windows, series, tau)?, earth, t0, opts.rate_window_s)
+        joint_rss(&with_lag(windows, series, tau)?, earth, t0, opts.joint.rate_window_s)
     };
     // Coarse grid 0, 10·1.33^k .. 3000 s, then a fine grid between the best point's
     // neighbours and a parabola through the fine minimum; each grid evaluated on every core
@@ -332,7 +333,8 @@ mod tests {
 
     #[test]
     fn the_lag_profile_finds_a_real_lag_and_calls_none_when_there_is_none() {
-        let opts = CalibrateOptions { rate_window_s: 30.0, ..CalibrateOptions::default() };
+        let mut opts = CalibrateOptions::default();
+        opts.joint.rate_window_s = 30.0;
         let (w, s) = lagged_run(300.0, 1);
         let l = fit_lag(&w, &s, &opts).expect("profile");
         assert!(l.significant(), "{l:?}");

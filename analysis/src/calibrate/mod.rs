@@ -140,22 +140,15 @@ impl TemperatureSeries {
 /// Settings of [`calibrate`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateOptions {
-    /// T0 of the coefficients, °C.
-    pub reference_temperature_c: f64,
-    /// Site latitude, degrees north; `None` leaves Earth's rotation in the bias.
-    pub latitude_deg: Option<f64>,
-    /// Sensing axis up.
-    pub axis_up: bool,
-    /// Window of the dT/dt filter, s.
-    pub rate_window_s: f64,
+    /// The joint fit's settings — T0 of the coefficients, the site (latitude, axis), the dT/dt
+    /// filter's window, the bootstrap's replicates and seed — which the seed method, the lag
+    /// profile and the angle-domain fit share. Its noise model, held coefficients and
+    /// nuisance are [`calibrate`]'s to set: those given here are not used.
+    pub joint: JointFitOptions,
     /// A window is a plateau when its temperature spread is at most this, °C.
     pub plateau_span_c: f64,
     /// Largest temperature difference of a CW/CCW plateau pair, °C.
     pub pair_tolerance_c: f64,
-    /// Block-bootstrap replicates.
-    pub replicates: usize,
-    /// Bootstrap seed.
-    pub seed: u64,
     /// Confidence level of intervals (Allan terms, lag significance).
     pub confidence: f64,
     /// Whether to profile the thermal lag.
@@ -172,14 +165,9 @@ pub struct CalibrateOptions {
 impl Default for CalibrateOptions {
     fn default() -> Self {
         Self {
-            reference_temperature_c: 20.0,
-            latitude_deg: None,
-            axis_up: true,
-            rate_window_s: 60.0,
+            joint: JointFitOptions::default(),
             plateau_span_c: 1.0,
             pair_tolerance_c: 1.0,
-            replicates: 400,
-            seed: 0,
             confidence: 0.95,
             fit_lag: true,
             stated_flicker_floor_rad_s: None,
@@ -289,7 +277,7 @@ impl Calibration {
         if let Some(Ok(l)) = &self.lag {
             m.thermal_time_constant = l.fitted_s();
         }
-        m.earth_rate = self.options.latitude_deg.is_some() || base.earth_rate;
+        m.earth_rate = self.options.joint.latitude_deg.is_some() || base.earth_rate;
         Some(m)
     }
 
@@ -328,7 +316,7 @@ fn classify(
             mean_table_rate_rad_s: w.mean_table_rate_rad_s(),
         })
         .collect();
-    if opts.latitude_deg.is_none() {
+    if opts.joint.latitude_deg.is_none() {
         missing.push(
             "no latitude (bench.site latitude_deg): Earth's rotation cannot be removed, so the \
              bias includes it; temperature coefficients are unaffected"
@@ -363,7 +351,7 @@ fn model_temperature(
         }
         _ => (windows.to_vec(), series.clone()),
     };
-    model_series_windows(&model_windows, &model_series, opts.rate_window_s)
+    model_series_windows(&model_windows, &model_series, opts.joint.rate_window_s)
 }
 
 /// The model temperature's smoothed value and rate over the whole run (`model_series`), at
@@ -404,18 +392,7 @@ const MIN_QUIET_S: f64 = 1200.0;
 
 /// The joint fit's options from the calibration's (no noise model, nothing held).
 fn joint_options(opts: &CalibrateOptions) -> JointFitOptions {
-    JointFitOptions {
-        reference_temperature_c: opts.reference_temperature_c,
-        latitude_deg: opts.latitude_deg,
-        axis_up: opts.axis_up,
-        rate_window_s: opts.rate_window_s,
-        replicates: opts.replicates,
-        block_len: None,
-        seed: opts.seed,
-        noise: None,
-        held: [None; 4],
-        nuisance: None,
-    }
+    JointFitOptions { noise: None, held: [None; 4], nuisance: None, ..opts.joint.clone() }
 }
 
 /// Stage 3: the noise — the overlapping Allan deviation of the thermal model's OLS residual
@@ -511,11 +488,12 @@ fn identify_stage(
     opts: &CalibrateOptions,
 ) -> (Result<[Determination; 4], AnalysisError>, [Option<HeldCoefficient>; 4]) {
     let info_opts = InformationOptions {
-        reference_temperature_c: opts.reference_temperature_c,
+        reference_temperature_c: opts.joint.reference_temperature_c,
         earth_rad_s: opts
+            .joint
             .latitude_deg
-            .map_or(0.0, |lat| bench_physics::earth::vertical_rate_rad_s(lat, opts.axis_up)),
-        rate_window_s: opts.rate_window_s,
+            .map_or(0.0, |lat| bench_physics::earth::vertical_rate_rad_s(lat, opts.joint.axis_up)),
+        rate_window_s: opts.joint.rate_window_s,
         noise,
         expected: opts.expected.map(|e| e.filter(|e| e.sized).map(|e| e.size())),
     };
@@ -555,7 +533,7 @@ pub fn calibrate(
     // A lag found is fitted with the coefficients: its linearised effect is a nuisance column.
     let nuisance = match (&lag, &ols) {
         (Some(Ok(l)), Some(o)) if l.used_s > 0.0 => {
-            lag_nuisance(&model_windows, series, l.used_s, o.coefficients, opts.rate_window_s)
+            lag_nuisance(&model_windows, series, l.used_s, o.coefficients, opts.joint.rate_window_s)
         }
         _ => None,
     };
@@ -586,10 +564,10 @@ pub fn calibrate(
         &SeedOptions {
             plateau_span_c: opts.plateau_span_c,
             pair_tolerance_c: opts.pair_tolerance_c,
-            reference_temperature_c: opts.reference_temperature_c,
-            latitude_deg: opts.latitude_deg,
-            axis_up: opts.axis_up,
-            rate_window_s: opts.rate_window_s,
+            reference_temperature_c: opts.joint.reference_temperature_c,
+            latitude_deg: opts.joint.latitude_deg,
+            axis_up: opts.joint.axis_up,
+            rate_window_s: opts.joint.rate_window_s,
         },
     );
     if let Err(e) = &seed {
@@ -638,11 +616,11 @@ fn angle_stage(
         angle_fit(
             &aws,
             &AngleFitOptions {
-                reference_temperature_c: opts.reference_temperature_c,
-                latitude_deg: opts.latitude_deg,
-                axis_up: opts.axis_up,
+                reference_temperature_c: opts.joint.reference_temperature_c,
+                latitude_deg: opts.joint.latitude_deg,
+                axis_up: opts.joint.axis_up,
                 noise,
-                temp_window_s: opts.rate_window_s,
+                temp_window_s: opts.joint.rate_window_s,
                 held: joint_opts.held.map(|h| h.map(|h| h.value)),
                 nuisance: joint_opts.nuisance.is_some(),
             },

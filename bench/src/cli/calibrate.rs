@@ -96,7 +96,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     say!(
         "{name}: {} record windows, T0 = {} °C",
         cal.windows.len(),
-        cal.options.reference_temperature_c
+        cal.options.joint.reference_temperature_c
     );
     if let Ok(a) = &cal.allan {
         say!(

@@ -245,86 +245,16 @@ fn model_map(m: &bench_physics::GyroModel) -> BTreeMap<String, f64> {
 /// Build the JSON document of `outcome` (recording named `recording`).
 pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson {
     let cal = &outcome.calibration;
-    let mut coefficients = BTreeMap::new();
-    if let Ok(j) = &cal.joint {
-        for (k, e) in ModelKey::CALIBRATED
-            .into_iter()
-            .filter_map(|k| Some((k, j.estimate(k).filter(|e| !e.held)?)))
-        {
-            coefficients.insert(
-                k.key().to_owned(),
-                Coefficient {
-                    value: e.value,
-                    sigma: e.std_err,
-                    sigma_bootstrap: e.bootstrap_std_err,
-                    sigma_noise_model: e
-                        .noise_model_std_err
-                        .is_finite()
-                        .then_some(e.noise_model_std_err),
-                    sigma_naive: e.naive_std_err,
-                    value_ols: e.ols_value,
-                    sigma_ols: e
-                        .ols_noise_model_std_err
-                        .is_finite()
-                        .then_some(e.ols_noise_model_std_err),
-                },
-            );
-        }
-    }
-    let mut seed_method = BTreeMap::new();
-    if let Ok(s) = &cal.seed {
-        for k in ModelKey::CALIBRATED {
-            if let Some(v) = s.coefficient(k) {
-                seed_method.insert(k.key().to_owned(), v);
-            }
-        }
-    }
-    let mut noise = BTreeMap::new();
-    let mut noise_confidence = None;
-    if let Ok(a) = &cal.allan {
-        let t = |n: bench_analysis::allan_fit::NoiseTerm| NoiseTermJson {
-            value: n.value,
-            low: n.low,
-            high: n.high,
-            tau_s: n.tau_s,
-            upper_bound: n.upper_bound,
-        };
-        noise.insert("arw".to_owned(), t(a.fit.arw));
-        noise.insert("bias_instability".to_owned(), t(a.fit.flicker_floor()));
-        noise.insert("bias_instability_b".to_owned(), t(a.fit.bias_instability));
-        noise.insert("rate_random_walk".to_owned(), t(a.fit.rate_random_walk));
-        noise_confidence = Some(a.fit.confidence);
-    }
-    let truth = outcome.truth.as_ref().map(|t| TruthJson {
-        coefficients: model_map(&t.model),
-        joint_delta_k_t: t.joint.map(|f| f.delta_k_t_rad_s),
-        joint_delta_k_dt: t.joint.map(|f| f.delta_k_dt_rad_s),
-        seed_delta_k_t: t.seed.map(|f| f.delta_k_t_rad_s),
-        seed_delta_k_dt: t.seed.map(|f| f.delta_k_dt_rad_s),
-        joint_thermal_error_removed: t.joint_removal.map(|r| r.removed()),
-        seed_thermal_error_removed: t.seed_removal.map(|r| r.removed()),
-    });
+    let joint = cal.joint.as_ref().ok();
+    let (noise, noise_confidence) = noise_json(cal);
     CalibrationJson {
         version: JSON_VERSION,
         recording: recording.to_owned(),
-        reference_temperature: cal.options.reference_temperature_c,
-        estimator: cal.joint.as_ref().ok().map(|j| j.estimator.as_str()),
-        whitened_residual_rms: cal
-            .joint
-            .as_ref()
-            .ok()
-            .map(|j| j.whitened_residual_rms)
-            .filter(|v| v.is_finite()),
-        coefficients,
-        covariance: cal
-            .joint
-            .as_ref()
-            .ok()
-            .map(|j| {
-                let est = estimated(cal);
-                est.iter().map(|&a| est.iter().map(|&b| j.covariance[a][b]).collect()).collect()
-            })
-            .filter(|c: &Vec<Vec<f64>>| c.iter().flatten().all(|v| v.is_finite())),
+        reference_temperature: cal.options.joint.reference_temperature_c,
+        estimator: joint.map(|j| j.estimator.as_str()),
+        whitened_residual_rms: joint.map(|j| j.whitened_residual_rms).filter(|v| v.is_finite()),
+        coefficients: coefficients_json(cal),
+        covariance: covariance_json(cal),
         covariance_keys: estimated(cal)
             .into_iter()
             .map(|j| ModelKey::CALIBRATED[j].key())
@@ -334,7 +264,7 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             .map(|(k, h)| (k.key().to_owned(), super::held::held_json(h)))
             .collect(),
         identifiability: identifiability_json(cal),
-        seed_method,
+        seed_method: seed_method_json(cal),
         noise,
         noise_confidence,
         noise_model: cal.noise_model.map(|n| {
@@ -353,63 +283,133 @@ pub fn to_json(outcome: &CalibrationOutcome, recording: &str) -> CalibrationJson
             _ => None,
         },
         gyro_model: outcome.model.as_ref().map(model_map).unwrap_or_default(),
-        truth,
-        windows: cal
-            .windows
-            .iter()
-            .map(|w| WindowJson {
-                label: w.label.clone(),
-                kind: match w.kind {
-                    WindowKind::Plateau => "plateau",
-                    WindowKind::Ramp => "ramp",
-                    WindowKind::Static => "static",
-                },
-                samples: w.samples,
-                mean_temperature: w.mean_temp_c,
-                mean_table_rate: w.mean_table_rate_rad_s,
-            })
-            .collect(),
+        truth: truth_json(outcome),
+        windows: cal.windows.iter().map(window_json).collect(),
         missing: cal.missing.clone(),
         fit: outcome.quality.clone(),
         angle_domain: cal.angle.as_ref().map(angle_json),
-        excluded: outcome
-            .data
-            .exclusions
-            .iter()
-            .map(|x| ExcludedJson {
-                step: x.label.clone(),
-                start: x.start_s,
-                end: x.end_s,
-                seconds: x.end_s - x.start_s,
-                why: x.why.key(),
-                samples: x.samples,
-            })
-            .collect(),
+        excluded: outcome.data.exclusions.iter().map(excluded_json).collect(),
         unused_steps: outcome.data.empty_windows.iter().map(|(l, _)| l.clone()).collect(),
-        time_bases: outcome
-            .data
-            .run
-            .time_bases
-            .iter()
-            .map(|b| TimeBaseJson {
-                topic: b.topic,
-                source: b.source.key(),
-                drift_ppm: b
-                    .fit
-                    .filter(|_| !counter(b))
-                    .map(|f| crate::display::PPM.of(f.rate - 1.0)),
-                s_per_count: b.fit.filter(|_| counter(b)).map(|f| f.rate),
-                jitter: b.fit.map(|f| f.jitter_s),
-                max_late: b.fit.map(|f| f.max_late_s),
-                late_outliers: b.fit.map(|f| f.outliers),
-            })
-            .collect(),
+        time_bases: outcome.data.run.time_bases.iter().map(time_base_json).collect(),
         acceptance: crate::acceptance::judge_calibration(outcome),
         compensation: outcome.compensation.as_ref().map(crate::verify::compensation_json),
         verification: outcome
             .verification
             .as_ref()
             .map(|(name, v)| crate::verify::verify_json(v, name, "calibration.toml")),
+    }
+}
+
+/// The joint fit's estimated coefficients (a held one is not among them).
+fn coefficients_json(
+    cal: &bench_analysis::calibrate::Calibration,
+) -> BTreeMap<String, Coefficient> {
+    let Ok(j) = &cal.joint else { return BTreeMap::new() };
+    let finite = |v: f64| v.is_finite().then_some(v);
+    ModelKey::CALIBRATED
+        .into_iter()
+        .filter_map(|k| Some((k, j.estimate(k).filter(|e| !e.held)?)))
+        .map(|(k, e)| {
+            let c = Coefficient {
+                value: e.value,
+                sigma: e.std_err,
+                sigma_bootstrap: e.bootstrap_std_err,
+                sigma_noise_model: finite(e.noise_model_std_err),
+                sigma_naive: e.naive_std_err,
+                value_ols: e.ols_value,
+                sigma_ols: finite(e.ols_noise_model_std_err),
+            };
+            (k.key().to_owned(), c)
+        })
+        .collect()
+}
+
+/// The covariance of the estimated coefficients, when every entry is finite.
+fn covariance_json(cal: &bench_analysis::calibrate::Calibration) -> Option<Vec<Vec<f64>>> {
+    let j = cal.joint.as_ref().ok()?;
+    let est = estimated(cal);
+    let c: Vec<Vec<f64>> =
+        est.iter().map(|&a| est.iter().map(|&b| j.covariance[a][b]).collect()).collect();
+    c.iter().flatten().all(|v| v.is_finite()).then_some(c)
+}
+
+/// The seed method's coefficients.
+fn seed_method_json(cal: &bench_analysis::calibrate::Calibration) -> BTreeMap<String, f64> {
+    let Ok(s) = &cal.seed else { return BTreeMap::new() };
+    ModelKey::CALIBRATED
+        .into_iter()
+        .filter_map(|k| Some((k.key().to_owned(), s.coefficient(k)?)))
+        .collect()
+}
+
+/// The IEEE 952 noise terms and their confidence level.
+fn noise_json(
+    cal: &bench_analysis::calibrate::Calibration,
+) -> (BTreeMap<String, NoiseTermJson>, Option<f64>) {
+    let Ok(a) = &cal.allan else { return (BTreeMap::new(), None) };
+    let t = |n: bench_analysis::allan_fit::NoiseTerm| NoiseTermJson {
+        value: n.value,
+        low: n.low,
+        high: n.high,
+        tau_s: n.tau_s,
+        upper_bound: n.upper_bound,
+    };
+    let noise = BTreeMap::from([
+        ("arw".to_owned(), t(a.fit.arw)),
+        ("bias_instability".to_owned(), t(a.fit.flicker_floor())),
+        ("bias_instability_b".to_owned(), t(a.fit.bias_instability)),
+        ("rate_random_walk".to_owned(), t(a.fit.rate_random_walk)),
+    ]);
+    (noise, Some(a.fit.confidence))
+}
+
+/// The comparison with the recording's model, when it has one.
+fn truth_json(outcome: &CalibrationOutcome) -> Option<TruthJson> {
+    outcome.truth.as_ref().map(|t| TruthJson {
+        coefficients: model_map(&t.model),
+        joint_delta_k_t: t.joint.map(|f| f.delta_k_t_rad_s),
+        joint_delta_k_dt: t.joint.map(|f| f.delta_k_dt_rad_s),
+        seed_delta_k_t: t.seed.map(|f| f.delta_k_t_rad_s),
+        seed_delta_k_dt: t.seed.map(|f| f.delta_k_dt_rad_s),
+        joint_thermal_error_removed: t.joint_removal.map(|r| r.removed()),
+        seed_thermal_error_removed: t.seed_removal.map(|r| r.removed()),
+    })
+}
+
+fn window_json(w: &bench_analysis::calibrate::WindowSummary) -> WindowJson {
+    WindowJson {
+        label: w.label.clone(),
+        kind: match w.kind {
+            WindowKind::Plateau => "plateau",
+            WindowKind::Ramp => "ramp",
+            WindowKind::Static => "static",
+        },
+        samples: w.samples,
+        mean_temperature: w.mean_temp_c,
+        mean_table_rate: w.mean_table_rate_rad_s,
+    }
+}
+
+fn excluded_json(x: &super::windows::WindowExclusion) -> ExcludedJson {
+    ExcludedJson {
+        step: x.label.clone(),
+        start: x.start_s,
+        end: x.end_s,
+        seconds: x.end_s - x.start_s,
+        why: x.why.key(),
+        samples: x.samples,
+    }
+}
+
+fn time_base_json(b: &crate::load::TimeBase) -> TimeBaseJson {
+    TimeBaseJson {
+        topic: b.topic,
+        source: b.source.key(),
+        drift_ppm: b.fit.filter(|_| !counter(b)).map(|f| crate::display::PPM.of(f.rate - 1.0)),
+        s_per_count: b.fit.filter(|_| counter(b)).map(|f| f.rate),
+        jitter: b.fit.map(|f| f.jitter_s),
+        max_late: b.fit.map(|f| f.max_late_s),
+        late_outliers: b.fit.map(|f| f.outliers),
     }
 }
 

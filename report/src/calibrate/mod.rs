@@ -19,6 +19,7 @@ use bench_analysis::calibrate::{
     ThermalErrorRemoval,
 };
 use bench_analysis::compensation::{compensate, Compensation, CompensationOptions};
+use bench_analysis::joint_fit::JointFitOptions;
 use bench_analysis::AnalysisError;
 use bench_physics::{GyroModel, ModelKey};
 
@@ -246,12 +247,15 @@ pub fn calibrate_recording(
     let data = calibration_data(crate::load::load(rec)?)?;
     let recorded = data.run.model.as_ref().map(|m| m.model.clone());
     let mut opts = CalibrateOptions {
-        reference_temperature_c: settings
-            .reference_temperature_c
-            .or_else(|| recorded.as_ref().map(|m| m.reference_temperature))
-            .unwrap_or(20.0),
-        latitude_deg: data.run.series.latitude_deg,
-        axis_up: data.run.series.axis_up,
+        joint: JointFitOptions {
+            reference_temperature_c: settings
+                .reference_temperature_c
+                .or_else(|| recorded.as_ref().map(|m| m.reference_temperature))
+                .unwrap_or(20.0),
+            latitude_deg: data.run.series.latitude_deg,
+            axis_up: data.run.series.axis_up,
+            ..JointFitOptions::default()
+        },
         // With the gyro's own sensor the model temperature is that sensor's (the usual
         // practice); the lag from air is profiled only for a gyro without one. (Against a
         // sensor, the profile's χ² test with a correlation-lag n_eff found a spurious 50 s lag
@@ -265,14 +269,14 @@ pub fn calibrate_recording(
         ..CalibrateOptions::default()
     };
     if let Some(r) = settings.replicates {
-        opts.replicates = r;
+        opts.joint.replicates = r;
     }
     let calibration = calibrate(&data.windows, &data.readings, &data.temperature, &opts);
     let base = recorded.clone().unwrap_or_else(GyroModel::zero);
     let model = calibration.model(&base);
     let seed_model = calibration.seed.as_ref().ok().map(|s| {
         let mut m = s.to_model(&base);
-        m.earth_rate = opts.latitude_deg.is_some();
+        m.earth_rate = opts.joint.latitude_deg.is_some();
         m
     });
 
@@ -285,7 +289,7 @@ pub fn calibrate_recording(
         if let Ok(r) = bench_analysis::temperature_rate::local_linear_rate(
             w.time_s(),
             w.temperature_c(),
-            opts.rate_window_s,
+            opts.joint.rate_window_s,
         ) {
             for d in r {
                 rate_range_c_s = (rate_range_c_s.0.min(d), rate_range_c_s.1.max(d));
@@ -302,10 +306,10 @@ pub fn calibrate_recording(
             seed: seed_model.as_ref().map(|m| function_errors(&t, m, temp_range_c, rate_range_c_s)),
             joint_removal: model
                 .as_ref()
-                .and_then(|m| thermal_error_removal(&t, m, series, opts.rate_window_s).ok()),
+                .and_then(|m| thermal_error_removal(&t, m, series, opts.joint.rate_window_s).ok()),
             seed_removal: seed_model
                 .as_ref()
-                .and_then(|m| thermal_error_removal(&t, m, series, opts.rate_window_s).ok()),
+                .and_then(|m| thermal_error_removal(&t, m, series, opts.joint.rate_window_s).ok()),
             model: t,
         }
     });
@@ -315,9 +319,9 @@ pub fn calibrate_recording(
             &compensation_options(
                 m,
                 j.covariance,
-                opts.latitude_deg,
-                opts.axis_up,
-                opts.rate_window_s,
+                opts.joint.latitude_deg,
+                opts.joint.axis_up,
+                opts.joint.rate_window_s,
                 calibration.noise_model,
             ),
         )

@@ -23,7 +23,7 @@ use bench_analysis::calibrate::TemperatureSeries;
 use bench_analysis::diagnose::series::Native;
 use bench_analysis::interp::interp_at;
 use bench_analysis::nominal::effects_per_sample;
-use bench_analysis::run::StepEnd;
+use bench_analysis::run::{StepEnd, StepSpan};
 use bench_analysis::steady::{TableMotion, Unsteady};
 use bench_analysis::temperature_rate::local_linear_rate;
 use bench_analysis::RecordWindow;
@@ -113,139 +113,20 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
         None => chamber.clone(),
     };
     let motion = TableMotion::fit(&s.table_time_s, &s.table_angle_rad, &s.table_rate_command_rad_s);
-    // Effects the recording's model states (e.g. a simulated table's rate ripple) are known
-    // physics: taken out of the gyro's output before the base terms are fitted.
-    let known: Option<Vec<f64>> = run.model.as_ref().and_then(|m| {
-        let stated = m.effects.without(bench_physics::effects::EffectId::EarthRate);
-        if !stated.any() {
-            return None;
-        }
-        let native = Native::build(s, &motion, m.model.thermal_time_constant).ok()?;
-        Some(effects_per_sample(&native, &m.model, &stated, s.axis_up, s.latitude_deg))
-    });
-    let gyro_rate: Vec<f64> = match &known {
-        Some(k) => s.gyro_rate_rad_s.iter().zip(k).map(|(v, e)| v - e).collect(),
-        None => s.gyro_rate_rad_s.clone(),
+    let gyro_rate = without_known_effects(&run, &motion);
+    let inputs = Inputs {
+        run: &run,
+        motion: &motion,
+        chamber: &chamber,
+        gyro_rate: &gyro_rate,
+        samples: GyroSamples { time_s: &s.gyro_time_s, dt: run.gyro_dt_s },
     };
-    // A gyro sample covers (t − dt, t]: its interval must lie in the steady part.
-    let dt = run.gyro_dt_s;
-    let samples_in = |a: f64, b: f64| {
-        let lo = s.gyro_time_s.partition_point(|&t| t - dt < a);
-        let hi = s.gyro_time_s.partition_point(|&t| t <= b);
-        (lo, hi.max(lo))
-    };
-
-    let mut windows = Vec::new();
-    let mut readings = Vec::new();
-    let mut spans = Vec::new();
-    let mut empty_windows = Vec::new();
-    let mut exclusions = Vec::new();
+    let mut out = Collected::default();
     let record_steps = run.record_steps().count();
     for step in run.record_steps() {
-        let parts: Vec<(f64, f64, usize)> = motion
-            .steady_within(step.start_s, step.end_s)
-            .into_iter()
-            .filter(|(a, b, _)| b - a >= MIN_WINDOW_S)
-            .collect();
-        // Exclusions: the steady-motion rule's, plus steady parts too short to use.
-        for e in motion.exclusions(step.start_s, step.end_s) {
-            let (lo, hi) = samples_in(e.start_s, e.end_s);
-            exclusions.push(WindowExclusion {
-                label: step.label.clone(),
-                start_s: e.start_s,
-                end_s: e.end_s,
-                why: e.why,
-                samples: hi - lo,
-            });
-        }
-        for (a, b, _) in motion.steady_within(step.start_s, step.end_s) {
-            if b - a < MIN_WINDOW_S {
-                let (lo, hi) = samples_in(a, b);
-                exclusions.push(WindowExclusion {
-                    label: step.label.clone(),
-                    start_s: a,
-                    end_s: b,
-                    why: Unsteady::NotSteady,
-                    samples: hi - lo,
-                });
-            }
-        }
-        if parts.is_empty() {
-            let (lo, hi) = samples_in(step.start_s, step.end_s);
-            empty_windows.push((step.label.clone(), hi - lo));
-            continue;
-        }
-        let many = parts.len() > 1;
-        for (k, (a, b, seg)) in parts.iter().copied().enumerate() {
-            let label = if many {
-                format!("{} [{}/{}]", step.label, k + 1, parts.len())
-            } else {
-                step.label.clone()
-            };
-            let span = WindowSpan {
-                label: label.clone(),
-                step_index: step.index,
-                start_s: a,
-                end_s: b,
-                incomplete: step.ended != StepEnd::End,
-                bad_samples: run.bad_gyro_samples_in(a, b),
-            };
-            let (lo, hi) = samples_in(a, b);
-            // The samples that overlap a glitch of the table's readings leave the window.
-            let glitches = motion.glitches_within(a, b);
-            for &(g0, g1) in &glitches {
-                let (glo, ghi) = samples_in(g0, g1);
-                exclusions.push(WindowExclusion {
-                    label: step.label.clone(),
-                    start_s: g0,
-                    end_s: g1,
-                    why: Unsteady::Glitch,
-                    samples: (ghi.min(hi)).saturating_sub(glo.max(lo)),
-                });
-            }
-            let keep: Vec<usize> = (lo..hi)
-                .filter(|&k| {
-                    let t = s.gyro_time_s[k];
-                    !glitches.iter().any(|&(g0, g1)| t > g0 && t - dt < g1)
-                })
-                .collect();
-            if keep.len() < 2 {
-                empty_windows.push((label, keep.len()));
-                continue;
-            }
-            let time: Vec<f64> = keep.iter().map(|&k| s.gyro_time_s[k]).collect();
-            let table: Vec<f64> =
-                time.iter().map(|&t| motion.rate(t - 0.5 * dt).unwrap_or(0.0)).collect();
-            let air = interp_at(&chamber.time_s, &chamber.temp_c, &time);
-            let sensor = s.gyro_temp_c.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect());
-            let rate = keep.iter().map(|&k| gyro_rate[k]).collect();
-            // The window's input rate is its steady line's slope: that slope's error is one
-            // constant shared by every window on the line.
-            let w = RecordWindow::new(label, time, rate, table, sensor, air)
-                .map_err(CalibrateError::Analysis)?
-                .with_reference_error(seg, motion.segments[seg].rate_sigma_rad_s);
-            let (ta, tb) = (
-                s.table_time_s.partition_point(|&t| t < a),
-                s.table_time_s.partition_point(|&t| t <= b),
-            );
-            // The angle-domain reference: the readout through the steady motion at the reading
-            // times; its slope is off by the steady line's own error, the same σ the rate
-            // domain carries (`rate_sigma_rad_s`: the readings' scatter, white or in blocks).
-            // A whole readout step over the part (`quantum/T`, the bound used before) stated
-            // k_sf's angle-domain σ 2.4× its scatter over 32 lab files.
-            let time_s: Vec<f64> = s.table_time_s[ta..tb].to_vec();
-            let angle_rad: Vec<f64> =
-                time_s.iter().map(|&t| motion.angle(t).unwrap_or(f64::NAN)).collect();
-            readings.push(TableReadings {
-                time_s,
-                angle_rad,
-                sigma_rad: 1e-9,
-                drift_sigma_rad_s: motion.segments[seg].rate_sigma_rad_s,
-            });
-            windows.push(w);
-            spans.push(span);
-        }
+        step_windows(&inputs, step, &mut out)?;
     }
+    let Collected { windows, readings, spans, empty_windows, mut exclusions } = out;
     exclusions.sort_by(|x, y| x.start_s.total_cmp(&y.start_s));
     if record_steps == 0 {
         return Err(CalibrateError::NoRecordWindows { steps: s.steps.len() });
@@ -264,4 +145,180 @@ pub fn calibration_data(run: RunData) -> Result<CalibrationData, CalibrateError>
         chamber,
         table_rate_rad_s,
     })
+}
+
+/// The gyro's output with the effects the recording's model states (e.g. a simulated table's
+/// rate ripple) taken out: known physics, removed before the base terms are fitted.
+fn without_known_effects(run: &RunData, motion: &TableMotion) -> Vec<f64> {
+    let s = &run.series;
+    let known: Option<Vec<f64>> = run.model.as_ref().and_then(|m| {
+        let stated = m.effects.without(bench_physics::effects::EffectId::EarthRate);
+        if !stated.any() {
+            return None;
+        }
+        let native = Native::build(s, motion, m.model.thermal_time_constant).ok()?;
+        Some(effects_per_sample(&native, &m.model, &stated, s.axis_up, s.latitude_deg))
+    });
+    match &known {
+        Some(k) => s.gyro_rate_rad_s.iter().zip(k).map(|(v, e)| v - e).collect(),
+        None => s.gyro_rate_rad_s.clone(),
+    }
+}
+
+/// The gyro's sample times and interval.
+struct GyroSamples<'a> {
+    time_s: &'a [f64],
+    dt: f64,
+}
+
+impl GyroSamples<'_> {
+    /// The samples (index range) whose whole interval `(t − dt, t]` lies in `[a, b]`.
+    fn within(&self, a: f64, b: f64) -> (usize, usize) {
+        let lo = self.time_s.partition_point(|&t| t - self.dt < a);
+        let hi = self.time_s.partition_point(|&t| t <= b);
+        (lo, hi.max(lo))
+    }
+}
+
+/// What every record step's windows are cut from.
+struct Inputs<'a> {
+    run: &'a RunData,
+    motion: &'a TableMotion,
+    chamber: &'a TemperatureSeries,
+    /// The gyro's output, known effects removed.
+    gyro_rate: &'a [f64],
+    samples: GyroSamples<'a>,
+}
+
+/// The windows and what was left out, as the record steps are cut.
+#[derive(Default)]
+struct Collected {
+    windows: Vec<RecordWindow>,
+    readings: Vec<TableReadings>,
+    spans: Vec<WindowSpan>,
+    empty_windows: Vec<(String, usize)>,
+    exclusions: Vec<WindowExclusion>,
+}
+
+/// One record step: a window per steady part long enough, the rest excluded with its cause.
+fn step_windows(
+    inp: &Inputs<'_>,
+    step: &StepSpan,
+    out: &mut Collected,
+) -> Result<(), CalibrateError> {
+    let parts: Vec<(f64, f64, usize)> = inp
+        .motion
+        .steady_within(step.start_s, step.end_s)
+        .into_iter()
+        .filter(|(a, b, _)| b - a >= MIN_WINDOW_S)
+        .collect();
+    // Exclusions: the steady-motion rule's, plus steady parts too short to use.
+    for e in inp.motion.exclusions(step.start_s, step.end_s) {
+        let (lo, hi) = inp.samples.within(e.start_s, e.end_s);
+        out.exclusions.push(WindowExclusion {
+            label: step.label.clone(),
+            start_s: e.start_s,
+            end_s: e.end_s,
+            why: e.why,
+            samples: hi - lo,
+        });
+    }
+    for (a, b, _) in inp.motion.steady_within(step.start_s, step.end_s) {
+        if b - a < MIN_WINDOW_S {
+            let (lo, hi) = inp.samples.within(a, b);
+            out.exclusions.push(WindowExclusion {
+                label: step.label.clone(),
+                start_s: a,
+                end_s: b,
+                why: Unsteady::NotSteady,
+                samples: hi - lo,
+            });
+        }
+    }
+    if parts.is_empty() {
+        let (lo, hi) = inp.samples.within(step.start_s, step.end_s);
+        out.empty_windows.push((step.label.clone(), hi - lo));
+        return Ok(());
+    }
+    let many = parts.len() > 1;
+    for (k, part) in parts.iter().copied().enumerate() {
+        let label = if many {
+            format!("{} [{}/{}]", step.label, k + 1, parts.len())
+        } else {
+            step.label.clone()
+        };
+        part_window(inp, step, label, part, out)?;
+    }
+    Ok(())
+}
+
+/// One steady part `(a, b, segment)` of a record step: its window (the glitches of the
+/// table's readings left out) and the table's readings over it.
+fn part_window(
+    inp: &Inputs<'_>,
+    step: &StepSpan,
+    label: String,
+    (a, b, seg): (f64, f64, usize),
+    out: &mut Collected,
+) -> Result<(), CalibrateError> {
+    let (s, motion, dt) = (&inp.run.series, inp.motion, inp.samples.dt);
+    let span = WindowSpan {
+        label: label.clone(),
+        step_index: step.index,
+        start_s: a,
+        end_s: b,
+        incomplete: step.ended != StepEnd::End,
+        bad_samples: inp.run.bad_gyro_samples_in(a, b),
+    };
+    let (lo, hi) = inp.samples.within(a, b);
+    // The samples that overlap a glitch of the table's readings leave the window.
+    let glitches = motion.glitches_within(a, b);
+    for &(g0, g1) in &glitches {
+        let (glo, ghi) = inp.samples.within(g0, g1);
+        out.exclusions.push(WindowExclusion {
+            label: step.label.clone(),
+            start_s: g0,
+            end_s: g1,
+            why: Unsteady::Glitch,
+            samples: (ghi.min(hi)).saturating_sub(glo.max(lo)),
+        });
+    }
+    let keep: Vec<usize> = (lo..hi)
+        .filter(|&k| {
+            let t = s.gyro_time_s[k];
+            !glitches.iter().any(|&(g0, g1)| t > g0 && t - dt < g1)
+        })
+        .collect();
+    if keep.len() < 2 {
+        out.empty_windows.push((label, keep.len()));
+        return Ok(());
+    }
+    let time: Vec<f64> = keep.iter().map(|&k| s.gyro_time_s[k]).collect();
+    let table: Vec<f64> = time.iter().map(|&t| motion.rate(t - 0.5 * dt).unwrap_or(0.0)).collect();
+    let air = interp_at(&inp.chamber.time_s, &inp.chamber.temp_c, &time);
+    let sensor = s.gyro_temp_c.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect());
+    let rate = keep.iter().map(|&k| inp.gyro_rate[k]).collect();
+    // The window's input rate is its steady line's slope: that slope's error is one constant
+    // shared by every window on the line.
+    let w = RecordWindow::new(label, time, rate, table, sensor, air)
+        .map_err(CalibrateError::Analysis)?
+        .with_reference_error(seg, motion.segments[seg].rate_sigma_rad_s);
+    let (ta, tb) =
+        (s.table_time_s.partition_point(|&t| t < a), s.table_time_s.partition_point(|&t| t <= b));
+    // The angle-domain reference: the readout through the steady motion at the reading times;
+    // its slope is off by the steady line's own error, the same σ the rate domain carries
+    // (`rate_sigma_rad_s`: the readings' scatter, white or in blocks). A whole readout step
+    // over the part (`quantum/T`, the bound used before) stated k_sf's angle-domain σ 2.4×
+    // its scatter over 32 lab files.
+    let time_s: Vec<f64> = s.table_time_s[ta..tb].to_vec();
+    let angle_rad: Vec<f64> = time_s.iter().map(|&t| motion.angle(t).unwrap_or(f64::NAN)).collect();
+    out.readings.push(TableReadings {
+        time_s,
+        angle_rad,
+        sigma_rad: 1e-9,
+        drift_sigma_rad_s: motion.segments[seg].rate_sigma_rad_s,
+    });
+    out.windows.push(w);
+    out.spans.push(span);
+    Ok(())
 }

@@ -36,7 +36,7 @@ fn hours(t: f64) -> f64 {
 /// Earth's rate along the sensing axis that the calibration removed, rad/s.
 fn earth(o: &CalibrationOutcome) -> f64 {
     let opts = &o.calibration.options;
-    opts.latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, opts.axis_up))
+    opts.joint.latitude_deg.map_or(0.0, |lat| vertical_rate_rad_s(lat, opts.joint.axis_up))
 }
 
 /// Kind of window `i` of `data.spans` / `model_windows`: by position (the calibration keeps
@@ -290,7 +290,7 @@ fn temperature(o: &CalibrationOutcome) -> Figure {
 
 fn temperature_rate(o: &CalibrationOutcome) -> Figure {
     let d = &o.data;
-    let w = o.calibration.options.rate_window_s;
+    let w = o.calibration.options.joint.rate_window_s;
     let mut p = Plot::new(
         "Rate of temperature change",
         Axis::linear("time, h"),
@@ -352,7 +352,7 @@ fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
 
 fn cw_ccw(o: &CalibrationOutcome) -> Figure {
     let e = earth(o);
-    let y = if o.calibration.options.latitude_deg.is_some() {
+    let y = if o.calibration.options.joint.latitude_deg.is_some() {
         "V − Ω_table − Ω_E, °/h"
     } else {
         "V − Ω_table, °/h"
@@ -576,7 +576,8 @@ fn window_errors(
 ) -> Option<(Vec<f64>, Vec<f64>)> {
     let e = earth(o);
     let temp = w.temperature_c();
-    let rate = local_linear_rate(w.time_s(), temp, o.calibration.options.rate_window_s).ok()?;
+    let rate =
+        local_linear_rate(w.time_s(), temp, o.calibration.options.joint.rate_window_s).ok()?;
     let sf = model.scale_factor_error;
     let unc: Vec<f64> = w
         .gyro_rate_rad_s()
@@ -625,7 +626,8 @@ fn thermal_error(o: &CalibrationOutcome) -> Figure {
             ));
             if let Some(tr) = &o.truth {
                 let tt = true_temperature(o, &tr.model, t);
-                if let Ok(rr) = local_linear_rate(t, &tt, o.calibration.options.rate_window_s) {
+                if let Ok(rr) = local_linear_rate(t, &tt, o.calibration.options.joint.rate_window_s)
+                {
                     let truth: Vec<f64> =
                         tt.iter().zip(&rr).map(|(a, b)| thermal_bias(&tr.model, *a, *b)).collect();
                     p.items.push(dashed(

@@ -42,7 +42,7 @@ fn direction_text(d: Direction) -> &'static str {
 fn coefficient_rows(o: &CalibrationOutcome) -> String {
     let joint = o.calibration.joint.as_ref().ok();
     let seed = o.calibration.seed.as_ref().ok();
-    let t0 = o.calibration.options.reference_temperature_c;
+    let t0 = o.calibration.options.joint.reference_temperature_c;
     let truth = o.truth.as_ref().map(|t| &t.model);
     // The truth's bias at the calibration's T0 (its own T0 may differ).
     let truth_bias = truth.map(|m| thermal_bias(m, t0, 0.0));
@@ -381,17 +381,17 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         sig(HOURS.of(duration), 3),
         d.run.series.gyro_time_s.len(),
         d.spans.len(),
-        match d.run.series.latitude_deg.or(opts.latitude_deg) {
+        match d.run.series.latitude_deg.or(opts.joint.latitude_deg) {
             Some(l) => format!("latitude {} °, Earth's rate removed", sig(l, 5)),
             None => "no latitude: Earth's rate stays in the bias".into(),
         },
-        if opts.axis_up { "up" } else { "down" },
+        if opts.joint.axis_up { "up" } else { "down" },
         if d.run.gyro_sensor() { "the gyro's own sensor" } else { "chamber air" },
         match &o.calibration.lag {
             Some(Ok(l)) if l.used_s > 0.0 => format!(" through a {} s lag", sig(l.used_s, 3)),
             _ => String::new(),
         },
-        sig(opts.rate_window_s, 3)
+        sig(opts.joint.rate_window_s, 3)
     );
 
     summary(&mut h, o);
