@@ -54,7 +54,40 @@ fn simulate(truth: &GyroModel, effects: Effects, seed: u64) -> RunSeries {
 
 /// [`simulate`] on a table with `table`'s parameters.
 fn simulate_on(table: TableParams, truth: &GyroModel, effects: Effects, seed: u64) -> RunSeries {
-    let steps = procedure();
+    simulate_steps(&procedure(), table, truth, effects, seed)
+}
+
+/// [`procedure`] with the 20 and 50 °C plateaus turned at 10 and at 30 °/min: turns at two
+/// |rate| with rests (the soaks) between them, the run that tells an error in Ω² from one in |Ω|.
+fn procedure_two_rates() -> Vec<Step> {
+    let ramp = 1.0 / 60.0;
+    let fast = 3.0 * OMEGA;
+    vec![
+        ("soak 20C", 0.0, 20.0, 0.0, 600.0),
+        ("record cw 20C", -OMEGA, 20.0, 0.0, 600.0),
+        ("record ccw 20C", OMEGA, 20.0, 0.0, 600.0),
+        ("record cw 20C fast", -fast, 20.0, 0.0, 600.0),
+        ("record ccw 20C fast", fast, 20.0, 0.0, 600.0),
+        ("record cw ramp 20C to 50C", -OMEGA, 20.0, ramp, 1800.0),
+        ("soak 50C", 0.0, 50.0, 0.0, 900.0),
+        ("record ccw 50C fast", fast, 50.0, 0.0, 600.0),
+        ("record cw 50C fast", -fast, 50.0, 0.0, 600.0),
+        ("record ccw 50C", OMEGA, 50.0, 0.0, 600.0),
+        ("record cw 50C", -OMEGA, 50.0, 0.0, 600.0),
+        ("record ccw ramp 50C to 20C", OMEGA, 50.0, -ramp, 1800.0),
+        ("record cw 20C again", -OMEGA, 20.0, 0.0, 600.0),
+    ]
+}
+
+/// The procedure `steps` simulated on a table with `table`'s parameters, with `truth` +
+/// `effects` and the gyro's `seed`.
+fn simulate_steps(
+    steps: &[Step],
+    table: TableParams,
+    truth: &GyroModel,
+    effects: Effects,
+    seed: u64,
+) -> RunSeries {
     let air0 = steps[0].2;
     let mount = Mounting { latitude_deg: LAT, axis_up: true };
     let mut gyro = GyroSampler::new(truth.clone(), DT, seed, 1, mount, air0).with_effects(effects);
@@ -240,10 +273,41 @@ fn scale_factor_temperature_is_found() {
     single(e, 8, EffectId::ScaleFactorTemperature, "coeff_per_c", 1e-6);
 }
 
+/// An error in Ω² on turns at one |rate| (with rests): at two levels of |Ω| (0 and 10 °/min)
+/// Ω² and |Ω| (a scale-factor asymmetry) are both a line through them, so the honest answer is
+/// "not told apart" with the run that separates them — neither named, both shapes kept as
+/// nuisance and reported unexplained.
 #[test]
-fn rate_squared_is_found() {
+fn rate_squared_on_one_rate_is_not_told_from_an_asymmetry() {
+    let d = run_with(on(&[(EffectId::RateSquared, &[1e-2])]), 9);
+    assert!(accepted(&d).is_empty(), "{}", check(&d));
+    let both = |why: &str| {
+        why.starts_with("not told apart: ")
+            && why.contains("rate_squared")
+            && why.contains("scale_factor_asymmetry")
+            && why.contains("two table rates")
+    };
+    assert!(
+        d.unexplained.iter().any(|u| both(&u.correlates_with)),
+        "the pair reported unexplained, with the separating run\n{}",
+        check(&d)
+    );
+    assert!(d.rms.after < d.rms.before, "{}", check(&d));
+}
+
+/// The same error on [`procedure_two_rates`] (10 and 30 °/min, rests between): Ω² is told from
+/// |Ω| and named alone, its coefficient within 3σ.
+#[test]
+fn rate_squared_is_found_on_turns_at_two_rates() {
     let e = on(&[(EffectId::RateSquared, &[1e-2])]);
-    single(e, 9, EffectId::RateSquared, "coeff_s_per_rad", 1e-2);
+    let table = TableParams { ripple_rel: 0.0, ..TableParams::default() };
+    let run = simulate_steps(&procedure_two_rates(), table, &nominal(), e, 9);
+    let d = diagnose(&run, &nominal(), &Effects::default(), &DiagnoseOptions::default())
+        .expect("diagnosis");
+    assert_eq!(accepted(&d), vec![EffectId::RateSquared], "{}", check(&d));
+    within_3_sigma(&d, EffectId::RateSquared, "coeff_s_per_rad", 1e-2);
+    assert!(d.rms.after < d.rms.before, "{}", check(&d));
+    assert!(d.bic.after < d.bic.before, "{}", check(&d));
 }
 
 #[test]
