@@ -272,7 +272,12 @@ pub fn calibrate_recording(
         opts.joint.replicates = r;
     }
     let calibration = calibrate(&data.windows, &data.readings, &data.temperature, &opts);
-    let base = recorded.clone().unwrap_or_else(GyroModel::zero);
+    let mut base = recorded.clone().unwrap_or_else(GyroModel::zero);
+    if !data.run.gyro_sensor() && !matches!(calibration.lag, Some(Ok(_))) {
+        // Fitted against the chamber air itself (no lag estimated): the model says so, not the
+        // recorded nominal τ, by which `bench verify` and the compensation would lag the air.
+        base.thermal_time_constant = 0.0;
+    }
     let model = calibration.model(&base);
     let seed_model = calibration.seed.as_ref().ok().map(|s| {
         let mut m = s.to_model(&base);

@@ -121,6 +121,22 @@ fn a_gyro_without_its_own_sensor_calibrates_too() {
     assert_within_truth(&out, &truth, "lab-nosensor");
 }
 
+/// A gyro without its own sensor calibrated without the lag (`--no-lag`) is fitted against the
+/// chamber air itself: its model (and `calibration.toml`) has no lag, not the datasheet's 300 s
+/// that `bench verify` would then lag the air by.
+#[test]
+fn a_gyro_without_its_own_sensor_and_no_lag_fitted_has_no_lag_in_its_model() {
+    let path = lab_fixture("lab-nosensor", 1, &[]);
+    let rec = Recording::load(&path).expect("reads");
+    let settings = CalibrateSettings { no_lag: true, ..CalibrateSettings::default() };
+    let out = calibrate_recording(&rec, &settings).expect("calibrates");
+    let recorded = out.data.run.model.as_ref().expect("a nominal model").model.clone();
+    assert!(recorded.thermal_time_constant > 0.0, "the datasheet states a lag");
+    assert!(out.calibration.lag.is_none(), "no lag profiled");
+    let m = out.model.as_ref().expect("a model");
+    assert_eq!(m.thermal_time_constant, 0.0);
+}
+
 #[test]
 fn a_cut_file_calibrates_up_to_its_cut() {
     let (out, truth) = calibrate("lab-cut");
