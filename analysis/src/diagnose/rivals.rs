@@ -99,6 +99,16 @@ pub(super) fn judge_rivals(
         if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
             continue;
         }
+        // Two per-revolution harmonics (1/rev against k/rev on arcs) are judged by the family
+        // check, at the effect's own harmonic and the family's level (`family::gate`); judged
+        // again here against the search's threshold, which pays for the scan over 52
+        // harmonics, the same pair got the opposite answer (effect-2rev: Wald 15.0 beside
+        // 1/rev, told apart at 14.5 there, not at 23.9 here).
+        if id.effect().family() == bench_physics::effects::Family::AngleHarmonics
+            && r.effect().family() == bench_physics::effects::Family::AngleHarmonics
+        {
+            continue;
+        }
         let r_cols = if grid(ctx.prep, r).len() == 1 {
             candidate_columns(ctx.prep, r, f64::NAN, ctx.model)
         } else {
