@@ -111,6 +111,69 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
     }
 }
 
+/// Rows of the located-mismatch table printed; the rest are counted on one line.
+const LOCATED_ROWS: usize = 10;
+
+/// Where the refit residual sits, step by step: the windows by |z|, largest first, at most
+/// [`LOCATED_ROWS`] of them, each with its time from the recording's time zero, temperature,
+/// mean residual ± 1σ and, when effects were found, how much of it they account for.
+fn print_located(o: &bench_report::diagnose::DiagnoseOutcome) {
+    let l = bench_report::diagnose::located::located(o);
+    if l.windows.is_empty() {
+        return;
+    }
+    let departing = l.windows.iter().filter(|w| l.departs(w)).count();
+    say!(
+        "located: the residual after the parameter refit by step; {departing} of {} depart from \
+         the noise model (|z| > {:.2}, α {} over the steps, marked *)",
+        l.windows.len(),
+        l.z_threshold,
+        l.alpha
+    );
+    // The effects found, summed over each window: one effect is named in the header, several
+    // by the largest in each row.
+    let found: Vec<&str> =
+        o.diagnosis.series.contributions.iter().map(|(id, _)| id.key()).collect();
+    let effects = match found.as_slice() {
+        [] => String::new(),
+        [one] => format!(" {one} there |"),
+        _ => " effects found there |".into(),
+    };
+    say!("| step | time | temperature | residual ± 1σ | z |{effects}");
+    say!("| --- | --- | --- | --- | --- |{}", if found.is_empty() { "" } else { " --- |" });
+    let by_z = l.by_z();
+    for w in by_z.iter().take(LOCATED_ROWS) {
+        let explained = match w.explained {
+            Some((v, name)) => {
+                let v = display::si_value(display::RATE, v, 2);
+                if found.len() > 1 {
+                    format!(" {v} (largest {name}) |")
+                } else {
+                    format!(" {v} |")
+                }
+            }
+            None => String::new(),
+        };
+        say!(
+            "| {} | {}–{} | {} | {} | {:.1}{} |{explained}",
+            w.name,
+            display::hms(w.start_s),
+            display::hms(w.end_s),
+            w.temp_c.text(),
+            display::si_value_sigma(display::RATE, w.mean, w.sigma),
+            w.z(),
+            if l.departs(w) { " *" } else { "" },
+        );
+    }
+    if let Some(next) = by_z.get(LOCATED_ROWS) {
+        say!(
+            "… {} more (|z| ≤ {:.1}: `--json` lists every step under location.steps)",
+            by_z.len() - LOCATED_ROWS,
+            next.z().abs()
+        );
+    }
+}
+
 /// `--suggest-scenario`: write the separating scenario and print the predicted separation.
 fn suggest_scenario(
     d: &bench_analysis::diagnose::Diagnosis,
@@ -246,6 +309,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         );
     }
     print_checks(d);
+    print_located(&out);
     for u in &d.unexplained {
         let windows: Vec<String> = u
             .windows_s

@@ -86,6 +86,16 @@ fn number_with_unit(cell: &str) -> bool {
     numbers_ok && !unit.is_empty() && unit.parse::<f64>().is_err()
 }
 
+/// The body rows of the table whose header line starts with `header`, as trimmed cells.
+fn table_rows<'a>(text: &'a str, header: &str) -> Vec<Vec<&'a str>> {
+    text.lines()
+        .skip_while(|l| !l.starts_with(header))
+        .skip(2)
+        .take_while(|l| l.starts_with("| "))
+        .map(|l| l.trim_matches('|').split('|').map(str::trim).collect())
+        .collect()
+}
+
 #[test]
 fn diagnose_shows_every_number_with_its_unit() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -104,11 +114,7 @@ fn diagnose_shows_every_number_with_its_unit() {
 
     // The parameter table: every cell but the key and z is a number with its unit, and each
     // coefficient in its engineering unit.
-    let rows: Vec<Vec<&str>> = text
-        .lines()
-        .filter(|l| l.starts_with("| ") && !l.starts_with("| parameter") && !l.starts_with("| ---"))
-        .map(|l| l.trim_matches('|').split('|').map(str::trim).collect())
-        .collect();
+    let rows = table_rows(&text, "| parameter");
     assert_eq!(rows.len(), 4, "{text}");
     let want = [
         ("bias", "°/h"),
@@ -147,6 +153,8 @@ fn diagnose_shows_every_number_with_its_unit() {
     assert!((amp_deg_h / expected - 1.0).abs() < 0.01, "{amp_deg_h} °/h vs {expected} °/h");
     assert!(found.contains("phase = ") && found.contains(" ° (ΔBIC"), "{found}");
     assert!(found.contains("RMS ") && found.matches(" °/h").count() >= 3, "{found}");
+
+    located_steps_are_printed(&text, &j);
 
     // The report's effects table: parameters on lines of their own, no escaped markup.
     let html = std::fs::read_to_string(dir.path().join("out/report.html")).expect("report.html");
@@ -192,4 +200,44 @@ fn the_numpy_residual_scan_agrees_with_the_rust_one() {
         String::from_utf8_lossy(&run.stderr)
     );
     assert!(stdout.contains("equal to the scan's"), "{stdout}");
+}
+
+/// The located mismatch on the console (issue 30 item 2): every step of the JSON's
+/// `location.steps` is a candidate; the ten with the largest |z| are printed, largest first,
+/// each with its time from the recording's time zero (h:mm:ss, start before end), its
+/// temperature, its mean residual ± 1σ in °/h and the found effect's share there, the rest
+/// counted on one line.
+fn located_steps_are_printed(text: &str, j: &serde_json::Value) {
+    let steps = j["location"]["steps"].as_array().expect("location.steps");
+    let mut by_z: Vec<(&str, f64)> = steps
+        .iter()
+        .map(|s| (s["name"].as_str().expect("name"), s["z"].as_f64().expect("z")))
+        .collect();
+    by_z.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    assert!(by_z.len() > 10, "{} steps", by_z.len());
+    let head = text.lines().find(|l| l.starts_with("located: ")).unwrap_or_else(|| {
+        panic!("no located table:\n{text}");
+    });
+    assert!(head.contains(&format!("of {} depart", by_z.len())), "{head}");
+    let rows = table_rows(text, "| step | time | temperature | residual ± 1σ | z |");
+    assert_eq!(rows.len(), 10, "{text}");
+    let hms = |s: &str| -> f64 {
+        let p: Vec<f64> = s.split(':').map(|x| x.parse().expect("h:mm:ss")).collect();
+        assert_eq!(p.len(), 3, "{s}");
+        3600.0 * p[0] + 60.0 * p[1] + p[2]
+    };
+    for (row, (name, z)) in rows.iter().zip(&by_z) {
+        assert_eq!(row[0], *name, "{row:?}");
+        let (from, to) = row[1].split_once('–').expect("from–to");
+        assert!(hms(from) < hms(to), "{row:?}");
+        assert!(row[2].ends_with(" °C"), "{row:?}");
+        assert!(number_with_unit(row[3]) && row[3].ends_with(" °/h"), "{row:?}");
+        let shown: f64 = row[4].trim_end_matches(" *").parse().expect("z");
+        assert!((shown - z).abs() <= 0.051, "{row:?} vs z {z}");
+        // The effect found (once per revolution) named in the header, its share in °/h.
+        assert!(number_with_unit(row[5]) && row[5].ends_with(" °/h"), "{row:?}");
+    }
+    assert!(text.contains("| once_per_revolution there |"), "{text}");
+    let more = format!("… {} more", by_z.len() - 10);
+    assert!(text.lines().any(|l| l.starts_with(&more)), "no `{more}` line:\n{text}");
 }

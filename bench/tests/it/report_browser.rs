@@ -2,13 +2,15 @@
 //! browser (Debian's Chromium, installed pinned by scripts/browser.sh, which scripts/test.sh
 //! runs and whose path it passes as `BENCH_CHROMIUM`): no markup or escaped HTML shown as text,
 //! every figure drawn with a size, every PNG the page links decoded by the browser, no
-//! horizontal overflow, and a screenshot of the page that is the size asked and not blank.
+//! horizontal overflow, no two texts of a figure overlapping as drawn (every axis's tick labels
+//! measured by their boxes), the diagnosis's location figure holding every located step (over
+//! time and by step), and a screenshot of the page that is the size asked and not blank.
 //! Skips, saying why, only when no Chromium can be found.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::common::bench;
+use crate::common::{bench, json};
 
 const CHECK_JS: &str = include_str!("report_check.js");
 const WINDOW: (u32, u32) = (1400, 2200);
@@ -88,11 +90,60 @@ fn screenshot(browser: &Path, page: &Path, profile: &Path) -> (u32, u32, usize, 
     (info.width, info.height, colours.len(), ink as f64 / n as f64)
 }
 
-fn check_report(browser: &Path, dir: &Path, figures: usize) {
+/// No two texts of any figure overlap as the browser drew them (tick labels of every axis,
+/// turned ones included, axis names, titles, legends, marks).
+fn check_no_text_overlaps(r: &serde_json::Value, what: &str) {
+    let figures = r["figure_texts"].as_array().expect("figure_texts");
+    let mut bad = Vec::new();
+    for f in figures {
+        let texts = f["texts"].as_array().map_or(0, Vec::len);
+        assert!(texts >= 10, "{what}: figure {} has {texts} texts: is it drawn?", f["id"]);
+        for pair in f["overlaps"].as_array().expect("overlaps") {
+            bad.push(format!("{}: {} overlaps {}", f["id"], pair[0], pair[1]));
+        }
+    }
+    assert!(bad.is_empty(), "{what}: {} overlapping labels:\n{}", bad.len(), bad.join("\n"));
+}
+
+/// The location figure holds the located windows: its two step panels, every step of the
+/// diagnosis's `location.steps` named on the by-step axis (a name cut to fit ends in `…` and
+/// keeps the step's index), one bar per step, and the record steps numbered over time.
+fn check_location(r: &serde_json::Value, diagnosis: &serde_json::Value, what: &str) {
+    let fig = r["figure_texts"]
+        .as_array()
+        .and_then(|f| f.iter().find(|f| f["id"] == "fig4-location"))
+        .unwrap_or_else(|| panic!("{what}: no fig4-location"));
+    let texts: Vec<&str> =
+        fig["texts"].as_array().expect("texts").iter().filter_map(|t| t[0].as_str()).collect();
+    for title in ["mismatch over time, by step", "by step", "temperature band", "table angle"] {
+        assert!(texts.contains(&title), "{what}: no panel `{title}` in {texts:?}");
+    }
+    let steps = diagnosis["location"]["steps"].as_array().expect("location.steps");
+    assert!(steps.len() >= 10, "{what}: {} steps", steps.len());
+    for s in steps {
+        let name = s["name"].as_str().expect("step name");
+        let shown = texts.iter().any(|t| {
+            *t == name
+                || t.strip_suffix('…').is_some_and(|head| {
+                    name.starts_with(head) && head.split(' ').next() == name.split(' ').next()
+                })
+        });
+        assert!(shown, "{what}: step `{name}` not on the by-step axis: {texts:?}");
+    }
+    // Bars: the blue (within the noise) and red (departs) rectangles, legend swatches included.
+    let fills = &fig["rect_fills"];
+    let bars = fills["#0072B2"].as_u64().unwrap_or(0) + fills["#D55E00"].as_u64().unwrap_or(0);
+    assert!(bars as usize > steps.len(), "{what}: {bars} bars for {} steps: {fills}", steps.len());
+    let numbered = texts.iter().filter(|t| t.starts_with('#') && !t.contains(' ')).count();
+    assert!(numbered >= 3, "{what}: {numbered} record steps numbered over time: {texts:?}");
+}
+
+fn check_report(browser: &Path, dir: &Path, figures: usize) -> serde_json::Value {
     let page = dir.join("report.html");
     let profile = tempfile::tempdir().expect("profile dir");
     let r = rendered(browser, &page, profile.path());
     let what = page.display();
+    check_no_text_overlaps(&r, &what.to_string());
     assert_eq!(
         r["markup_in_text"].as_array().map(Vec::len),
         Some(0),
@@ -127,6 +178,7 @@ fn check_report(browser: &Path, dir: &Path, figures: usize) {
         images.len(),
         100.0 * ink
     );
+    r
 }
 
 #[test]
@@ -146,9 +198,13 @@ fn reports_render_in_a_headless_browser() {
 
     let cal = bench(&["calibrate", null.to_str().expect("path"), "-o", "cal", "-q"], d);
     assert_eq!(cal.status.code(), Some(0), "{}", String::from_utf8_lossy(&cal.stderr));
-    let diag = bench(&["diagnose", opr.to_str().expect("path"), "-o", "diag", "-q"], d);
+    let diag = bench(
+        &["diagnose", opr.to_str().expect("path"), "-o", "diag", "-q", "--json", "diag.json"],
+        d,
+    );
     assert_eq!(diag.status.code(), Some(7), "{}", String::from_utf8_lossy(&diag.stderr));
 
     check_report(&browser, &d.join("cal"), 9);
-    check_report(&browser, &d.join("diag"), 4);
+    let r = check_report(&browser, &d.join("diag"), 4);
+    check_location(&r, &json(&d.join("diag.json")), "diagnosis report");
 }

@@ -7,9 +7,11 @@
 //! [`bench_analysis::diagnose::diagnose`], then **re-simulates** the run with the updated model
 //! (the same physics, [`bench_physics::effects`], driven by the recording's inputs) to show
 //! the fit it gives; [`json`] writes the machine-readable result (`docs/diagnose.md`);
+//! [`located`] lays out where the mismatch sits, step by step, for the console and the figures;
 //! [`report`] the HTML/SVG/PNG report.
 
 pub mod json;
+pub mod located;
 pub mod report;
 
 use std::path::Path;

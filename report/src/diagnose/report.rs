@@ -7,8 +7,10 @@
 //! 2. the residual's Allan deviation before and after the effects against the noise model;
 //! 3. per accepted effect, the partial residual (final residual plus the effect's term)
 //!    against the effect's fitted term: a slope-one line when the effect is right;
-//! 4. where the refit residual sits: means ± 2σ (noise model) by direction, heating/cooling,
-//!    temperature band and table-angle sector.
+//! 4. where the refit residual sits: each step's z (mean over its noise-model σ) over time,
+//!    with record steps shaded and the table's reversals marked, and step by step, against the
+//!    level at which a step departs; means ± 2σ by direction, heating/cooling, temperature band
+//!    and table-angle sector.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -17,9 +19,10 @@ use bench_analysis::diagnose::Region;
 use bench_physics::allan::AdevPoint;
 use bench_physics::noise::bias_instability_adev;
 
+use super::located::{located, Located};
 use super::DiagnoseOutcome;
 use crate::display;
-use crate::render::plot::{colour, Axis, Item, Marker, Plot, Span};
+use crate::render::plot::{colour, Axis, Item, Marker, Plot, Rule, Span};
 use crate::render::{
     escape, figures_html, io_err, render, sig, Figure, ReportError, ReportFiles, STYLE,
 };
@@ -180,21 +183,126 @@ fn region_panel(title: &str, rs: &[Region]) -> Plot {
     p
 }
 
+/// The dashed ±threshold lines of a z axis from `x0` to `x1`.
+fn z_threshold_lines(l: &Located, x0: f64, x1: f64) -> Item {
+    let t = l.z_threshold;
+    Item::Line {
+        label: Some(format!("|z| = {} (α {} over the steps)", sig(t, 3), sig(l.alpha, 2))),
+        colour: colour::BLACK,
+        width: 1,
+        dashed: true,
+        points: vec![(x0, t), (x1, t), (f64::NAN, f64::NAN), (x0, -t), (x1, -t)],
+    }
+}
+
+/// The located windows over time: each step's z as a level across its span, record steps
+/// shaded and named by index, the table's reversals marked.
+fn steps_over_time(o: &DiagnoseOutcome, l: &Located) -> Plot {
+    let mut p = Plot::new(
+        "mismatch over time, by step",
+        Axis::linear("time, h"),
+        Axis::linear("z (step mean / σ)"),
+    );
+    p.weight = 2;
+    let h = |t: f64| display::HOURS.of(t);
+    let records = l.windows.iter().filter(|w| w.record);
+    p.spans = records
+        .clone()
+        .map(|w| Span {
+            x0: h(w.start_s),
+            x1: h(w.end_s),
+            colour: colour::GREY,
+            label: "record steps".into(),
+        })
+        .collect();
+    p.marks = records.map(|w| (h(0.5 * (w.start_s + w.end_s)), format!("#{}", w.index))).collect();
+    p.rules = l
+        .reversals_s
+        .iter()
+        .map(|&t| Rule { x: h(t), colour: colour::PURPLE, label: "table reversals".into() })
+        .collect();
+    let levels = |departs: bool| -> Vec<(f64, f64)> {
+        l.windows
+            .iter()
+            .filter(|w| l.departs(w) == departs)
+            .flat_map(|w| [(h(w.start_s), w.z()), (h(w.end_s), w.z()), (f64::NAN, f64::NAN)])
+            .collect()
+    };
+    for (departs, label, c) in
+        [(false, "within the noise", colour::BLUE), (true, "departs", colour::RED)]
+    {
+        let points = levels(departs);
+        if !points.is_empty() {
+            p.items.push(Item::Line { label: Some(label.into()), colour: c, width: 3, dashed: false, points });
+        }
+        // A dot at each window's middle: a step of a few seconds stays visible.
+        let dots: Vec<_> = l
+            .windows
+            .iter()
+            .filter(|w| l.departs(w) == departs)
+            .map(|w| (h(0.5 * (w.start_s + w.end_s)), w.z(), None))
+            .collect();
+        p.items.push(Item::Markers { label: None, colour: c, shape: Marker::Circle, points: dots });
+    }
+    let end = o.data.series.steps.iter().map(|s| s.end_s).fold(0.0, f64::max);
+    p.items.push(z_threshold_lines(l, 0.0, h(end)));
+    if l.windows.is_empty() {
+        p.note = Some("no steps in this recording".into());
+    }
+    p
+}
+
+/// The located windows by step: one bar of z per step, in time order.
+fn steps_bars(l: &Located) -> Plot {
+    let names = l.windows.iter().map(|w| w.name.clone()).collect();
+    let mut p = Plot::new("by step", Axis::categories("step", names), Axis::linear("z"));
+    p.weight = 2;
+    for (departs, label, c) in
+        [(false, "within the noise", colour::BLUE), (true, "departs", colour::RED)]
+    {
+        let points: Vec<(f64, f64)> = l
+            .windows
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| l.departs(w) == departs)
+            .map(|(i, w)| (i as f64, w.z()))
+            .collect();
+        if !points.is_empty() {
+            p.items.push(Item::Bars { label: Some(label.into()), colour: c, width: 0.7, points });
+        }
+    }
+    let n = l.windows.len() as f64;
+    p.items.push(z_threshold_lines(l, -0.5, n - 0.5));
+    p
+}
+
 fn location_figure(o: &DiagnoseOutcome) -> Figure {
     let l = &o.diagnosis.location;
+    let located = located(o);
+    let mut direction = region_panel("direction", &l.direction);
+    direction.new_row = true;
     Figure {
         name: "fig4-location",
         title: "Where the refit residual sits",
-        caption: "Mean of the residual after the parameter refit (before any effect) by class, \
-                  with 2σ bars from the noise model: bars that miss zero locate the mismatch."
-            .into(),
+        caption: format!(
+            "Top: the residual after the parameter refit (before any effect) by step, as z = \
+             the step's mean over its 1σ from the noise model: over time (record steps shaded \
+             and numbered, the table's reversals dashed) and step by step; beyond the dashed \
+             |z| = {} a step departs from the noise model ({} of {}). Bottom: its mean by \
+             class, with 2σ bars: bars that miss zero locate the mismatch.",
+            sig(located.z_threshold, 3),
+            located.windows.iter().filter(|w| located.departs(w)).count(),
+            located.windows.len()
+        ),
         panels: vec![
-            region_panel("direction", &l.direction),
+            steps_over_time(o, &located),
+            steps_bars(&located),
+            direction,
             region_panel("thermal", &l.thermal),
             region_panel("temperature band", &l.temperature),
             region_panel("table angle", &l.angle),
         ],
-        size: (2000, 480),
+        size: (2000, 1000),
     }
 }
 

@@ -7,6 +7,7 @@
 //! pure-Rust `png` crate.
 
 pub(crate) mod plot;
+mod ticks;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};

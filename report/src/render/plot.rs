@@ -9,6 +9,9 @@ use std::sync::OnceLock;
 use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::ticks;
 
 /// DejaVu Sans (Bitstream Vera licence, `report/assets/fonts/DejaVu-LICENSE.txt`).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -114,6 +117,17 @@ pub(crate) enum Item {
         /// `(x, low, high)`.
         points: Vec<(f64, f64, f64)>,
     },
+    /// Vertical bars from zero to `y`, centred on `x`, `width` x units wide.
+    Bars {
+        /// Legend entry.
+        label: Option<String>,
+        /// Colour.
+        colour: RGBColor,
+        /// Bar width, x units.
+        width: f64,
+        /// `(x, y)`.
+        points: Vec<(f64, f64)>,
+    },
     /// Markers, optionally with vertical error bars.
     Markers {
         /// Legend entry.
@@ -140,6 +154,17 @@ pub(crate) struct Span {
     pub label: String,
 }
 
+/// A vertical line across a panel at `x` (e.g. a table reversal on a time axis).
+#[derive(Debug, Clone)]
+pub(crate) struct Rule {
+    /// Where, x units.
+    pub x: f64,
+    /// Colour.
+    pub colour: RGBColor,
+    /// Legend entry; rules sharing a label share one entry.
+    pub label: String,
+}
+
 /// One panel.
 #[derive(Debug, Clone)]
 pub(crate) struct Plot {
@@ -155,12 +180,32 @@ pub(crate) struct Plot {
     pub items: Vec<Item>,
     /// Text shown inside the panel (e.g. why it is empty, or an RMS).
     pub note: Option<String>,
+    /// Vertical lines across the panel, drawn over the spans.
+    pub rules: Vec<Rule>,
+    /// Short texts along the bottom of the plotting area at x (e.g. each shaded span's name);
+    /// one that would touch the one before is left out.
+    pub marks: Vec<(f64, String)>,
+    /// This panel starts a new row of the figure.
+    pub new_row: bool,
+    /// Width in its row, relative to the row's other panels.
+    pub weight: u32,
 }
 
 impl Plot {
     /// An empty panel.
     pub fn new(title: impl Into<String>, x: Axis, y: Axis) -> Self {
-        Self { title: title.into(), x, y, spans: Vec::new(), items: Vec::new(), note: None }
+        Self {
+            title: title.into(),
+            x,
+            y,
+            spans: Vec::new(),
+            items: Vec::new(),
+            note: None,
+            rules: Vec::new(),
+            marks: Vec::new(),
+            new_row: false,
+            weight: 1,
+        }
     }
 }
 
@@ -226,6 +271,12 @@ impl Plot {
                         }
                     }
                 }
+                Item::Bars { points, width, .. } => {
+                    for &p in points.iter().filter(|p| point_ok(**p, &self.x, &self.y)) {
+                        xs.extend([p.0 - 0.5 * width, p.0 + 0.5 * width]);
+                        ys.extend([0.0, p.1]);
+                    }
+                }
                 Item::Markers { points, .. } => {
                     for &(x, y, bar) in points {
                         if point_ok((x, y), &self.x, &self.y) {
@@ -245,15 +296,27 @@ impl Plot {
         let (y0, mut y1) = fit_range(&self.y, ys.into_iter());
         // Room at the top for the legend (upper left) and the note (upper right), so neither
         // covers the data.
-        let labelled = self.spans.iter().any(|s| !s.label.is_empty())
-            || self.items.iter().any(|i| match i {
-                Item::Line { label, .. }
-                | Item::Band { label, .. }
-                | Item::Markers { label, .. } => label.is_some(),
-            });
-        if (labelled || self.note.is_some()) && !self.y.log && self.y.range.is_none() {
+        let mut entries: Vec<&str> = self.spans.iter().map(|s| s.label.as_str()).collect();
+        entries.extend(self.rules.iter().map(|r| r.label.as_str()));
+        entries.retain(|l| !l.is_empty());
+        entries.sort_unstable();
+        entries.dedup();
+        let entries = entries.len()
+            + self
+                .items
+                .iter()
+                .filter(|i| match i {
+                    Item::Line { label, .. }
+                    | Item::Band { label, .. }
+                    | Item::Bars { label, .. }
+                    | Item::Markers { label, .. } => label.is_some(),
+                })
+                .count();
+        if (entries > 0 || self.note.is_some()) && !self.y.log && self.y.range.is_none() {
+            // Two lines' worth, more for a longer note or a legend of three entries or more.
             let lines = self.note.as_deref().map_or(0, |n| n.lines().count());
-            y1 += (y1 - y0) * (0.06 * lines.max(2) as f64 + 0.06);
+            let lines = lines.max(2).max(entries);
+            y1 += (y1 - y0) * (0.06 * lines as f64 + 0.06);
         }
         (fit_range(&self.x, xs.into_iter()), (y0, y1))
     }
@@ -327,26 +390,82 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, plot: &Plot) ->
     if plot.y.log {
         (y0, y1) = (y0 * (1.0 - 1e-9), y1 * (1.0 + 1e-9));
     }
+    // Category names too wide to stand side by side are turned: the label area grows to hold
+    // them, up to a third of the panel's height (longer names are cut).
+    let (w, h) = area.dim_in_pixel();
+    let label_style = label_font();
+    let width_of = |t: &str| area.estimate_text_size(t, &label_style).map_or(0, |(w, _)| w as i32);
+    let x_names = ticks::category_labels(
+        &plot.x.categories,
+        w as i32 - MARGIN_PX - MARGIN_RIGHT_PX - Y_LABEL_AREA_PX,
+        h as i32 / 3,
+        &width_of,
+    );
+    let x_area = match &x_names {
+        ticks::CategoryLabels::Upright => X_LABEL_AREA_PX,
+        ticks::CategoryLabels::Turned { len_px, .. } => X_LABEL_AREA_PX - 16 + len_px,
+    };
     let mut b = ChartBuilder::on(area);
     b.caption(&plot.title, ("sans-serif", 17))
-        .margin(10)
-        .margin_right(18)
-        .x_label_area_size(44)
-        .y_label_area_size(78);
+        .margin(MARGIN_PX)
+        .margin_right(MARGIN_RIGHT_PX)
+        .x_label_area_size(x_area)
+        .y_label_area_size(Y_LABEL_AREA_PX);
+    let ys = (y0, y1);
     match (plot.x.log, plot.y.log) {
-        (false, false) => draw_in(b.build_cartesian_2d(x0..x1, y0..y1)?, plot, (y0, y1)),
+        (false, false) => draw_in(b.build_cartesian_2d(x0..x1, y0..y1)?, area, plot, ys, &x_names),
         (true, true) => draw_in(
             b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?,
+            area,
             plot,
-            (y0, y1),
+            ys,
+            &x_names,
         ),
-        (true, false) => {
-            draw_in(b.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?, plot, (y0, y1))
-        }
-        (false, true) => {
-            draw_in(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?, plot, (y0, y1))
-        }
+        (true, false) => draw_in(
+            b.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?,
+            area,
+            plot,
+            ys,
+            &x_names,
+        ),
+        (false, true) => draw_in(
+            b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?,
+            area,
+            plot,
+            ys,
+            &x_names,
+        ),
     }
+}
+
+/// A panel's margin, px (its right margin is wider: a last x label centred on the edge).
+const MARGIN_PX: i32 = 10;
+const MARGIN_RIGHT_PX: i32 = 18;
+/// The label areas: x below the plot (upright labels and the axis name), y left of it.
+const X_LABEL_AREA_PX: i32 = 44;
+const Y_LABEL_AREA_PX: i32 = 78;
+
+/// The tick labels' font.
+fn label_font() -> TextStyle<'static> {
+    TextStyle::from(("sans-serif", ticks::LABEL_PX).into_font())
+}
+
+/// Each label's `(centre, extent)` in px along its axis for a label count hint `n`: the axis's
+/// key points, labelled by `fmt`, placed by `spec` over `px`, measured by `extent`.
+fn axis_labels<R: Ranged<ValueType = f64>>(
+    spec: &R,
+    n: usize,
+    px: (i32, i32),
+    fmt: &dyn Fn(&f64) -> String,
+    extent: &dyn Fn(&str) -> i32,
+) -> Vec<(i32, i32)> {
+    spec.key_points(n)
+        .iter()
+        .filter_map(|v| {
+            let t = fmt(v);
+            (!t.is_empty()).then(|| (spec.map(v, px), extent(&t)))
+        })
+        .collect()
 }
 
 /// The legend swatch of a line.
@@ -356,8 +475,10 @@ fn swatch(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
 
 fn draw_in<'a, DB, X, Y>(
     mut chart: ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    panel: &DrawingArea<DB, Shift>,
     plot: &Plot,
     (y0, y1): (f64, f64),
+    x_names: &ticks::CategoryLabels,
 ) -> DrawResult<DB>
 where
     DB: DrawingBackend + 'a,
@@ -379,20 +500,48 @@ where
     };
     let x_span = (xr.end - xr.start).abs();
     let y_span = (yr.end - yr.start).abs();
-    let x_tick = |v: &f64| tick_label(*v, x_span, x_dec, &plot.x.categories);
+    let turned = matches!(x_names, ticks::CategoryLabels::Turned { .. });
+    // Turned names are drawn below, not by the mesh (which cannot turn a label about its end).
+    let x_tick =
+        |v: &f64| if turned { String::new() } else { tick_label(*v, x_span, x_dec, &plot.x.categories) };
     let y_tick = |v: &f64| tick_label(*v, y_span, y_dec, &plot.y.categories);
+    // As many labels as fit, measured: x labels by their width, y labels by their height.
+    let style = label_font();
+    let width_of =
+        |t: &str| panel.estimate_text_size(t, &style).map_or(0, |(w, _)| w as i32);
+    let height_of = |_: &str| ticks::LABEL_PX;
+    let (px, py) = chart.plotting_area().get_pixel_range();
+    let spec = chart.as_coord_spec();
+    let x_count = ticks::fitting_count(label_count(x_dec, plot.x.categories.len()), &|n| {
+        axis_labels(spec.x_spec(), n, (px.start, px.end), &x_tick, &width_of)
+    });
+    let y_count = ticks::fitting_count(label_count(y_dec, plot.y.categories.len()), &|n| {
+        axis_labels(spec.y_spec(), n, (py.end, py.start), &y_tick, &height_of)
+    });
     chart
         .configure_mesh()
         .x_desc(plot.x.label.as_str())
         .y_desc(plot.y.label.as_str())
-        .x_labels(label_count(x_dec, plot.x.categories.len()))
-        .y_labels(label_count(y_dec, plot.y.categories.len()))
+        .x_labels(x_count)
+        .y_labels(y_count)
         .x_label_formatter(&x_tick)
         .y_label_formatter(&y_tick)
-        .label_style(("sans-serif", 13))
+        .label_style(label_font())
         .axis_desc_style(("sans-serif", 14))
         .max_light_lines(4)
         .draw()?;
+    if let ticks::CategoryLabels::Turned { every, names, .. } = x_names {
+        let style = label_font()
+            .color(&BLACK)
+            .transform(FontTransform::Rotate270)
+            .pos(Pos::new(HPos::Right, VPos::Center));
+        let base = panel.get_base_pixel();
+        for (i, name) in names.iter().enumerate().step_by((*every).max(1)) {
+            let (x, y) = chart.backend_coord(&(i as f64, y0));
+            let at = (x - base.0, y - base.1 + 10);
+            panel.draw(&Text::new(name.clone(), at, style.clone()))?;
+        }
+    }
     let (xa, ya) = (&plot.x, &plot.y);
     let mut legend = false;
 
@@ -417,8 +566,46 @@ where
         legend = true;
     }
 
+    // Vertical rules, one legend entry per label.
+    let mut labels: Vec<(&str, RGBColor)> = Vec::new();
+    for r in &plot.rules {
+        if !labels.iter().any(|(l, _)| *l == r.label) {
+            labels.push((&r.label, r.colour));
+        }
+    }
+    for (label, colour) in labels {
+        let style = colour.stroke_width(1);
+        let mut first = true;
+        for r in plot.rules.iter().filter(|r| r.label == label && usable(r.x, xa.log)) {
+            let anno = chart.draw_series(DashedLineSeries::new(
+                vec![(r.x, y0), (r.x, y1)],
+                4,
+                4,
+                style,
+            ))?;
+            if first {
+                anno.label(label).legend(swatch(style));
+                legend = true;
+                first = false;
+            }
+        }
+    }
+
     for item in &plot.items {
         match item {
+            Item::Bars { label, colour, width, points } => {
+                let fill = colour.filled();
+                let anno = chart.draw_series(
+                    points.iter().filter(|p| point_ok(**p, xa, ya)).map(|&(x, y)| {
+                        Rectangle::new([(x - 0.5 * width, 0.0), (x + 0.5 * width, y)], fill)
+                    }),
+                )?;
+                if let Some(l) = label {
+                    anno.label(l.as_str())
+                        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill));
+                    legend = true;
+                }
+            }
             Item::Band { label, colour, points } => {
                 let fill = colour.mix(0.22).filled();
                 let pts: Vec<(f64, f64, f64)> = points
@@ -525,6 +712,27 @@ where
         }
     }
 
+    // Marks along the bottom, each centred on its x; one that would touch the last one drawn
+    // is left out.
+    let style = TextStyle::from(("sans-serif", 12).into_font()).color(&colour::BLACK);
+    let base = panel.get_base_pixel();
+    let mut right = i32::MIN;
+    let (px, _) = chart.plotting_area().get_pixel_range();
+    let mut marks: Vec<&(f64, String)> =
+        plot.marks.iter().filter(|m| usable(m.0, xa.log)).collect();
+    marks.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (x, text) in marks {
+        let (cx, cy) = chart.backend_coord(&(*x, y0));
+        let w = panel.estimate_text_size(text, &style).map_or(0, |(w, _)| w as i32);
+        let left = cx - w / 2;
+        if left < right + ticks::GAP_PX || left < px.start || left + w > px.end {
+            continue;
+        }
+        let at = (left - base.0, cy - base.1 - 18);
+        panel.draw(&Text::new(text.clone(), at, style.clone()))?;
+        right = left + w;
+    }
+
     if let Some(note) = &plot.note {
         let area = chart.plotting_area().strip_coord_spec();
         let (w, _) = area.dim_in_pixel();
@@ -555,10 +763,36 @@ pub(crate) fn draw_figure<DB: DrawingBackend>(
     panels: &[Plot],
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let n = panels.len().max(1);
-    let areas = root.split_evenly((1, n));
-    for (area, plot) in areas.iter().zip(panels) {
-        draw_panel(area, plot)?;
+    // Rows start at each panel marked `new_row`; a row's width is shared by weight.
+    let mut rows: Vec<&[Plot]> = Vec::new();
+    let mut start = 0;
+    for (i, p) in panels.iter().enumerate() {
+        if p.new_row && i > start {
+            rows.push(&panels[start..i]);
+            start = i;
+        }
+    }
+    rows.push(&panels[start..]);
+    let row_areas = root.split_evenly((rows.len(), 1));
+    for (row_area, row) in row_areas.iter().zip(rows) {
+        let total: u32 = row.iter().map(|p| p.weight.max(1)).sum();
+        let areas = if row.iter().all(|p| p.weight <= 1) {
+            row_area.split_evenly((1, row.len().max(1)))
+        } else {
+            let (w, _) = row_area.dim_in_pixel();
+            let mut at = 0;
+            let breaks: Vec<i32> = row[..row.len() - 1]
+                .iter()
+                .map(|p| {
+                    at += p.weight.max(1);
+                    (u64::from(w) * u64::from(at) / u64::from(total)) as i32
+                })
+                .collect();
+            row_area.split_by_breakpoints(breaks, [0i32; 0])
+        };
+        for (area, plot) in areas.iter().zip(row) {
+            draw_panel(area, plot)?;
+        }
     }
     root.present()
 }
