@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::common::{bench, json};
+use crate::common::{bench, json, text_of};
 
 const CHECK_JS: &str = include_str!("report_check.js");
 const WINDOW: (u32, u32) = (1400, 2200);
@@ -90,19 +90,19 @@ fn screenshot(browser: &Path, page: &Path, profile: &Path) -> (u32, u32, usize, 
     (info.width, info.height, colours.len(), ink as f64 / n as f64)
 }
 
-/// No two texts of any figure overlap as the browser drew them (tick labels of every axis,
-/// turned ones included, axis names, titles, legends, marks).
-fn check_no_text_overlaps(r: &serde_json::Value, what: &str) {
+/// The texts of any figure that overlap as the browser drew them (tick labels of every axis,
+/// turned ones included, axis names, titles, legends, marks), one line per pair.
+fn text_overlaps(r: &serde_json::Value, what: &str) -> Vec<String> {
     let figures = r["figure_texts"].as_array().expect("figure_texts");
     let mut bad = Vec::new();
     for f in figures {
         let texts = f["texts"].as_array().map_or(0, Vec::len);
         assert!(texts >= 10, "{what}: figure {} has {texts} texts: is it drawn?", f["id"]);
         for pair in f["overlaps"].as_array().expect("overlaps") {
-            bad.push(format!("{}: {} overlaps {}", f["id"], pair[0], pair[1]));
+            bad.push(format!("{what} {}: {} overlaps {}", f["id"], pair[0], pair[1]));
         }
     }
-    assert!(bad.is_empty(), "{what}: {} overlapping labels:\n{}", bad.len(), bad.join("\n"));
+    bad
 }
 
 /// The location figure holds the located windows: its two step panels, every step of the
@@ -143,7 +143,6 @@ fn check_report(browser: &Path, dir: &Path, figures: usize) -> serde_json::Value
     let profile = tempfile::tempdir().expect("profile dir");
     let r = rendered(browser, &page, profile.path());
     let what = page.display();
-    check_no_text_overlaps(&r, &what.to_string());
     assert_eq!(
         r["markup_in_text"].as_array().map(Vec::len),
         Some(0),
@@ -204,7 +203,29 @@ fn reports_render_in_a_headless_browser() {
     );
     assert_eq!(diag.status.code(), Some(7), "{}", String::from_utf8_lossy(&diag.stderr));
 
-    check_report(&browser, &d.join("cal"), 9);
+    let cal = check_report(&browser, &d.join("cal"), 9);
     let r = check_report(&browser, &d.join("diag"), 4);
+
+    // A lab's run over -40..+60 °C (the independent writer's): ten temperature bands and 42
+    // steps on the location figure's axes, none of their labels touching.
+    let lab = bench_tests::lab_fixture("lab-null", 1, &[]);
+    let diag = bench(
+        &["diagnose", lab.to_str().expect("path"), "-o", "lab", "-q", "--json", "lab.json"],
+        d,
+    );
+    assert!(matches!(diag.status.code(), Some(0 | 6 | 7)), "{}", text_of(&diag));
+    let figures = std::fs::read_dir(d.join("lab"))
+        .expect("lab report")
+        .filter(|e| e.as_ref().is_ok_and(|e| e.path().extension().is_some_and(|x| x == "png")))
+        .count();
+    let lab_r = check_report(&browser, &d.join("lab"), figures);
+    let j = json(&d.join("lab.json"));
+    assert_eq!(j["location"]["temperature"].as_array().map(Vec::len), Some(10), "{j:#}");
+
+    let mut bad = text_overlaps(&cal, "calibration report");
+    bad.extend(text_overlaps(&r, "diagnosis report"));
+    bad.extend(text_overlaps(&lab_r, "lab diagnosis report"));
+    assert!(bad.is_empty(), "{} pairs of texts overlap:\n{}", bad.len(), bad.join("\n"));
     check_location(&r, &json(&d.join("diag.json")), "diagnosis report");
+    check_location(&lab_r, &j, "lab diagnosis report");
 }

@@ -173,6 +173,7 @@ mod tests {
             crate::render::plot::Item::Line { points, .. } => points.len(),
             crate::render::plot::Item::Band { points, .. } => points.len(),
             crate::render::plot::Item::Markers { points, .. } => points.len(),
+            crate::render::plot::Item::Bars { points, .. } => points.len(),
         };
         // Raw rate decimated to ≤ 4000 points, windows shaded.
         let raw = &figs[0].panels[0];

@@ -160,10 +160,8 @@ pub fn located(o: &DiagnoseOutcome) -> Located {
             let each: Vec<(f64, &'static str)> =
                 s.contributions.iter().map(|(id, c)| (mean_over(c), id.key())).collect();
             let total = each.iter().map(|e| e.0).sum();
-            let largest = each
-                .iter()
-                .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
-                .map_or("", |e| e.1);
+            let largest =
+                each.iter().max_by(|a, b| a.0.abs().total_cmp(&b.0.abs())).map_or("", |e| e.1);
             (total, largest)
         });
         windows.push(LocatedWindow {

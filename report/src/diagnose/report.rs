@@ -233,7 +233,13 @@ fn steps_over_time(o: &DiagnoseOutcome, l: &Located) -> Plot {
     {
         let points = levels(departs);
         if !points.is_empty() {
-            p.items.push(Item::Line { label: Some(label.into()), colour: c, width: 3, dashed: false, points });
+            p.items.push(Item::Line {
+                label: Some(label.into()),
+                colour: c,
+                width: 3,
+                dashed: false,
+                points,
+            });
         }
         // A dot at each window's middle: a step of a few seconds stays visible.
         let dots: Vec<_> = l

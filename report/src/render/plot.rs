@@ -412,29 +412,45 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, plot: &Plot) ->
         .x_label_area_size(x_area)
         .y_label_area_size(Y_LABEL_AREA_PX);
     let ys = (y0, y1);
+    let log = |a: f64, b: f64| LogOnce((a..b).log_scale().into());
     match (plot.x.log, plot.y.log) {
         (false, false) => draw_in(b.build_cartesian_2d(x0..x1, y0..y1)?, area, plot, ys, &x_names),
-        (true, true) => draw_in(
-            b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?,
-            area,
-            plot,
-            ys,
-            &x_names,
-        ),
-        (true, false) => draw_in(
-            b.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?,
-            area,
-            plot,
-            ys,
-            &x_names,
-        ),
-        (false, true) => draw_in(
-            b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?,
-            area,
-            plot,
-            ys,
-            &x_names,
-        ),
+        (true, true) => {
+            draw_in(b.build_cartesian_2d(log(x0, x1), log(y0, y1))?, area, plot, ys, &x_names)
+        }
+        (true, false) => {
+            draw_in(b.build_cartesian_2d(log(x0, x1), y0..y1)?, area, plot, ys, &x_names)
+        }
+        (false, true) => {
+            draw_in(b.build_cartesian_2d(x0..x1, log(y0, y1))?, area, plot, ys, &x_names)
+        }
+    }
+}
+
+/// A log axis whose key points hold each value once: plotters' can list a decade twice (0.01
+/// ending the 0.001 decade's points and starting the next), which drew its label twice in one
+/// place.
+struct LogOnce(LogCoord<f64>);
+
+impl Ranged for LogOnce {
+    type FormatOption = plotters::coord::ranged1d::NoDefaultFormatting;
+    type ValueType = f64;
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        self.0.map(value, limit)
+    }
+    fn key_points<Hint: plotters::coord::ranged1d::KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        let mut points = self.0.key_points(hint);
+        points.dedup();
+        points
+    }
+    fn range(&self) -> std::ops::Range<f64> {
+        self.0.range()
+    }
+}
+
+impl ValueFormatter<f64> for LogOnce {
+    fn format(value: &f64) -> String {
+        tick(value)
     }
 }
 
@@ -459,13 +475,25 @@ fn axis_labels<R: Ranged<ValueType = f64>>(
     fmt: &dyn Fn(&f64) -> String,
     extent: &dyn Fn(&str) -> i32,
 ) -> Vec<(i32, i32)> {
-    spec.key_points(n)
-        .iter()
-        .filter_map(|v| {
-            let t = fmt(v);
-            (!t.is_empty()).then(|| (spec.map(v, px), extent(&t)))
-        })
-        .collect()
+    labelled_points(spec, n, fmt).iter().map(|(v, t)| (spec.map(v, px), extent(t))).collect()
+}
+
+/// The key points for hint `n` that `fmt` labels, each text once: a log axis's key points can
+/// hold one value twice by rounding (0.01 as a decade and as ten times 0.001), which would draw
+/// its label twice in one place.
+fn labelled_points<R: Ranged<ValueType = f64>>(
+    spec: &R,
+    n: usize,
+    fmt: &dyn Fn(&f64) -> String,
+) -> Vec<(f64, String)> {
+    let mut out: Vec<(f64, String)> = Vec::new();
+    for v in spec.key_points(n) {
+        let t = fmt(&v);
+        if !t.is_empty() && !out.iter().any(|(_, seen)| *seen == t) {
+            out.push((v, t));
+        }
+    }
+    out
 }
 
 /// The legend swatch of a line.
@@ -502,22 +530,33 @@ where
     let y_span = (yr.end - yr.start).abs();
     let turned = matches!(x_names, ticks::CategoryLabels::Turned { .. });
     // Turned names are drawn below, not by the mesh (which cannot turn a label about its end).
-    let x_tick =
-        |v: &f64| if turned { String::new() } else { tick_label(*v, x_span, x_dec, &plot.x.categories) };
-    let y_tick = |v: &f64| tick_label(*v, y_span, y_dec, &plot.y.categories);
+    let x_text = |v: &f64| {
+        if turned {
+            String::new()
+        } else {
+            tick_label(*v, x_span, x_dec, &plot.x.categories)
+        }
+    };
+    let y_text = |v: &f64| tick_label(*v, y_span, y_dec, &plot.y.categories);
     // As many labels as fit, measured: x labels by their width, y labels by their height.
     let style = label_font();
-    let width_of =
-        |t: &str| panel.estimate_text_size(t, &style).map_or(0, |(w, _)| w as i32);
+    let width_of = |t: &str| panel.estimate_text_size(t, &style).map_or(0, |(w, _)| w as i32);
     let height_of = |_: &str| ticks::LABEL_PX;
     let (px, py) = chart.plotting_area().get_pixel_range();
     let spec = chart.as_coord_spec();
     let x_count = ticks::fitting_count(label_count(x_dec, plot.x.categories.len()), &|n| {
-        axis_labels(spec.x_spec(), n, (px.start, px.end), &x_tick, &width_of)
+        axis_labels(spec.x_spec(), n, (px.start, px.end), &x_text, &width_of)
     });
     let y_count = ticks::fitting_count(label_count(y_dec, plot.y.categories.len()), &|n| {
-        axis_labels(spec.y_spec(), n, (py.end, py.start), &y_tick, &height_of)
+        axis_labels(spec.y_spec(), n, (py.end, py.start), &y_text, &height_of)
     });
+    // Each label once, at the first key point that has it.
+    let x_keep: Vec<u64> =
+        labelled_points(spec.x_spec(), x_count, &x_text).iter().map(|p| p.0.to_bits()).collect();
+    let y_keep: Vec<u64> =
+        labelled_points(spec.y_spec(), y_count, &y_text).iter().map(|p| p.0.to_bits()).collect();
+    let x_tick = |v: &f64| if x_keep.contains(&v.to_bits()) { x_text(v) } else { String::new() };
+    let y_tick = |v: &f64| if y_keep.contains(&v.to_bits()) { y_text(v) } else { String::new() };
     chart
         .configure_mesh()
         .x_desc(plot.x.label.as_str())
