@@ -18,6 +18,7 @@
 //! ```
 
 pub mod bench_config;
+pub mod design;
 pub mod live_view;
 pub mod plan;
 pub mod process;

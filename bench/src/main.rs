@@ -33,6 +33,9 @@ enum Command {
     Verify(cli::verify::VerifyArgs),
     /// Calibration accuracy over many simulated seeds (seed method vs joint fit).
     MonteCarlo(cli::monte_carlo::MonteCarloArgs),
+    /// Design the shortest procedure that reaches the σ asked for (or the smallest σ in a time
+    /// budget) under the gyro's noise model, within the bench's limits: a scenario.
+    Design(cli::design::DesignArgs),
     /// Put a recording back on the bench: its devices on virtual ports (--serve), its streams
     /// live in Foxglove (--live).
     Replay(cli::replay::ReplayArgs),
@@ -70,6 +73,7 @@ fn main() -> ExitCode {
         Command::Calibrate(a) => cli::calibrate::run(a),
         Command::Verify(a) => cli::verify::run(a),
         Command::MonteCarlo(a) => cli::monte_carlo::run(a),
+        Command::Design(a) => cli::design::run(a),
         Command::Replay(a) => cli::replay::run(a),
         Command::Recover(a) => cli::recover::run(a),
         Command::Export(a) => cli::export::run(a),

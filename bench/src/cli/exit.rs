@@ -43,6 +43,9 @@ pub enum Exit {
     /// `bench verify`: the compensated error is beyond what the calibration states (its σ and
     /// the gyro's noise): the calibration does not hold on this run.
     BeyondStatedSigma = 12,
+    /// `bench design`: no procedure within the bench's limits reaches the targets (or fits
+    /// the budget); the smallest σ the bench reaches is printed.
+    DesignUnreachable = 13,
 }
 
 /// A command line that clap accepts but that asks for something impossible (e.g. the same

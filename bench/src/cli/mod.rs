@@ -2,6 +2,7 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod design;
 pub mod diagnose;
 pub mod exit;
 pub mod export;
