@@ -303,11 +303,20 @@ pub fn search(subject: &Subject, limits: &Limits, grid: &Grid, goal: Goal) -> Op
     best.map(|(_, procedure, prediction)| Design { procedure, prediction, evaluated })
 }
 
-/// The fewest legs in `1..=max` for which `ok` holds, by bisection (it holds from some number
-/// of legs on).
+/// The fewest legs in `1..=max` for which `ok` holds (it holds from some number of legs on):
+/// doubling from 1, then bisection, so a short design costs short evaluations.
 fn fewest_legs<T>(max: usize, mut ok: impl FnMut(usize) -> Option<T>) -> Option<T> {
-    let mut hi_val = ok(max)?;
-    let (mut lo, mut hi) = (0, max);
+    let (mut lo, mut hi) = (0, 1);
+    let mut hi_val = loop {
+        if let Some(v) = ok(hi) {
+            break v;
+        }
+        if hi >= max {
+            return None;
+        }
+        lo = hi;
+        hi = (2 * hi).min(max);
+    };
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
         match ok(mid) {

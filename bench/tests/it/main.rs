@@ -6,6 +6,7 @@ mod bad_inputs;
 mod cli_ux;
 mod common;
 mod damaged_files;
+mod design;
 mod diagnose_cli;
 mod estimate;
 mod export_parquet;
