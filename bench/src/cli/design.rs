@@ -328,6 +328,23 @@ pub fn run(args: DesignArgs) -> anyhow::Result<ExitCode> {
         }
         None => say!("(no --out: the scenario was not written)"),
     }
+    // The simulated run is the calibration's own design matrix: a miss there is a miss.
+    if let Goal::Targets(t) = goal {
+        let missed: Vec<String> = (0..4)
+            .filter_map(|j| {
+                let r = simulated.sigma[j] / t[j]?;
+                (r > 1.0).then(|| format!("{} by {:.0} %", design::SHORT[j], 100.0 * (r - 1.0)))
+            })
+            .collect();
+        if !missed.is_empty() {
+            eprintln!(
+                "error: on its simulated run the design misses the target of {} (the nominal \
+                 timeline's prediction met it); loosen the target or give --hours",
+                missed.join(", ")
+            );
+            return Ok(Exit::DesignUnreachable.into());
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 

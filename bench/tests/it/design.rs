@@ -39,11 +39,6 @@ fn a_designed_short_run_achieves_its_predicted_sigma_over_seeds() {
     let text = tl.scenario(&found.procedure, "designed", "a test design", &setup);
     let plan = bench::scenario::parse(&text, "designed", &caps).expect("validates");
     let predicted = design::predict_plan(&plan, &subject.model, false).expect("predicts");
-    // The timeline's prediction and the simulated run's agree.
-    for j in 1..4 {
-        let r = found.prediction.sigma[j] / predicted.sigma[j];
-        assert!((r - 1.0).abs() < 0.15, "{j}: {:?} vs {:?}", found.prediction, predicted);
-    }
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("designed.toml");
     std::fs::write(&path, &text).expect("write");
@@ -66,7 +61,10 @@ fn a_designed_short_run_achieves_its_predicted_sigma_over_seeds() {
         let c = mc.coefficients.iter().find(|c| c.key == *key).expect("coefficient");
         let gls = c.of("rate_gls").expect("rate gls");
         let ratio = gls.rms_error / predicted.sigma[j + 1];
-        assert!(ratio > lo && ratio < hi, "{key}: RMS error / predicted σ {ratio:.3} outside {lo:.2}..{hi:.2}");
+        assert!(
+            ratio > lo && ratio < hi,
+            "{key}: RMS error / predicted σ {ratio:.3} outside {lo:.2}..{hi:.2}"
+        );
         // And what the calibration states is the bound it was designed for.
         let stated = gls.rms_sigma / predicted.sigma[j + 1];
         assert!((stated - 1.0).abs() < 0.25, "{key}: stated σ / predicted {stated:.3}");
@@ -91,7 +89,9 @@ fn bench_design_writes_a_scenario_that_validates_and_refuses_what_cannot_be_reac
     assert_eq!(never.status.code(), Some(13), "{}", text_of(&never));
     assert!(text(&never.stdout).contains("the bound"), "{}", text_of(&never));
     // Bad targets and budgets are usage errors.
-    for bad in [["--sigma", "k_x=1"], ["--sigma", "sf=2furlongs"], ["--sigma", "sf=-1"], ["--hours", "0"]] {
+    for bad in
+        [["--sigma", "k_x=1"], ["--sigma", "sf=2furlongs"], ["--sigma", "sf=-1"], ["--hours", "0"]]
+    {
         let o = bench(&["design", bad[0], bad[1]], d);
         assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", text_of(&o));
     }
