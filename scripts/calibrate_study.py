@@ -100,6 +100,20 @@ def zs_of(res, t, held, row):
     return row
 
 
+def calibrated(args, d, mcap):
+    """`bench calibrate` of `mcap` into `d` (the recording removed unless --keep): (result JSON,
+    exit code), or (None, what went wrong)."""
+    out = os.path.join(d, "result.json")
+    r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
+                        "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
+    if not os.path.exists(out):
+        return None, f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"
+    res = json.load(open(out))
+    if not args.keep:
+        os.remove(mcap)
+    return res, r.returncode
+
+
 def one_seed(args, seed):
     """`scenarios/seed.toml` run by bench's simulated bench with `--seed seed`, calibrated."""
     d = os.path.join(args.work, f"seed-{seed}")
@@ -109,16 +123,11 @@ def one_seed(args, seed):
                         str(seed), "--out", mcap, "--force", "-q"], capture_output=True, text=True)
     if w.returncode != 0:
         return {"seed": seed, "error": "run: " + w.stderr.strip()[-400:]}
-    out = os.path.join(d, "result.json")
-    r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
-                        "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
-    if not os.path.exists(out):
-        return {"seed": seed, "error": f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"}
-    res = json.load(open(out))
-    if not args.keep:
-        os.remove(mcap)
+    res, code = calibrated(args, d, mcap)
+    if res is None:
+        return {"seed": seed, "error": code}
     held = set((res.get("held") or {}).keys())
-    row = {"seed": seed, "kind": "seed", "exit": r.returncode, "verdict": res["fit"]["verdict"],
+    row = {"seed": seed, "kind": "seed", "exit": code, "verdict": res["fit"]["verdict"],
            "failed": [c["key"] for c in res["fit"]["checks"] if not c["passed"]],
            "checks": {c["key"]: c["value"] for c in res["fit"]["checks"]},
            "sensor": True, "lag_true": None, "lag_fit": None, "lag_sigma": None,
@@ -144,17 +153,12 @@ def one(args, seed):
     if w.returncode != 0:
         return {"seed": seed, "error": "writer: " + w.stderr.strip()[-400:]}
     truth = json.load(open(mcap[:-5] + ".truth.json"))
-    out = os.path.join(d, "result.json")
-    r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
-                        "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
-    if not os.path.exists(out):
-        return {"seed": seed, "error": f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"}
-    res = json.load(open(out))
-    if not args.keep:
-        os.remove(mcap)
+    res, code = calibrated(args, d, mcap)
+    if res is None:
+        return {"seed": seed, "error": code}
     t = truth["gyro_model"]
     held = set((res.get("held") or {}).keys())
-    row = {"seed": seed, "kind": kind, "exit": r.returncode, "verdict": res["fit"]["verdict"],
+    row = {"seed": seed, "kind": kind, "exit": code, "verdict": res["fit"]["verdict"],
            "failed": [c["key"] for c in res["fit"]["checks"] if not c["passed"]],
            "checks": {c["key"]: c["value"] for c in res["fit"]["checks"]},
            "sensor": cfg["gyro"]["sensor"], "lag_true": cfg["gyro"]["thermal_time_constant"],
