@@ -43,6 +43,9 @@ enum Command {
     Recover(cli::recover::RecoverArgs),
     /// Export a recording's channels as CSV or Parquet tables, one per channel.
     Export(cli::export::ExportArgs),
+    /// Memory benchmark: peak RSS and wall of reading, loading, calibrating and diagnosing a
+    /// recording, per phase and per gyro sample.
+    Memory(cli::memory::MemoryArgs),
     /// Where a recording departs from the simulation of its run: missing physics named and fitted.
     Diagnose(cli::diagnose::DiagnoseArgs),
     /// Write a recording's nominal gyro model (`bench.gyro_model`) out as a model TOML file.
@@ -77,6 +80,7 @@ fn main() -> ExitCode {
         Command::Replay(a) => cli::replay::run(a),
         Command::Recover(a) => cli::recover::run(a),
         Command::Export(a) => cli::export::run(a),
+        Command::Memory(a) => cli::memory::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
         Command::Model(a) => cli::model::run(a),
         Command::Ports(a) => cli::ports::run(a),

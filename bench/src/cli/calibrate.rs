@@ -13,7 +13,7 @@ use bench_recording::model_file::{
     CalibrationFile, CovarianceSection, HeldEntry, ModelKeys, Source, Uncertainty, HOLDABLE_KEYS,
 };
 use bench_report::calibrate::{
-    calibrate_recording, held, json, report, CalibrateSettings, CalibrationOutcome, Prior,
+    calibrate_run, held, json, report, CalibrateSettings, CalibrationOutcome, Prior,
 };
 use bench_report::display::{self, coefficient_unit};
 
@@ -76,12 +76,19 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     outputs.file(args.json.as_deref())?;
     let started = std::time::Instant::now();
     let rec = super::load_recording(&args.recording, args.quiet)?;
+    // The arrays, then the decoded messages freed before the analysis (they are the larger
+    // part of the memory): only the notes on the file are kept.
+    let context = super::analysis_context(&rec, "calibrate", &args.recording);
+    let notes: Vec<String> = rec.cut_note().into_iter().chain(rec.damage_note()).collect();
+    let run = bench_report::load::load(&rec)
+        .map_err(bench_report::calibrate::CalibrateError::from)
+        .with_context(|| context.clone())?;
+    drop(rec);
     let working = bench::progress::Working::new(
         &format!("calibrating {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),
     );
-    let mut out = calibrate_recording(&rec, &settings)
-        .with_context(|| super::analysis_context(&rec, "calibrate", &args.recording))?;
+    let mut out = calibrate_run(run, &settings).with_context(|| context.clone())?;
     drop(working);
     let name = args
         .recording
@@ -252,7 +259,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     } else {
         eprintln!("no calibration file: the joint fit failed (see the notes above)");
-        for note in rec.cut_note().into_iter().chain(rec.damage_note()) {
+        for note in &notes {
             eprintln!("  {note}: `bench recover` keeps the intact part in a new indexed file");
         }
     }

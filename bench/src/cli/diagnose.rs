@@ -11,7 +11,7 @@ use anyhow::Context as _;
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::ModelKey;
 use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
-use bench_report::diagnose::{diagnose_recording, json, report};
+use bench_report::diagnose::{diagnose_run, json, report};
 use bench_report::display;
 
 /// Arguments of `bench diagnose`.
@@ -257,8 +257,19 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         &format!("diagnosing {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),
     );
-    let out = diagnose_recording(&rec, nominal, &opts)
-        .with_context(|| super::analysis_context(&rec, "diagnose", &args.recording))?;
+    // The arrays, then the decoded messages freed before the analysis (they are the larger
+    // part of the memory), unless a scenario is to be suggested from the recording.
+    let context = super::analysis_context(&rec, "diagnose", &args.recording);
+    let data = bench_report::load::load(&rec)
+        .map_err(bench_report::diagnose::DiagnoseError::from)
+        .with_context(|| context.clone())?;
+    let rec = if args.suggest_scenario.is_some() {
+        Some(rec)
+    } else {
+        drop(rec);
+        None
+    };
+    let out = diagnose_run(data, nominal, &opts).with_context(|| context.clone())?;
     drop(working);
     let name = args
         .recording
@@ -363,8 +374,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
         say!("wrote {}", path.display());
     }
-    if let Some(path) = &args.suggest_scenario {
-        suggest_scenario(d, &rec, &name, path)?;
+    if let (Some(path), Some(rec)) = (&args.suggest_scenario, &rec) {
+        suggest_scenario(d, rec, &name, path)?;
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;
@@ -382,7 +393,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
 
 /// The diagnosis's threads: `BENCH_DIAGNOSE_THREADS` (1: serial) or the machine's
 /// parallelism, at most 8 ([`bench_analysis::diagnose::default_threads`]).
-fn threads_from_env() -> usize {
+pub(crate) fn threads_from_env() -> usize {
     std::env::var("BENCH_DIAGNOSE_THREADS")
         .ok()
         .and_then(|v| v.parse::<usize>().ok())

@@ -8,6 +8,7 @@ pub mod exit;
 pub mod export;
 pub mod info;
 pub mod kind;
+pub mod memory;
 pub mod model;
 pub mod monte_carlo;
 pub mod outputs;

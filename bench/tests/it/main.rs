@@ -11,6 +11,7 @@ mod diagnose_cli;
 mod estimate;
 mod export_parquet;
 mod kill_safety;
+mod memory_cli;
 mod report_browser;
 mod scenario_validation;
 mod signals;

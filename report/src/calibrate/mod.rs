@@ -244,7 +244,16 @@ pub fn calibrate_recording(
     rec: &Recording,
     settings: &CalibrateSettings,
 ) -> Result<CalibrationOutcome, CalibrateError> {
-    let data = calibration_data(crate::load::load(rec)?)?;
+    calibrate_run(crate::load::load(rec)?, settings)
+}
+
+/// Calibrate a recording's arrays ([`crate::load::load`]); the [`Recording`] they came from
+/// need not be held meanwhile (its decoded messages are the larger part of the memory).
+pub fn calibrate_run(
+    run: crate::load::RunData,
+    settings: &CalibrateSettings,
+) -> Result<CalibrationOutcome, CalibrateError> {
+    let data = calibration_data(run)?;
     let recorded = data.run.model.as_ref().map(|m| m.model.clone());
     let mut opts = CalibrateOptions {
         joint: JointFitOptions {

@@ -69,7 +69,17 @@ pub fn diagnose_recording(
     nominal: Option<(GyroModel, Effects, String)>,
     opts: &DiagnoseOptions,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let data = crate::load::load(rec)?;
+    diagnose_run(crate::load::load(rec)?, nominal, opts)
+}
+
+/// [`diagnose_recording`] on a recording's arrays ([`crate::load::load`]); the [`Recording`]
+/// they came from need not be held meanwhile (its decoded messages are the larger part of the
+/// memory).
+pub fn diagnose_run(
+    data: RunData,
+    nominal: Option<(GyroModel, Effects, String)>,
+    opts: &DiagnoseOptions,
+) -> Result<DiagnoseOutcome, DiagnoseError> {
     let nominal = match nominal {
         Some((model, effects, source)) => {
             let own = data.model.as_ref().map(|m| m.effects).unwrap_or_default();
