@@ -112,7 +112,12 @@ fn hm(s: f64) -> String {
 
 /// The bench's capabilities.
 fn capabilities(args: &DesignArgs) -> anyhow::Result<Capabilities> {
-    let Some(spec) = &args.bench else { return Ok(bench::simulate::capabilities()) };
+    bench_capabilities(args.bench.as_deref())
+}
+
+/// The capabilities of the bench `spec` (a bench config), or the simulated bench's.
+pub fn bench_capabilities(spec: Option<&std::path::Path>) -> anyhow::Result<Capabilities> {
+    let Some(spec) = spec else { return Ok(bench::simulate::capabilities()) };
     match BenchSource::load(spec)? {
         BenchSource::Devices(config) => Ok(config.limits().0),
         BenchSource::Replay(r) => {
@@ -134,7 +139,24 @@ fn subject(args: &DesignArgs) -> anyhow::Result<(GyroModel, Option<bool>, Option
             )
         })?;
         let sensor = run.gyro_sensor();
-        return Ok((model, Some(sensor), run.series.latitude_deg, format!("{}", path.display())));
+        let latitude = run.series.latitude_deg;
+        drop(run);
+        // The recording's nominal model may not be its gyro: the noise (and a gyro without a
+        // sensor's lag) are the ones the calibration measures on the recording.
+        let measured = measured(&rec, &model, sensor);
+        return Ok((
+            measured,
+            Some(sensor),
+            latitude,
+            format!(
+                "{} (noise{} measured on it by the calibration; its nominal model says ARW {} \
+                 °/√h, flicker floor {} °/h)",
+                path.display(),
+                if sensor { "" } else { " and lag" },
+                sig(model.arw * 60.0 / (std::f64::consts::PI / 180.0), 3),
+                sig(model.bias_instability / DEG_PER_H, 3)
+            ),
+        ));
     }
     match &args.model {
         Some(path) => {
@@ -143,6 +165,31 @@ fn subject(args: &DesignArgs) -> anyhow::Result<(GyroModel, Option<bool>, Option
         }
         None => Ok((GyroModel::default(), None, None, "the seed's gyro (default model)".into())),
     }
+}
+
+/// `model` with the noise the calibration measures on `rec` (white noise and flicker floor of
+/// its fitted noise model) and, for a gyro without a sensor, the lag it fits; `model`'s own
+/// where the calibration measures none.
+fn measured(rec: &bench_recording::Recording, model: &GyroModel, sensor: bool) -> GyroModel {
+    let mut m = model.clone();
+    let settings = bench_report::calibrate::CalibrateSettings::default();
+    let Ok(out) = bench_report::calibrate::calibrate_recording(rec, &settings) else {
+        say!("the calibration of the recording failed: the design uses its nominal model's noise");
+        return m;
+    };
+    match out.calibration.noise_model {
+        Some(n) => {
+            m.arw = n.arw;
+            m.bias_instability = n.flicker_floor;
+        }
+        None => say!("no noise model measured on the recording: its nominal model's noise is used"),
+    }
+    if !sensor {
+        if let Some(Ok(l)) = &out.calibration.lag {
+            m.thermal_time_constant = l.used_s;
+        }
+    }
+    m
 }
 
 /// Print a prediction against a reference.
@@ -354,19 +401,9 @@ fn best_effort(subject: &Subject, limits: &Limits) -> Option<Prediction> {
     let g = Grid::default();
     let p = Procedure {
         range_c: limits.range_c,
-        ramp_c_min: g
-            .ramps_c_min
-            .iter()
-            .copied()
-            .filter(|r| *r <= limits.max_ramp_c_min)
-            .fold(0.5, f64::max),
+        ramp_c_min: design::fastest_allowed(&g.ramps_c_min, limits.max_ramp_c_min, 0.5),
         legs: g.max_legs,
-        table_deg_min: g
-            .table_deg_min
-            .iter()
-            .copied()
-            .filter(|w| *w <= limits.max_table_deg_min)
-            .fold(1.0, f64::max),
+        table_deg_min: design::fastest_allowed(&g.table_deg_min, limits.max_table_deg_min, 1.0),
         reversal_min: 10.0,
         hold_min: 0.0,
         accel_deg_s2: limits.accel_deg_s2,

@@ -44,6 +44,10 @@ pub struct DiagnoseArgs {
     /// simulated under the diagnosed model and diagnosed (docs/diagnose.md).
     #[arg(long, value_name = "FILE")]
     pub suggest_scenario: Option<PathBuf>,
+    /// With `--suggest-scenario`: the bench's limits the suggestion keeps within (a bench
+    /// config; default: the simulated bench's).
+    #[arg(long, value_name = "BENCH.toml", requires = "suggest_scenario")]
+    pub bench: Option<PathBuf>,
     /// No progress bar and no timing line.
     #[arg(long, short)]
     pub quiet: bool,
@@ -174,13 +178,16 @@ fn print_located(o: &bench_report::diagnose::DiagnoseOutcome) {
     }
 }
 
-/// `--suggest-scenario`: write the separating scenario and print the predicted separation.
+/// `--suggest-scenario`: write the separating scenario and print the predicted separation —
+/// only when it lowers σ and ρ of every pair it is meant to separate.
 fn suggest_scenario(
-    d: &bench_analysis::diagnose::Diagnosis,
+    out: &bench_report::diagnose::DiagnoseOutcome,
     rec: &bench_recording::Recording,
     name: &str,
     path: &std::path::Path,
+    bench: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
+    let d = &out.diagnosis;
     let temps = &d.series.temp_c;
     let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -191,37 +198,67 @@ fn suggest_scenario(
             45.0
         }
     };
+    let time = &d.series.time_s;
     let facts = bench::suggest::RecordingFacts {
         name: name.to_string(),
         latitude_deg,
         temp_range_c: (lo, hi),
+        gyro_sensor: out.data.gyro_sensor(),
+        duration_s: time.last().zip(time.first()).map_or(0.0, |(b, a)| b - a),
     };
-    let Some(mut s) = bench::suggest::suggest(d, &facts)? else {
-        say!("no terms are confounded on this recording: no scenario suggested");
-        return Ok(());
+    let caps = super::design::bench_capabilities(bench)?;
+    use bench::suggest::Offer;
+    let s = match bench::suggest::offer(d, &facts, &caps, 1)? {
+        Offer::Nothing => {
+            say!("no terms are confounded on this recording: no scenario suggested");
+            return Ok(());
+        }
+        Offer::Lowers(s) | Offer::DoesNotLower(s) => s,
     };
-    bench::suggest::predict(&mut s, 1)?;
-    std::fs::write(path, &s.text).with_context(|| format!("cannot write {}", path.display()))?;
+    let offered = s.lowers_all();
     for w in &s.why {
-        say!("suggested: {w}");
+        say!("{}: {w}", if offered { "suggested" } else { "tried" });
     }
     for t in &s.targets {
         let unit = display::for_si(t.before.unit);
         let sigma = |c: &bench_analysis::diagnose::Collinearity| {
             format!("σ {} (ρ = {:.3})", display::si_value(unit, c.sigma, 2), c.rho)
         };
-        // A pair the suggestion does not improve is said to stay confounded.
-        let worse = t.after.as_ref().is_some_and(|a| a.sigma >= t.before.sigma && a.rho >= 0.9);
+        let by = match &t.after {
+            Some(a) if t.lowered() => format!(": σ × {:.2}", a.sigma / t.before.sigma),
+            Some(_) => " (not separated by it)".into(),
+            None => String::new(),
+        };
         say!(
-            "  {} vs {}: {} on this recording → {} on the suggested run{}",
+            "  {} vs {}: {} on this recording ({}) → {} on the suggested run ({}){by}",
             t.before.effect.key(),
             t.before.with_name(),
             sigma(&t.before),
+            bench::suggest::hm(facts.duration_s),
             t.after.as_ref().map_or("not testable".into(), sigma),
-            if worse { " (not separated by it)" } else { "" }
+            bench::suggest::hm(s.duration_s),
         );
     }
-    say!("wrote {} (bench validate passes; run it with `bench run`)", path.display());
+    if !offered {
+        say!(
+            "no scenario suggested: the best run tried ({} of chamber time, up to {}× this \
+             recording's) does not lower σ and ρ of every pair above",
+            bench::suggest::hm(s.duration_s),
+            bench::suggest::BUDGETS[bench::suggest::BUDGETS.len() - 1]
+        );
+        return Ok(());
+    }
+    if !s.shorter_tried_s.is_empty() {
+        let tried: Vec<String> = s.shorter_tried_s.iter().map(|&t| bench::suggest::hm(t)).collect();
+        say!("  (shorter runs tried first did not lower every pair: {})", tried.join(", "));
+    }
+    std::fs::write(path, &s.text).with_context(|| format!("cannot write {}", path.display()))?;
+    say!(
+        "wrote {} ({} of chamber time; `bench validate` passes{}; run it with `bench run`)",
+        path.display(),
+        bench::suggest::hm(s.duration_s),
+        if bench.is_some() { " against the bench given" } else { "" }
+    );
     Ok(())
 }
 
@@ -375,7 +412,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         say!("wrote {}", path.display());
     }
     if let (Some(path), Some(rec)) = (&args.suggest_scenario, &rec) {
-        suggest_scenario(d, rec, &name, path)?;
+        suggest_scenario(&out, rec, &name, path, args.bench.as_deref())?;
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;

@@ -347,6 +347,11 @@ fn most_legs<T>(max: usize, mut ok: impl FnMut(usize) -> Option<T>) -> Option<T>
     Some(lo_val)
 }
 
+/// The largest of `options` within `limit` (with a small tolerance), or `floor` when none is.
+pub fn fastest_allowed(options: &[f64], limit: f64, floor: f64) -> f64 {
+    options.iter().copied().filter(|x| *x <= limit + 1e-9).fold(floor, f64::max)
+}
+
 /// Short names of the coefficients on the command line, in `ModelKey::CALIBRATED` order.
 pub const SHORT: [&str; 4] = ["bias", "sf", "k_t", "k_dt"];
 

@@ -144,6 +144,8 @@ fn facts(name: &str, d: &bench_analysis::diagnose::Diagnosis) -> bench::suggest:
             temps.iter().copied().fold(f64::INFINITY, f64::min),
             temps.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         ),
+        gyro_sensor: true,
+        duration_s: d.series.time_s.last().copied().unwrap_or(0.0),
     }
 }
 
@@ -403,6 +405,45 @@ fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
     let (gain, s_gain) = param(f, "gain");
     assert!((tau - 400.0).abs() <= 3.0 * s_tau, "τ {tau} ± {s_tau}");
     assert!((gain - 1.0).abs() <= 3.0 * s_gain, "gain {gain} ± {s_gain}");
+}
+
+/// Issue 31: `--suggest-scenario` on a 5 h recording of a gyro without its own sensor whose
+/// coil lag the diagnosis cannot tell from `temp_rate_coeff + temp_coeff` (lab writer's
+/// `lab-nosensor`, seed 2: ρ 0.924). Main offered an 11 h 54 min run soaking on
+/// `source = "gyro"`, its own prediction "not testable". The suggestion is now a designed
+/// sweep run with no soak on a sensor the gyro lacks; it is offered only because, simulated
+/// with a gyro without a sensor and diagnosed, it lowers σ and ρ of the pair; it is at most
+/// three times the recording's length and it validates.
+#[test]
+fn the_suggestion_for_a_gyro_without_a_sensor_lowers_what_it_separates_and_soaks_on_no_sensor() {
+    use bench::suggest::{offer, Offer};
+    let path = lab_fixture("lab-nosensor", 2, &[]);
+    let rec = Recording::load(&path).expect("reads");
+    let out = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses");
+    assert!(!out.data.gyro_sensor());
+    let d = &out.diagnosis;
+    let facts = bench::suggest::RecordingFacts { gyro_sensor: false, ..facts("nosensor.mcap", d) };
+    let s = match offer(d, &facts, &bench::simulate::capabilities(), 1).expect("offers") {
+        Offer::Lowers(s) => s,
+        other => panic!("{other:?}"),
+    };
+    let t = s
+        .targets
+        .iter()
+        .find(|t| t.before.effect == EffectId::ThermalLag)
+        .unwrap_or_else(|| panic!("{:?}", s.targets));
+    let after = t.after.as_ref().expect("judged on the suggestion");
+    assert!(after.sigma < t.before.sigma && after.rho < t.before.rho, "{t:?}");
+    assert!(!s.text.contains("source = \"gyro\""), "{}", s.text);
+    assert!(!s.gyro_sensor);
+    assert!(
+        s.duration_s <= 3.0 * facts.duration_s + 1.0,
+        "{} vs {}",
+        s.duration_s,
+        facts.duration_s
+    );
+    bench::scenario::parse(&s.text, "suggested", &bench::simulate::capabilities())
+        .expect("bench validate passes");
 }
 
 /// Issue 14, "never a wrong name": on 120° arcs a 5e-8 rad/s once-per-revolution bias and a
