@@ -209,8 +209,8 @@ fn suggest_for(
         facts.name
     );
     // The per-revolution turns: the bench's fastest up to 30 °/min and a third of it.
-    let fast = design::fastest_allowed(&[10.0, 30.0], limits.max_table_deg_min, 1.0);
-    let slow = if fast >= 30.0 { 10.0 } else { fast / 3.0 };
+    let fast = limits.max_table_deg_min.min(30.0).floor().max(1.0);
+    let slow = if fast >= 30.0 { 10.0 } else { (fast / 3.0 * 10.0).floor() / 10.0 };
     let angle_why = format!(
         "per revolution: two full revolutions per direction at {slow} °/min and at {fast} \
          °/min at {t0} °C (soaked on the {}): full turns make the angle harmonics orthogonal, \
@@ -470,7 +470,7 @@ mod tests {
 
     /// Issue 31: a gyro without its own sensor is soaked on the chamber's air, never on
     /// `source = "gyro"` (main offered that), and the bench's limits hold: a table of at most
-    /// 20 °/min gets its turns at 20 and 6.67 °/min, not 30.
+    /// 20 °/min gets its turns at 20 and 6.6 °/min, not 30.
     #[test]
     fn a_gyro_without_a_sensor_is_soaked_on_the_air_and_a_slow_table_is_respected() {
         let no_sensor = RecordingFacts { gyro_sensor: false, ..facts() };
