@@ -178,7 +178,35 @@ OUTSIDE = ["kt_kink", "noise_burst"]
 CLASSES = ["null", "effect", "pair", "outside"]
 
 
-def draw_random(seed, cls):
+def shorten(legs, hours):
+    """The first legs of a drawn chamber profile that fill `hours` (a ramp cut at the budget
+    stops at the temperature it reached): a shorter procedure of the same kind, within the
+    issue's ranges (holds 10–60 min, ramps 0.5–3 °C/min, at least one ramp)."""
+    out, total, temp = [], 0.0, 20.0
+    budget = hours * 3600.0
+    for leg in legs:
+        if total >= budget and any("to_c" in x for x in out):
+            break
+        if "hold_s" in leg:
+            out.append(dict(leg))
+            total += leg["hold_s"]
+            continue
+        span = abs(leg["to_c"] - temp) / leg["rate_c_min"] * 60.0
+        left = budget - total
+        if span > left and any("to_c" in x for x in out) and left > 600.0:
+            frac = left / span
+            to = round(temp + frac * (leg["to_c"] - temp))
+            out.append({"to_c": float(to), "rate_c_min": leg["rate_c_min"]})
+            total = budget
+            temp = to
+            continue
+        out.append(dict(leg))
+        total += span
+        temp = leg["to_c"]
+    return out
+
+
+def draw_random(seed, cls, hours=None):
     """A random procedure (calibrate_study.draw: chamber ramps or soaks, 1–3 rates of 2–30
     °/min, reversals every 4–15 min) with the diagnosis's extras drawn from a second stream:
     gyro 10–200 Hz, table and chamber telemetry 1–20 Hz, stop-start reversals or continuous,
@@ -198,6 +226,10 @@ def draw_random(seed, cls):
     seg = cfg["procedure"]["segment_s"]
     if g.random() < 0.5:
         cfg["procedure"]["stop_s"] = round(g.uniform(60.0, seg / 3.0))
+    if hours:
+        # The procedure's length from a third stream (the others' draws unchanged).
+        h = random.Random(pseed * 7 + 3).uniform(*hours)
+        cfg["procedure"]["legs"] = shorten(cfg["procedure"]["legs"], h)
     preset = "lab-null" if traits else "lab-clean"
     names = []
     if cls == "effect":
@@ -290,7 +322,7 @@ def judge_random(d, truth, names, traits, sensor):
 
 
 def one_random(args, cls, seed):
-    preset, kind, cfg, names, traits = draw_random(seed, cls)
+    preset, kind, cfg, names, traits = draw_random(seed, cls, args.hours)
     d = os.path.join(args.work, f"{cls}-{seed}")
     os.makedirs(d, exist_ok=True)
     conf = os.path.join(d, "config.json")
@@ -298,11 +330,18 @@ def one_random(args, cls, seed):
         json.dump(cfg, f, indent=1)
     mcap = os.path.join(d, "run.mcap")
     pseed = seed * len(CLASSES) + CLASSES.index(cls)
-    w = subprocess.run([PY, WRITER, mcap, "--preset", preset, "--seed", str(pseed),
-                        "--config", conf, "-q"], capture_output=True, text=True)
-    if w.returncode != 0:
-        return {"class": cls, "seed": seed, "error": "writer: " + w.stderr.strip()[-300:]}
     import time
+    t0 = time.time()
+    written = os.path.exists(mcap) and os.path.exists(mcap[:-5] + ".done")
+    if not written:
+        w = subprocess.run([PY, WRITER, mcap, "--preset", preset, "--seed", str(pseed),
+                            "--config", conf, "-q"], capture_output=True, text=True)
+        if w.returncode != 0:
+            return {"class": cls, "seed": seed, "error": "writer: " + w.stderr.strip()[-300:]}
+        open(mcap[:-5] + ".done", "w").close()
+    write_secs = time.time() - t0
+    if args.write_only:
+        return {"class": cls, "seed": seed, "written": True, "write_secs": write_secs}
     out = os.path.join(d, "result.json")
     t0 = time.time()
     r = subprocess.run([BENCH, "diagnose", mcap, "-q", "--no-report", "--json", out,
@@ -324,18 +363,18 @@ def one_random(args, cls, seed):
             "stop_s": cfg["procedure"].get("stop_s", 0), "hours": truth["duration_s"] / 3600,
             "false_finding": ff, "false_unexplained": fu, "wrong": wrong, "found": found,
             "within": ok, "not_told_apart": apart, "named": named, "unexplained": unexpl,
-            "secs": secs}
+            "secs": secs, "write_secs": write_secs}
 
 
 def random_table(rows):
     # A file run twice (a study resumed at its seed) counts once: its last run.
-    rows = list({(r["class"], r["seed"]): r for r in rows}.values())
+    rows = list({(r["class"], r["seed"]): r for r in rows if not r.get("written")}.values())
     print("| class | files | false findings | false unexplained | wrong names | found "
           "| not told apart | parameters within 3σ | median diagnose s |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     groups = {}
     for r in rows:
-        if "error" in r:
+        if "error" in r or r.get("written"):
             continue
         key = r["class"] if r["class"] != "effect" else "effect " + r["names"][0]
         groups.setdefault(key, []).append(r)
@@ -362,12 +401,20 @@ def main_random(argv):
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--work", default=None)
     ap.add_argument("--keep", action="store_true")
+    ap.add_argument("--hours", default=None, metavar="LO,HI",
+                    help="procedure length drawn in LO..HI hours (the drawn chamber profile cut "
+                         "there; default: calibrate_study's 2–5 h)")
+    ap.add_argument("--write-only", action="store_true",
+                    help="write the files (kept in --work) and stop: a later run with the same "
+                         "--work diagnoses them without writing again")
     ap.add_argument("--deadline", type=float, default=None,
                     help="stop starting files after this many seconds")
     ap.add_argument("--table", metavar="RESULTS.jsonl", default=None,
                     help="print the table of earlier runs' results (one or more files, "
                          "comma-separated) and stop")
     args = ap.parse_args(argv)
+    args.hours = tuple(float(x) for x in args.hours.split(",")) if args.hours else None
+    args.keep = args.keep or args.write_only
     if args.table:
         rows = [json.loads(line) for path in args.table.split(",") for line in open(path)]
         random_table(rows)

@@ -130,7 +130,6 @@ pub(super) fn check_families(
                 model,
                 tested: st.tested,
                 accepted: &accepted,
-                thresholds: st.thresholds,
                 level,
             };
             rivals::judge_rivals(&ctx, id, &cols, &others, y, noise)

@@ -2,10 +2,14 @@
 //! ([`bench_physics::effects::EffectId::rival_effects`]: step / warm-up / drift, lag /
 //! hysteresis, rate² / asymmetry, 1/rev / 2/rev …) is not named alone.
 //!
-//! Judged on the recording's own design and noise model, with the search's own thresholds:
-//! the rival `R`, fitted at its best grid value with the rest of the model in, explains the
-//! residual too (its Wald passes its threshold), and with `R` in the model the effect `E` is no
-//! longer significant (its Wald at most its threshold). Then, when `R` stays significant with
+//! Judged on the recording's own design and noise model. A declared rival is one named
+//! alternative, not a scan over the candidate set: every rivalry is one question, judged at one
+//! test's χ² quantile of its degrees of freedom at the level the diagnosis gives each effect
+//! (α split over the candidates, the family check's level), never at the search's threshold,
+//! which pays for scanning every candidate's grid. The rival `R`, fitted at its best grid value
+//! with the rest of the model in, explains the residual too (its Wald passes its threshold),
+//! and with `R` in the model the effect `E` is no longer significant (its Wald at most its
+//! threshold). Then, when `R` stays significant with
 //! `E` in the model, the data prefer the rival: `E` leaves the model and `R` is searched again.
 //! When neither stays significant beside the other, either explains what is there and the data
 //! cannot say which: the diagnosis reports "not told apart: E or R" with the run that
@@ -69,9 +73,7 @@ pub(super) struct RivalCtx<'a> {
     pub tested: &'a [EffectId],
     /// The effects in the model.
     pub accepted: &'a [EffectId],
-    /// The search's thresholds by effect.
-    pub thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
-    /// The family-wise level split over the candidates.
+    /// The family-wise level split over the candidates: each rivalry is one test at it.
     pub level: f64,
 }
 
@@ -89,24 +91,13 @@ pub(super) fn judge_rivals(
 ) -> Option<RivalVerdict> {
     let all: Vec<usize> = (0..ctx.prep.bins.len()).collect();
     let proj_o = Projector::new(others, &all).ok()?;
-    let threshold = |e: EffectId, k: usize| {
-        ctx.thresholds.get(&e).copied().unwrap_or_else(|| chi2_quantile(1.0 - ctx.level, k as f64))
-    };
-    let thr_e = threshold(id, cols.len());
+    // One test of one named alternative: the single-test quantile of its degrees of freedom.
+    let threshold = |k: usize| chi2_quantile(1.0 - ctx.level, k as f64);
+    let thr_e = threshold(cols.len());
     let no_cache = ColumnCache::new();
     let mut best: Option<NotToldApart> = None;
     for r in id.rival_effects() {
         if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
-            continue;
-        }
-        // Two per-revolution harmonics (1/rev against k/rev on arcs) are judged by the family
-        // check, at the effect's own harmonic and the family's level (`family::gate`); judged
-        // again here against the search's threshold, which pays for the scan over 52
-        // harmonics, the same pair got the opposite answer (effect-2rev: Wald 15.0 beside
-        // 1/rev, told apart at 14.5 there, not at 23.9 here).
-        if id.effect().family() == bench_physics::effects::Family::AngleHarmonics
-            && r.effect().family() == bench_physics::effects::Family::AngleHarmonics
-        {
             continue;
         }
         let r_cols = if grid(ctx.prep, r).len() == 1 {
@@ -118,7 +109,7 @@ pub(super) fn judge_rivals(
             }
         };
         let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
-        let thr_r = threshold(r, r_cols.len());
+        let thr_r = threshold(r_cols.len());
         if t_r.wald <= thr_r {
             continue;
         }
