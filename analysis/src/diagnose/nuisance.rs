@@ -125,13 +125,8 @@ pub(super) fn check_families(
         st.findings[pos].rate_dependence = rd;
         let rival = if g.check.passed {
             let accepted: Vec<EffectId> = st.accepted.iter().map(|a| a.id).collect();
-            let ctx = rivals::RivalCtx {
-                prep,
-                model,
-                tested: st.tested,
-                accepted: &accepted,
-                level,
-            };
+            let ctx =
+                rivals::RivalCtx { prep, model, tested: st.tested, accepted: &accepted, level };
             rivals::judge_rivals(&ctx, id, &cols, &others, y, noise)
         } else {
             None
