@@ -182,7 +182,6 @@ fn print_located(o: &bench_report::diagnose::DiagnoseOutcome) {
 /// only when it lowers σ and ρ of every pair it is meant to separate.
 fn suggest_scenario(
     out: &bench_report::diagnose::DiagnoseOutcome,
-    rec: &bench_recording::Recording,
     name: &str,
     path: &std::path::Path,
     bench: Option<&std::path::Path>,
@@ -191,8 +190,8 @@ fn suggest_scenario(
     let temps = &d.series.temp_c;
     let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let latitude_deg = match rec.site().ok().flatten() {
-        Some(site) => site.latitude_deg,
+    let latitude_deg = match out.data.series.latitude_deg {
+        Some(latitude_deg) => latitude_deg,
         None => {
             say!("the recording has no site: the suggestion assumes latitude 45°");
             45.0
@@ -295,17 +294,12 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         !args.quiet && bench::progress::stderr_is_styled(),
     );
     // The arrays, then the decoded messages freed before the analysis (they are the larger
-    // part of the memory), unless a scenario is to be suggested from the recording.
+    // part of the memory).
     let context = super::analysis_context(&rec, "diagnose", &args.recording);
     let data = bench_report::load::load(&rec)
         .map_err(bench_report::diagnose::DiagnoseError::from)
         .with_context(|| context.clone())?;
-    let rec = if args.suggest_scenario.is_some() {
-        Some(rec)
-    } else {
-        drop(rec);
-        None
-    };
+    drop(rec);
     let out = diagnose_run(data, nominal, &opts).with_context(|| context.clone())?;
     drop(working);
     let name = args
@@ -411,8 +405,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
         say!("wrote {}", path.display());
     }
-    if let (Some(path), Some(rec)) = (&args.suggest_scenario, &rec) {
-        suggest_scenario(&out, rec, &name, path, args.bench.as_deref())?;
+    if let Some(path) = &args.suggest_scenario {
+        suggest_scenario(&out, &name, path, args.bench.as_deref())?;
     }
     if !args.no_report {
         let files = report::write_report(&out, &name, &args.out)?;
