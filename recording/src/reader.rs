@@ -526,9 +526,12 @@ fn decode_body(kind: Kind, m: &Msg<'_>) -> Result<Item, String> {
 }
 
 /// The summary section's records (opcode, body) of a finished file, every one framing and
-/// parsing; empty without a footer or where any of them is damaged.
+/// parsing; `None` without a footer or where any of them is damaged. Where the section fails
+/// its CRC, a flip that still parses is somewhere in it: a contract channel's definition there
+/// is kept only if it conforms (its encoding the contract's), so a damaged fallback never
+/// overrules the chunks' own intact definitions or fails the read.
 pub(crate) fn summary_records<S: Read + Seek>(src: &mut S, len: u64) -> Option<Vec<(u8, Vec<u8>)>> {
-    let bytes = summary_section(src, len)?;
+    let (bytes, intact) = summary_section(src, len)?;
     let mut out = Vec::new();
     let mut at = 0usize;
     while at < bytes.len() {
@@ -545,17 +548,27 @@ pub(crate) fn summary_records<S: Read + Seek>(src: &mut S, len: u64) -> Option<V
             op::STATISTICS,
             op::SUMMARY_OFFSET,
         ];
-        if !allowed.contains(&opcode) || parse_record(opcode, body).is_err() {
+        let record = parse_record(opcode, body);
+        if !allowed.contains(&opcode) || record.is_err() {
             return None;
         }
-        out.push((opcode, body.to_vec()));
+        let conforms = match record {
+            Ok(Record::Channel(c)) => {
+                Kind::of(&c.topic) == Kind::Other || c.message_encoding == MESSAGE_ENCODING
+            }
+            _ => true,
+        };
+        if intact || conforms {
+            out.push((opcode, body.to_vec()));
+        }
         at = end;
     }
     Some(out)
 }
 
-/// The bytes of the summary section, by the footer at the end of the file.
-fn summary_section<S: Read + Seek>(src: &mut S, len: u64) -> Option<Vec<u8>> {
+/// The bytes of the summary section, by the footer at the end of the file, and whether they
+/// pass the footer's CRC.
+fn summary_section<S: Read + Seek>(src: &mut S, len: u64) -> Option<(Vec<u8>, bool)> {
     // Footer record (opcode, length 20, summary start, summary offset start, CRC) + magic.
     const TAIL: u64 = 9 + 20 + 8;
     if len < 8 + TAIL {
@@ -575,7 +588,17 @@ fn summary_section<S: Read + Seek>(src: &mut S, len: u64) -> Option<Vec<u8>> {
     src.seek(SeekFrom::Start(start)).ok()?;
     let mut bytes = vec![0u8; usize::try_from(footer_at - start).ok()?];
     src.read_exact(&mut bytes).ok()?;
-    Some(bytes)
+    // The footer's CRC covers the summary section and the footer up to the CRC itself (0: not
+    // computed).
+    let crc = u32::from_le_bytes(tail[25..29].try_into().ok()?);
+    let intact = crc == 0 || {
+        let crc32 = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+        let mut digest = crc32.digest();
+        digest.update(&bytes);
+        digest.update(&tail[..25]);
+        digest.finalize() == crc
+    };
+    Some((bytes, intact))
 }
 
 /// JSON types of the contract's fields.

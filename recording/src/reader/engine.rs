@@ -30,7 +30,7 @@ pub(crate) enum Kind {
 }
 
 impl Kind {
-    fn of(topic: &str) -> Kind {
+    pub(crate) fn of(topic: &str) -> Kind {
         match topic {
             TOPIC_GYRO => Kind::Gyro,
             TOPIC_TABLE => Kind::Table,
