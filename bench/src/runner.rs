@@ -45,6 +45,8 @@ pub struct RunReport {
     pub gyro_samples: u64,
     /// On a replay: how the run's commands compared with the recording's.
     pub replay: Option<ReplayCounts>,
+    /// What the table's wire link coped with (a real driver's; `None` otherwise).
+    pub table_link: Option<bench_drivers::real::link::LinkCounters>,
 }
 
 /// How a replayed run's commands compared with the recording.
@@ -223,6 +225,7 @@ fn finish<W: Write + Seek + Send + 'static>(
         wall_time,
         gyro_samples: live.snapshot().gyro_samples,
         replay: None,
+        table_link: result.table_link,
     };
     Ok((report, writer))
 }

@@ -252,8 +252,12 @@ pub struct ChannelCount {
     /// first recorded sample, after its last: the stream runs from the driver's open to its
     /// close).
     pub outside_run: u64,
-    /// `sent − recorded` (gyro: within the recorded ranges): samples that arrived intact and
-    /// are not in the recording (must be 0). Negative: recorded more than sent.
+    /// Table: replies that came after the driver's reply timeout and were rightly skipped (the
+    /// request was sent again), as many as explain samples sent and not recorded; from the
+    /// driver's link counters (late and stale replies).
+    pub late: u64,
+    /// `sent − recorded − late` (gyro: within the recorded ranges): samples that arrived intact
+    /// in time and are not in the recording (must be 0). Negative: recorded more than sent.
     pub lost: i64,
 }
 
@@ -519,12 +523,15 @@ fn chamber_snapshot(w: &WireStats) -> PolledSnapshot {
 /// Add a polled device's segment to its count. `last_recorded_ns`: bench time of the last
 /// sample recorded (its log time from the run's epoch). A reply the server sent after it was
 /// in flight when the run ended (the poller stopped before reading it): counted outside the run.
+/// `late`: replies the driver skipped as late (its link counters); they explain unrecorded
+/// samples, never more than those.
 fn add_polled(
     c: &mut ChannelCount,
     before: PolledSnapshot,
     after: PolledSnapshot,
     recorded: u64,
     last_recorded_ns: Option<u64>,
+    late: u64,
 ) {
     let sent = after.sent - before.sent;
     let in_flight =
@@ -535,7 +542,10 @@ fn add_polled(
     c.dropped += after.dropped - before.dropped;
     c.silenced += after.silenced - before.silenced;
     c.corrupted += after.corrupted - before.corrupted;
-    c.lost += (sent - in_flight) as i64 - recorded as i64;
+    let unrecorded = (sent - in_flight) as i64 - recorded as i64;
+    let late = late.min(u64::try_from(unrecorded).unwrap_or(0));
+    c.late += late;
+    c.lost += unrecorded - late as i64;
 }
 
 /// A fault due in a segment.
@@ -894,11 +904,12 @@ async fn run_segment(
     let since_epoch = |t: u64| t.saturating_sub(SIM_EPOCH_NS);
     if let Some(t) = channels.get_mut(1) {
         let last = rec.table.last().map(|m| since_epoch(m.log_time_ns));
-        add_polled(t, table0, table1, rec.table.len() as u64, last);
+        let late = report.table_link.map_or(0, |l| l.late_replies + l.stale_replies);
+        add_polled(t, table0, table1, rec.table.len() as u64, last, late);
     }
     if let Some(c) = channels.get_mut(2) {
         let last = rec.chamber.last().map(|m| since_epoch(m.log_time_ns));
-        add_polled(c, chamber0, chamber1, rec.chamber.len() as u64, last);
+        add_polled(c, chamber0, chamber1, rec.chamber.len() as u64, last, 0);
     }
     *others.entry("/bench/step".into()).or_default() += rec.steps.len() as u64;
     for (topic, n) in &rec.other_counts {
@@ -974,6 +985,34 @@ async fn run_segment(
 mod tests {
     use super::*;
     use bench_drivers::ErrorKind;
+
+    #[test]
+    fn late_replies_explain_unrecorded_samples_and_never_more() {
+        let snap = |sent, last_sent_ns| PolledSnapshot {
+            last_sent_ns,
+            sent,
+            dropped: 0,
+            silenced: 0,
+            corrupted: 0,
+        };
+        let (before, after) = (snap(0, 0), snap(100, 50));
+        // One reply late, one unrecorded: nothing lost.
+        let mut c = ChannelCount::default();
+        add_polled(&mut c, before, after, 99, Some(60), 1);
+        assert_eq!((c.sent, c.late, c.lost), (Some(100), 1, 0));
+        // Three late (some to other requests), one unrecorded: one of them explains it.
+        let mut c = ChannelCount::default();
+        add_polled(&mut c, before, after, 99, Some(60), 3);
+        assert_eq!((c.late, c.lost), (1, 0));
+        // None late: the unrecorded one is lost.
+        let mut c = ChannelCount::default();
+        add_polled(&mut c, before, after, 99, Some(60), 0);
+        assert_eq!((c.late, c.lost), (0, 1));
+        // Recorded more than sent stays an error whatever is late.
+        let mut c = ChannelCount::default();
+        add_polled(&mut c, before, after, 101, Some(60), 5);
+        assert_eq!((c.late, c.lost), (0, -1));
+    }
 
     #[test]
     fn a_silent_table_aborts_by_design_through_its_error_budget_or_the_stale_limit() {

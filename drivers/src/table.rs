@@ -73,4 +73,10 @@ pub trait RateTable: Send {
     async fn service(&mut self) -> DeviceResult<()> {
         Ok(())
     }
+
+    /// What the link to the controller has coped with so far (late, stale and corrupt replies,
+    /// retries); `None` for a table without a wire link (the simulator, a replay).
+    fn link_counters(&self) -> Option<crate::real::link::LinkCounters> {
+        None
+    }
 }

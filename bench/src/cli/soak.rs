@@ -155,7 +155,7 @@ fn print_summary(r: &SoakReport) {
         r.scenario
     );
     say!(
-        "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>6}",
+        "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>5} {:>6}",
         "channel",
         "sent",
         "recorded",
@@ -163,12 +163,13 @@ fn print_summary(r: &SoakReport) {
         "silenced",
         "corrupted",
         "outside",
+        "late",
         "lost"
     );
     for c in &r.channels {
         let sent = c.sent.map_or("-".to_string(), |s| s.to_string());
         say!(
-            "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>6}",
+            "  {:<16} {:>10} {:>10} {:>8} {:>8} {:>9} {:>8} {:>5} {:>6}",
             c.topic,
             sent,
             c.recorded,
@@ -176,6 +177,7 @@ fn print_summary(r: &SoakReport) {
             c.silenced,
             c.corrupted,
             c.outside_run,
+            c.late,
             c.lost
         );
     }

@@ -103,6 +103,8 @@ pub struct RunResult<S> {
     pub sink: S,
     /// Bench time at the end.
     pub duration: Duration,
+    /// What the table's wire link coped with over the run (a real driver's; `None` otherwise).
+    pub table_link: Option<bench_drivers::real::link::LinkCounters>,
 }
 
 impl<S> RunResult<S> {
@@ -577,12 +579,24 @@ pub async fn execute<S: EventSink>(
         sequencer::sleep_unless_hurried(&ctx, SAFE_STATE_TAIL).await;
         let duration = ctx.clock.now();
         aborts.iter().for_each(AbortHandle::abort);
+        // The pollers are stopped: the table is free. Its link's tally goes into the log.
+        let table_link = ctx.table.lock().await.link_counters();
+        if let Some(c) = table_link {
+            tracing::info!(
+                late = c.late_replies,
+                stale = c.stale_replies,
+                corrupt = c.corrupt_replies,
+                retries = c.retries,
+                reconnects = c.reconnects,
+                "rate table link: replies that came after their timeout, skipped replies, retries"
+            );
+        }
         ctx.tx.close_channel();
-        (fault, duration)
+        (fault, duration, table_link)
     }
     .with_subscriber(dispatch);
-    let (sink, (fault, duration)) = futures::join!(recording, main);
-    RunResult { fault, sink, duration }
+    let (sink, (fault, duration, table_link)) = futures::join!(recording, main);
+    RunResult { fault, sink, duration, table_link }
 }
 
 impl<W: std::io::Write + std::io::Seek + Send + 'static> EventSink

@@ -97,6 +97,9 @@ pub struct LinkCounters {
     /// Well-formed replies that did not answer the command in flight (late answers to an
     /// earlier, timed-out command), skipped.
     pub stale_replies: u64,
+    /// Well-formed replies found waiting before a resend and discarded unanswered (late answers
+    /// to a timed-out command, drained before the retry).
+    pub late_replies: u64,
     /// Exchanges sent again after a transient failure.
     pub retries: u64,
     /// Times the endpoint was reopened after a link fault.
@@ -185,7 +188,8 @@ impl<F: LineFormat> LineLink<F> {
         e.kind()
     }
 
-    /// Discard whatever is already waiting on the link (late replies) and restart the decoder.
+    /// Discard whatever is already waiting on the link (late replies, counted in
+    /// [`LinkCounters::late_replies`] where they decode) and restart the decoder.
     fn drain(&mut self) {
         let mut buf = [0u8; 512];
         let mut closed = false;
@@ -200,6 +204,11 @@ impl<F: LineFormat> LineLink<F> {
                     }
                     std::task::Poll::Ready(Ok(())) => {
                         self.rx_total = self.rx_total.saturating_add(rb.filled().len() as u64);
+                        // The decoder still holds the start of the reply that timed out.
+                        self.decoder.push(rb.filled());
+                        while let Some(m) = self.decoder.next_message() {
+                            self.counters.late_replies += u64::from(m.is_ok());
+                        }
                     }
                     std::task::Poll::Ready(Err(_)) => {
                         closed = true;

@@ -897,6 +897,10 @@ impl RateTable for RateTableDriver {
         &self.info
     }
 
+    fn link_counters(&self) -> Option<LinkCounters> {
+        Some(self.counters())
+    }
+
     async fn set_rate(&mut self, rate_rad_s: f64, accel_rad_s2: f64) -> DeviceResult<()> {
         let accel_deg_s2 = self.check_rate(rate_rad_s, accel_rad_s2)?;
         self.ctl.set_rate(&mut self.mode, rate_rad_s / DEG, accel_deg_s2).await?;

@@ -167,6 +167,53 @@ async fn a_garbled_reply_is_counted_skipped_and_retried_with_its_byte_offset() {
 }
 
 #[tokio::test]
+async fn a_reply_after_its_timeout_is_drained_before_the_retry_and_counted_late() {
+    // The controller answers the first state request 0.3 s late: after the driver's 0.1 s
+    // timeout, before its 0.6 s back-off ends. The retry is answered at once.
+    let (l, ep) = listener().await;
+    let server = tokio::spawn(async move {
+        let (stream, _) = l.accept().await.expect("accept");
+        let (rd, mut wr) = stream.into_split();
+        let mut rd = BufReader::new(rd);
+        let mut got = Vec::new();
+        for (i, reply) in [
+            "RMT 0,0:ALC 0,0\n",
+            "PRV 1,3,10,0,0:MOD 1,1,OFF\n",
+            "PRV 1,3,20,0,0:MOD 1,1,OFF\n",
+            "PRV 1,3,30,0,0:MOD 1,1,OFF\n",
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut line = String::new();
+            if rd.read_line(&mut line).await.expect("read") == 0 {
+                break;
+            }
+            got.push(line);
+            if i == 2 {
+                tokio::time::sleep(Duration::from_millis(300)).await;
+            }
+            wr.write_all(reply.as_bytes()).await.expect("write");
+        }
+        got
+    });
+    let cfg = TableDriverConfig {
+        reply_timeout_s: 0.1,
+        retry_backoff_s: 0.6,
+        ..TableDriverConfig::new(ep, Dialect::Actidyn)
+    };
+    let mut t = RateTableDriver::connect(cfg).await.expect("connect");
+    let r = t.read().await.expect("the retry is answered");
+    // The late answer (20°) was drained, not taken for the retry's (30°).
+    assert!((r.angle_rad - 30.0 * DEG).abs() < 1e-12, "{}", r.angle_rad);
+    let c = t.counters();
+    assert_eq!((c.late_replies, c.stale_replies, c.retries), (1, 0, 1), "{c:?}");
+    assert_eq!(t.link_counters(), Some(c));
+    drop(t);
+    assert_eq!(server.await.expect("server").len(), 4);
+}
+
+#[tokio::test]
 async fn device_error_replies_map_to_kinds_without_retries() {
     let steps: Vec<Step> = vec![
         ("RMT 0:ALC 0\n", Some("RMT 0,0:ALC 0,0\n")),
