@@ -908,52 +908,101 @@ fn record_windows(steps: Option<&Channel>) -> Vec<(i64, i64, String)> {
     out
 }
 
-/// A cell's text: integers as integers, floats in the shortest form that reads back the same,
-/// null as empty, strings as they are, arrays as JSON.
+/// A cell's text: integers as integers, floats in the shortest form that reads back the same
+/// (`ryu`'s: `2.3e-5` is `0.000023`), null as empty, strings as they are, arrays as JSON.
 fn cell(v: &Cell) -> String {
-    let mut s = String::new();
-    cell_into(v, &mut s);
-    s
+    let mut bytes = Vec::new();
+    cell_into(v, &mut bytes);
+    String::from_utf8(bytes).unwrap_or_default()
 }
 
-/// [`cell`], into `out` (cleared first).
-fn cell_into(v: &Cell, out: &mut String) {
-    use std::fmt::Write;
-    out.clear();
-    let _ = match v {
-        Cell::Null => Ok(()),
-        Cell::Bool(b) => out.write_str(if *b { "true" } else { "false" }),
-        Cell::Int(i) => write!(out, "{i}"),
-        Cell::Big(u) => write!(out, "{u}"),
-        Cell::Float(f) => write!(out, "{f:?}"),
-        Cell::Str(s) | Cell::Json(s) => out.write_str(s),
-    };
+/// [`cell`], appended to `out`.
+fn cell_into(v: &Cell, out: &mut Vec<u8>) {
+    match v {
+        Cell::Null => {}
+        Cell::Bool(b) => out.extend_from_slice(if *b { b"true" } else { b"false" }),
+        Cell::Int(i) => out.extend_from_slice(itoa::Buffer::new().format(*i).as_bytes()),
+        Cell::Big(u) => out.extend_from_slice(itoa::Buffer::new().format(*u).as_bytes()),
+        Cell::Float(f) => out.extend_from_slice(ryu::Buffer::new().format(*f).as_bytes()),
+        Cell::Str(s) | Cell::Json(s) => out.extend_from_slice(s.as_bytes()),
+    }
+}
+
+/// RFC 3339 time stamps of consecutive log times, the date and time of day formatted once per
+/// second ([`rfc3339_into`]'s text).
+#[derive(Default)]
+struct Stamps {
+    second: Option<i64>,
+    /// `YYYY-MM-DDTHH:MM:SS` of `second`; empty when out of range.
+    prefix: String,
+}
+
+impl Stamps {
+    fn push(&mut self, ns: i64, out: &mut Vec<u8>) {
+        const NS: i64 = 1_000_000_000;
+        let (second, nanos) = (ns.div_euclid(NS), ns.rem_euclid(NS));
+        if self.second != Some(second) {
+            self.second = Some(second);
+            self.prefix.clear();
+            // The second's date and time of day (from `ns` itself where the whole second is
+            // out of i64's range).
+            rfc3339_into(second.checked_mul(NS).unwrap_or(ns), &mut self.prefix);
+            let date_time = self.prefix.find('.').unwrap_or(0);
+            self.prefix.truncate(date_time);
+        }
+        if self.prefix.is_empty() {
+            return;
+        }
+        out.extend_from_slice(self.prefix.as_bytes());
+        let digits = itoa::Buffer::new().format(nanos).as_bytes().to_vec();
+        out.push(b'.');
+        out.extend(std::iter::repeat_n(b'0', 9 - digits.len()));
+        out.extend_from_slice(&digits);
+        out.push(b'Z');
+    }
 }
 
 /// Rows formatted per block, the blocks on the machine's threads and written in order.
 const CSV_BLOCK: usize = 32 * 1024;
 
 /// The CSV text of rows `rows` of a table (no header): the same bytes as one writer for the
-/// whole table writes for them.
+/// whole table writes for them. Each row's fields are formatted into one buffer and handed to
+/// the `csv` writer as slices of it (it quotes where a field needs it).
 fn csv_rows(ch: &Channel, rows: std::ops::Range<usize>) -> Result<Vec<u8>, csv::Error> {
-    use std::fmt::Write;
     let mut w = csv::Writer::from_writer(Vec::with_capacity(rows.len() * 96));
-    let mut cells = vec![String::new(); ch.columns.len()];
-    let mut fixed = [String::new(), String::new(), String::new(), String::new()];
+    let mut slots: Vec<Option<&Cell>> = vec![None; ch.columns.len()];
+    let mut buf: Vec<u8> = Vec::with_capacity(256);
+    let mut ends: Vec<usize> = Vec::with_capacity(4 + ch.columns.len());
+    let mut stamps = Stamps::default();
+    let mut int = itoa::Buffer::new();
     for r in rows {
-        cells.iter_mut().for_each(String::clear);
+        buf.clear();
+        ends.clear();
+        let log = ch.log.get(r).copied().unwrap_or_default();
+        stamps.push(log, &mut buf);
+        ends.push(buf.len());
+        for v in [log, ch.publish.get(r).copied().unwrap_or_default()] {
+            buf.extend_from_slice(int.format(v).as_bytes());
+            ends.push(buf.len());
+        }
+        buf.extend_from_slice(
+            int.format(ch.sequence.get(r).copied().unwrap_or_default()).as_bytes(),
+        );
+        ends.push(buf.len());
+        slots.iter_mut().for_each(|s| *s = None);
         for (c, v) in ch.row(r) {
-            if let Some(slot) = cells.get_mut(*c as usize) {
-                cell_into(v, slot);
+            if let Some(slot) = slots.get_mut(*c as usize) {
+                *slot = Some(v);
             }
         }
-        let log = ch.log.get(r).copied().unwrap_or_default();
-        fixed.iter_mut().for_each(String::clear);
-        rfc3339_into(log, &mut fixed[0]);
-        let _ = write!(fixed[1], "{log}");
-        let _ = write!(fixed[2], "{}", ch.publish.get(r).copied().unwrap_or_default());
-        let _ = write!(fixed[3], "{}", ch.sequence.get(r).copied().unwrap_or_default());
-        w.write_record(fixed.iter().chain(cells.iter()))?;
+        for v in &slots {
+            if let Some(v) = v {
+                cell_into(v, &mut buf);
+            }
+            ends.push(buf.len());
+        }
+        let starts = std::iter::once(0).chain(ends.iter().copied());
+        w.write_record(starts.zip(ends.iter()).map(|(a, &b)| &buf[a..b]))?;
     }
     w.into_inner().map_err(|e| e.into_error().into())
 }

@@ -359,3 +359,45 @@ fn bodies_parse_into_cells_as_serde_json_values_flatten() {
         assert!(at == 0 && detail.contains(words) && p.row_end.is_empty(), "{body}: {detail}");
     }
 }
+
+#[test]
+fn time_stamps_formatted_once_a_second_read_as_each_one_formatted_alone() {
+    let mut stamps = Stamps::default();
+    let ns = [
+        1_764_000_000_000_000_000,
+        1_764_000_000_050_000_000,
+        1_764_000_000_999_999_999,
+        1_764_000_001_000_000_007,
+        1_764_000_001_000_000_007,
+        0,
+        -1,
+        -1_000_000_001,
+        i64::MIN,
+        i64::MAX,
+    ];
+    for t in ns {
+        let (mut got, mut want) = (Vec::new(), String::new());
+        stamps.push(t, &mut got);
+        rfc3339_into(t, &mut want);
+        assert_eq!(String::from_utf8(got).expect("utf-8"), want, "{t}");
+    }
+}
+
+#[test]
+fn a_float_cell_is_the_shortest_text_that_reads_back_bit_for_bit() {
+    let cases = [
+        (2.3e-5, "0.000023"),
+        (1e-5, "0.00001"),
+        (1e-6, "1e-6"),
+        (20.5, "20.5"),
+        (1.0, "1.0"),
+        (-0.0, "-0.0"),
+        (1e16, "1e16"),
+        (2.0434831538589747e-7, "2.0434831538589747e-7"),
+    ];
+    for (f, want) in cases {
+        let text = cell(&Cell::Float(f));
+        assert_eq!(text, want);
+        assert_eq!(text.parse::<f64>().expect("reads back").to_bits(), f.to_bits(), "{f}");
+    }
+}
