@@ -236,7 +236,12 @@ fn run_deaf(
         .find(|s| s.msg.event.as_str() == "abort")
         .map(|s| std::time::Duration::from_nanos(s.log_time_ns - bench::simulate::SIM_EPOCH_NS))
         .expect("an abort event");
-    let r = bench::run::RunResult { fault: result.fault, sink: (), duration: result.duration };
+    let r = bench::run::RunResult {
+        fault: result.fault,
+        sink: (),
+        duration: result.duration,
+        table_link: result.table_link,
+    };
     (result.duration, abort, rec, r)
 }
 
