@@ -87,6 +87,13 @@ fn a_rivalry_is_declared_once_and_holds_both_ways() {
         Some("a run at one |rate| without rests")
     );
     assert_eq!(EffectId::WarmUp.rivalry_with("once_per_revolution"), None);
+    // A hysteresis that switches once is a bias step: declared by the hysteresis, held both
+    // ways.
+    assert!(EffectId::BiasStep.rival_effects().contains(&EffectId::ThermalHysteresis));
+    assert_eq!(
+        EffectId::BiasStep.rivalry_with("thermal_hysteresis"),
+        Some("one switch between heating and cooling")
+    );
 }
 
 #[test]

@@ -50,6 +50,8 @@ impl LinearEffect for ThermalHysteresis {
         &[
             Rival { with: "thermal_lag", when: "every ramp at one |dT/dt|" },
             Rival { with: "temp_rate_coeff", when: "every ramp at one |dT/dt|" },
+            // One switch between heating and cooling is one jump of the bias: a step.
+            Rival { with: "bias_step", when: "one switch between heating and cooling" },
         ]
     }
     fn separated_by(&self) -> Procedure {
