@@ -3,8 +3,8 @@
 studies, docs/calibrate.md): thresholds judged on each recording's own design and noise, not on
 the shapes we tried.
 
-    python3 scripts/calibrate_study.py nulls    [--files N] [--first-seed S] [--jobs J]
-    python3 scripts/calibrate_study.py coverage [--files N] [--first-seed S] [--jobs J]
+    python3 scripts/calibrate_study.py nulls    [--files N] [--first-seed S] [--hours LO-HI]
+    python3 scripts/calibrate_study.py coverage [--files N] [--first-seed S] [--hours LO-HI]
     python3 scripts/calibrate_study.py seed     [--files N] [--first-seed S] [--jobs J]
 
 `nulls`: complete models (nothing concealed), procedures drawn at random — ramps or soaks,
@@ -22,7 +22,13 @@ the same table against the recording's `bench.gyro_model`. The seed has only 360
 constant-temperature windows, so its noise model comes from every window's residual.
 
 Needs the pinned Python (scripts/pyenv.sh) and a release build (cargo build --release -p bench);
-BENCH_BIN names another build. Each file: the writer's config and truth in WORK/seed-N/, the
+BENCH_BIN names another build. The writer's config-write and call are `scripts/labstudy.py`'s,
+shared with `scripts/lab_diagnose_study.py`. `--hours 2-3` cuts each drawn procedure to its
+first legs (a length drawn from a stream of its own: every other draw is unchanged); the cost of
+a file is mostly the writer's (≈ 10 s per hour of a 50 Hz gyro) and `bench calibrate`'s
+(≈ 10–20 s), so a 100-file study of 2–3 h procedures takes ≈ 40 min on one core. `--keep`
+with `--log OTHER.jsonl` and another BENCH_BIN calibrates the kept recordings again (the
+writer is not rerun where a finished recording is there). Each file: the writer's config and truth in WORK/seed-N/, the
 result JSON beside it; `--keep` keeps the recordings. A table per run goes to stdout, the
 per-file lines to WORK/results.jsonl.
 """
@@ -35,11 +41,9 @@ import random
 import subprocess
 import sys
 import tempfile
+import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PY = os.path.join(ROOT, "target/pyenv/bin/python3")
-WRITER = os.path.join(ROOT, "tests/fixtures/lab/labwriter.py")
-BENCH = os.environ.get("BENCH_BIN", os.path.join(ROOT, "target/release/bench"))
+from labstudy import BENCH, ROOT, hours_of, shorten, write_lab
 KEYS = ["bias", "scale_factor_error", "temp_coeff", "temp_rate_coeff"]
 
 
@@ -104,11 +108,13 @@ def calibrated(args, d, mcap):
     """`bench calibrate` of `mcap` into `d` (the recording removed unless --keep): (result JSON,
     exit code), or (None, what went wrong)."""
     out = os.path.join(d, "result.json")
+    t0 = time.time()
     r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
                         "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
     if not os.path.exists(out):
         return None, f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"
     res = json.load(open(out))
+    res["calibrate_secs"] = time.time() - t0
     if not args.keep:
         os.remove(mcap)
     return res, r.returncode
@@ -142,16 +148,13 @@ def one(args, seed):
     kind, cfg = draw(seed, no_sensor=args.study == "coverage" or None)
     if args.flicker_history_s:
         cfg["gyro"]["flicker_history_s"] = args.flicker_history_s
-    d = os.path.join(args.work, f"seed-{seed}")
-    os.makedirs(d, exist_ok=True)
-    conf = os.path.join(d, "config.json")
-    with open(conf, "w") as f:
-        json.dump(cfg, f, indent=1)
-    mcap = os.path.join(d, "run.mcap")
-    w = subprocess.run([PY, WRITER, mcap, "--preset", "lab-null", "--seed", str(seed),
-                        "--config", conf, "-q"], capture_output=True, text=True)
-    if w.returncode != 0:
-        return {"seed": seed, "error": "writer: " + w.stderr.strip()[-400:]}
+    if args.hours:
+        cfg["procedure"]["legs"] = shorten(cfg["procedure"]["legs"], hours_of(seed, args.hours))
+    mcap, write_secs, err = write_lab(os.path.join(args.work, f"seed-{seed}"), cfg,
+                                      "lab-null", seed)
+    if err:
+        return {"seed": seed, "error": err}
+    d = os.path.dirname(mcap)
     truth = json.load(open(mcap[:-5] + ".truth.json"))
     res, code = calibrated(args, d, mcap)
     if res is None:
@@ -165,7 +168,9 @@ def one(args, seed):
            "lag_fit": res.get("thermal_time_constant"),
            "lag_sigma": res.get("thermal_time_constant_sigma"),
            "rates": cfg["procedure"]["rates_deg_min"], "segment_s": cfg["procedure"]["segment_s"],
-           "hz": cfg["gyro"]["sample_rate_hz"], "held": sorted(held), "z": {}, "z_angle": {}}
+           "hz": cfg["gyro"]["sample_rate_hz"], "held": sorted(held), "z": {}, "z_angle": {},
+           "hours": truth["duration_s"] / 3600.0, "write_secs": write_secs,
+           "calibrate_secs": res["calibrate_secs"]}
     return zs_of(res, t, held, row)
 
 
@@ -232,13 +237,22 @@ def main():
     ap.add_argument("--flicker-history-s", type=float, default=0.0,
                     help="the gyro's flicker has run this long before the record (labwriter "
                          "gyro.flicker_history_s; default 0: it starts at the first sample)")
+    ap.add_argument("--hours", default=None,
+                    help="LO-HI: cut each drawn procedure to a length drawn in LO..HI h (its "
+                         "first legs; the other draws unchanged), e.g. 2-3 (default: as drawn, "
+                         "2-5 h)")
+    ap.add_argument("--log", default="results.jsonl",
+                    help="per-file lines, in WORK (another name to calibrate kept recordings "
+                         "again with another BENCH_BIN)")
     args = ap.parse_args()
+    if args.hours:
+        args.hours = tuple(float(x) for x in args.hours.split("-"))
     args.work = args.work or tempfile.mkdtemp(prefix=f"calib-{args.study}-")
     os.makedirs(args.work, exist_ok=True)
     seeds = range(args.first_seed, args.first_seed + args.files)
     rows = []
     with cf.ThreadPoolExecutor(args.jobs) as ex, \
-            open(os.path.join(args.work, "results.jsonl"), "a") as log:
+            open(os.path.join(args.work, args.log), "a") as log:
         for row in ex.map(lambda s: one(args, s), seeds):
             rows.append(row)
             log.write(json.dumps(row) + "\n")

@@ -27,6 +27,8 @@ import subprocess
 import sys
 import tempfile
 
+from labstudy import shorten, write_lab  # noqa: F401 (shared with calibrate_study.py)
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PY = os.path.join(ROOT, "target/pyenv/bin/python3")
 WRITER = os.path.join(ROOT, "tests/fixtures/lab/labwriter.py")
