@@ -104,20 +104,34 @@ def zs_of(res, t, held, row):
     return row
 
 
-def calibrated(args, d, mcap):
-    """`bench calibrate` of `mcap` into `d` (the recording removed unless --keep): (result JSON,
-    exit code), or (None, what went wrong)."""
-    out = os.path.join(d, "result.json")
+def calibrated(args, d, mcap, bench=BENCH, name="result.json", remove=True):
+    """`bench calibrate` of `mcap` into `d` (the recording removed unless --keep or not
+    `remove`): (result JSON, exit code), or (None, what went wrong)."""
+    out = os.path.join(d, name)
     t0 = time.time()
-    r = subprocess.run([BENCH, "calibrate", mcap, "-o", os.path.join(d, "cal"), "--json", out,
-                        "--no-report", "--keep-poor-fit", "-q"], capture_output=True, text=True)
+    cal = os.path.join(d, "cal" + name[len("result"):-len(".json")])
+    r = subprocess.run([bench, "calibrate", mcap, "-o", cal, "--json", out, "--no-report",
+                        "--keep-poor-fit", "--force", "-q"], capture_output=True, text=True)
     if not os.path.exists(out):
         return None, f"bench exit {r.returncode}: {r.stderr.strip()[-400:]}"
     res = json.load(open(out))
     res["calibrate_secs"] = time.time() - t0
-    if not args.keep:
+    if remove and not args.keep:
         os.remove(mcap)
     return res, r.returncode
+
+
+def verdict_of(res, code, t):
+    """What one calibration said and its z against the truth `t`."""
+    held = set((res.get("held") or {}).keys())
+    row = {"exit": code, "verdict": res["fit"]["verdict"],
+           "failed": [c["key"] for c in res["fit"]["checks"] if not c["passed"]],
+           "checks": {c["key"]: c["value"] for c in res["fit"]["checks"]},
+           "lag_fit": res.get("thermal_time_constant"),
+           "lag_sigma": res.get("thermal_time_constant_sigma"),
+           "held": sorted(held), "z": {}, "z_angle": {},
+           "calibrate_secs": res["calibrate_secs"]}
+    return zs_of(res, t, held, row)
 
 
 def one_seed(args, seed):
@@ -156,25 +170,32 @@ def one(args, seed):
         return {"seed": seed, "error": err}
     d = os.path.dirname(mcap)
     truth = json.load(open(mcap[:-5] + ".truth.json"))
+    t = truth["gyro_model"]
+    other = None
+    if args.compare:
+        # The same recording through another build first (`--compare`): its lines beside.
+        res, code = calibrated(args, d, mcap, bench=args.compare, name="result-compare.json",
+                               remove=False)
+        other = verdict_of(res, code, t) if res is not None else {"error": code}
     res, code = calibrated(args, d, mcap)
     if res is None:
         return {"seed": seed, "error": code}
-    t = truth["gyro_model"]
-    held = set((res.get("held") or {}).keys())
-    row = {"seed": seed, "kind": kind, "exit": code, "verdict": res["fit"]["verdict"],
-           "failed": [c["key"] for c in res["fit"]["checks"] if not c["passed"]],
-           "checks": {c["key"]: c["value"] for c in res["fit"]["checks"]},
-           "sensor": cfg["gyro"]["sensor"], "lag_true": cfg["gyro"]["thermal_time_constant"],
-           "lag_fit": res.get("thermal_time_constant"),
-           "lag_sigma": res.get("thermal_time_constant_sigma"),
+    row = {"seed": seed, "kind": kind, "sensor": cfg["gyro"]["sensor"],
+           "lag_true": cfg["gyro"]["thermal_time_constant"],
            "rates": cfg["procedure"]["rates_deg_min"], "segment_s": cfg["procedure"]["segment_s"],
-           "hz": cfg["gyro"]["sample_rate_hz"], "held": sorted(held), "z": {}, "z_angle": {},
-           "hours": truth["duration_s"] / 3600.0, "write_secs": write_secs,
-           "calibrate_secs": res["calibrate_secs"]}
-    return zs_of(res, t, held, row)
+           "hz": cfg["gyro"]["sample_rate_hz"], "hours": truth["duration_s"] / 3600.0,
+           "write_secs": write_secs, **verdict_of(res, code, t)}
+    if other is not None:
+        row["compare"] = other
+    return row
 
 
 def table(rows, study):
+    if any("compare" in r for r in rows):
+        print("## --compare build (the same recordings)")
+        table([{**r, **r["compare"]} for r in rows if "compare" in r and "error" not in r
+               and "error" not in r["compare"]], study)
+        print("\n## this build")
     ok = [r for r in rows if "error" not in r]
     print(f"{len(ok)} files ({len(rows) - len(ok)} failed to run)")
     for r in rows:
@@ -241,6 +262,9 @@ def main():
                     help="LO-HI: cut each drawn procedure to a length drawn in LO..HI h (its "
                          "first legs; the other draws unchanged), e.g. 2-3 (default: as drawn, "
                          "2-5 h)")
+    ap.add_argument("--compare", default=None,
+                    help="another bench build: each recording is calibrated by it too, and its "
+                         "table printed first (a change measured on the same files)")
     ap.add_argument("--log", default="results.jsonl",
                     help="per-file lines, in WORK (another name to calibrate kept recordings "
                          "again with another BENCH_BIN)")

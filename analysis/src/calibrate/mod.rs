@@ -341,17 +341,25 @@ fn model_temperature(
     lag: Option<&Result<LagFit, AnalysisError>>,
     opts: &CalibrateOptions,
 ) -> Vec<RecordWindow> {
-    let (model_windows, model_series) = match lag {
-        Some(Ok(l)) if l.used_s > 0.0 => {
-            let lagged = series.lagged(l.used_s);
-            match with_model_series(windows, &lagged) {
-                Ok(w) => (w, lagged),
-                Err(_) => (windows.to_vec(), series.clone()),
-            }
-        }
-        _ => (windows.to_vec(), series.clone()),
-    };
-    model_series_windows(&model_windows, &model_series, opts.joint.rate_window_s)
+    match lag {
+        Some(Ok(l)) if l.used_s > 0.0 => windows_at_lag(windows, series, l.used_s, opts),
+        _ => None,
+    }
+    .unwrap_or_else(|| model_series_windows(windows, series, opts.joint.rate_window_s))
+}
+
+/// The windows with the model temperature `series` through a lag of `tau_s`, smoothed and
+/// differentiated over the whole run ([`model_series_windows`]); `None` when the lagged series
+/// does not fit the windows.
+fn windows_at_lag(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+    tau_s: f64,
+    opts: &CalibrateOptions,
+) -> Option<Vec<RecordWindow>> {
+    let lagged = series.lagged(tau_s);
+    let w = with_model_series(windows, &lagged).ok()?;
+    Some(model_series_windows(&w, &lagged, opts.joint.rate_window_s))
 }
 
 /// The model temperature's smoothed value and rate over the whole run (`model_series`), at
@@ -546,6 +554,10 @@ pub fn calibrate(
         ..joint_options(opts)
     };
     let joint = joint_fit(&model_windows, &joint_opts);
+    let (model_windows, joint_opts, joint) = match &mut lag {
+        Some(Ok(l)) => relinearised(windows, series, l, model_windows, joint_opts, joint, opts),
+        _ => (model_windows, joint_opts, joint),
+    };
     if let Err(e) = &joint {
         missing.push(format!("joint fit: {e}"));
     }
@@ -587,6 +599,57 @@ pub fn calibrate(
         angle,
         missing,
     }
+}
+
+/// Most Gauss–Newton steps of the lag ([`relinearised`]).
+const LAG_STEPS: usize = 5;
+
+/// A lag step smaller than this share of the lag's σ ends the Gauss–Newton iteration.
+const LAG_STEP_TOLERANCE: f64 = 0.05;
+
+/// The joint fit with the lag's nuisance linearised at the lag it fits, not at the profile's
+/// τ̂ (Gauss–Newton): while the fit moves τ by more than [`LAG_STEP_TOLERANCE`] of its σ, the
+/// model temperature and the nuisance column (`k_t·∂T/∂τ + k_dt·∂Ṫ/∂τ` at the fit's
+/// coefficients) are taken again at the moved τ and the coefficients refitted. The profile's τ̂
+/// comes from the OLS residual, the fit's τ from the GLS: they differ by about σ(τ), and the
+/// first-order column carries the coefficients only part of that way — k_t and k_dt, which
+/// the lag trades against each other, keep a bias of their own (on the lab writer's files,
+/// largest in the angle domain, whose windows' own reference rates leave k_t to the ramps).
+/// `l.used_s` becomes the τ of the last linearisation; the windows, options and fit returned
+/// are those at it. A step that fails keeps the fit before it.
+fn relinearised(
+    windows: &[RecordWindow],
+    series: &TemperatureSeries,
+    l: &mut LagFit,
+    mut model_windows: Vec<RecordWindow>,
+    mut joint_opts: JointFitOptions,
+    mut joint: Result<JointFit, AnalysisError>,
+    opts: &CalibrateOptions,
+) -> (Vec<RecordWindow>, JointFitOptions, Result<JointFit, AnalysisError>) {
+    if l.used_s <= 0.0 {
+        return (model_windows, joint_opts, joint);
+    }
+    for _ in 0..LAG_STEPS {
+        let Ok(j) = &joint else { break };
+        let Some(step) = &j.nuisance else { break };
+        if !(step.value.is_finite() && step.std_err.is_finite())
+            || step.value.abs() <= LAG_STEP_TOLERANCE * step.std_err
+        {
+            break;
+        }
+        let tau = (l.used_s + step.value).max(1.0);
+        let Some(w) = windows_at_lag(windows, series, tau, opts) else { break };
+        let coefficients =
+            [j.bias.value, j.scale_factor_error.value, j.temp_coeff.value, j.temp_rate_coeff.value];
+        let Some(nu) = lag_nuisance(&w, series, tau, coefficients, opts.joint.rate_window_s) else {
+            break;
+        };
+        let o = JointFitOptions { nuisance: Some(nu), ..joint_opts.clone() };
+        let Ok(fit) = joint_fit(&w, &o) else { break };
+        l.used_s = tau;
+        (model_windows, joint_opts, joint) = (w, o, Ok(fit));
+    }
+    (model_windows, joint_opts, joint)
 }
 
 /// Stage 6: the angle-domain fit (when the table's readings were given), under the same noise
