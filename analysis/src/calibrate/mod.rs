@@ -14,7 +14,8 @@
 //!    quantile of the confidence level; otherwise τ = 0 (the measured temperature). A kept τ̂
 //!    is then **fitted with the coefficients** ([`lag_nuisance`]: its linearised effect
 //!    `k_t·∂T/∂τ + k_dt·∂Ṫ/∂τ` is a fifth column of both fits), so every σ carries its
-//!    uncertainty.
+//!    uncertainty; the column is taken again at the τ the fit finds until it stops moving
+//!    ([`relinearised`]: a first-order column alone leaves k_t and k_dt part of the way).
 //! 3. **Noise** ([`noise`]): the overlapping Allan deviation of the thermal model's residual
 //!    (OLS, lag included — a coil still settling after a ramp is the model's, not noise),
 //!    pooled over the windows at constant chamber temperature (every window when there are
