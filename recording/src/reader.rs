@@ -722,28 +722,38 @@ impl Recording {
         Self::from_items(reader)
     }
 
-    fn from_items<R: Read>(mut reader: RecordingReader<R>) -> Result<Self, RecordingError> {
+    /// Read everything `reader` has left.
+    pub fn from_items<R: Read>(mut reader: RecordingReader<R>) -> Result<Self, RecordingError> {
         let mut rec = Recording::default();
         for item in reader.by_ref() {
-            match item? {
-                Item::Gyro(m) => rec.gyro.push(m),
-                Item::Table(m) => rec.table.push(m),
-                Item::Chamber(m) => rec.chamber.push(m),
-                Item::Step(m) => rec.steps.push(m),
-                Item::Other(m) => {
-                    *rec.other_counts.entry(m.channel.topic.clone()).or_default() += 1
-                }
-                Item::Metadata(m) => rec.metadata.push(m),
-                Item::Attachment(a) => rec.attachments.push(a),
-            }
+            rec.take(item?);
         }
+        rec.finish_from(&reader);
+        Ok(rec)
+    }
+
+    /// Keep one item read from the file, in file order (messages of other channels are
+    /// counted by topic). A reader of a stream keeps what it does not reduce itself this way.
+    pub fn take(&mut self, item: Item) {
+        match item {
+            Item::Gyro(m) => self.gyro.push(m),
+            Item::Table(m) => self.table.push(m),
+            Item::Chamber(m) => self.chamber.push(m),
+            Item::Step(m) => self.steps.push(m),
+            Item::Other(m) => *self.other_counts.entry(m.channel.topic.clone()).or_default() += 1,
+            Item::Metadata(m) => self.metadata.push(m),
+            Item::Attachment(a) => self.attachments.push(a),
+        }
+    }
+
+    /// How the file ended and what was damaged, from the reader that has read it to its end.
+    pub fn finish_from<R: Read>(&mut self, reader: &RecordingReader<R>) {
         match reader.end() {
-            End::Complete => rec.complete = true,
-            End::Cut { at_byte, reason } => rec.cut = Some((*at_byte, reason.clone())),
+            End::Complete => self.complete = true,
+            End::Cut { at_byte, reason } => self.cut = Some((*at_byte, reason.clone())),
             End::Reading => {}
         }
-        rec.damage = reader.damage().clone();
-        Ok(rec)
+        self.damage = reader.damage().clone();
     }
 
     /// The last metadata record called `name`.

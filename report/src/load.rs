@@ -21,19 +21,38 @@
 //!   `bench.gyro_model` with its `effect.*` keys.
 //! - **Test station** (optional): `bench.station` as recorded, `bench.acceptance` limits as
 //!   numbers ([`crate::acceptance`] judges a calibration against them).
+//!
+//! **Reduction** ([`read_stream`], what `bench calibrate` and `bench diagnose` use): the file is
+//! read as a stream and the gyro's messages are never all held. As they pass they are averaged
+//! in blocks of `n = ⌊f / 40 Hz⌋` consecutive usable samples ([`GyroIntake`]; `n = 1`, the
+//! identity, at ≤ 40 Hz: the arrays are then the full-rate loader's, number for number). A
+//! block never spans a sample left out, a counter that skips (a lost sample) or a step event;
+//! its time is the end of its last sample's interval and [`RunData::gyro_dt_s`] is the block's
+//! interval `n·dt`, so "the samples whose whole interval lies in a span" reads the same on
+//! blocks. The rules above apply to blocks as they did to samples: the time base is chosen and
+//! fitted on them (the fitted time is a line of the device's time, so a block's mean device
+//! time gives its mean fitted time exactly), messages left out stay one each. Table, chamber,
+//! steps, metadata and damage are kept whole, as [`load`] keeps them. Why the analyses' noise
+//! model holds for block means: docs/calibrate.md, "Reduced samples".
 
 use std::collections::BTreeMap;
 
 use bench_analysis::interp::interp_at;
 use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
-use bench_analysis::timebase::{fit_clock, median_interval, unwrap_counter, ClockFit};
+use bench_analysis::timebase::{fit_clock, median_interval, ClockFit};
 use bench_physics::effects::Effects;
 use bench_physics::GyroModel;
-use bench_recording::reader::seconds_since;
+use bench_recording::reader::{seconds_since, time_zero_ns, Item, RecordingReader};
+use bench_recording::RecordingError;
+use std::io::Read;
+
+mod gyro;
 use bench_recording::schema::{
     META_ACCEPTANCE, META_GYRO_MODEL, META_STATION, TOPIC_CHAMBER, TOPIC_GYRO, TOPIC_TABLE,
 };
-use bench_recording::{status, MetadataError, Recording, Stamped, StepEvent};
+use bench_recording::{MetadataError, Recording, Stamped, StepEvent};
+use gyro::GyroArrays;
+pub use gyro::{block_len, GyroIntake, Reduction, REDUCED_RATE_HZ};
 
 /// Why a recording cannot be turned into arrays.
 #[derive(Debug, thiserror::Error)]
@@ -174,8 +193,55 @@ pub fn recorded_model(rec: &Recording) -> Result<Option<RecordedModel>, LoadErro
     Ok(Some(RecordedModel { model, effects, unknown_keys }))
 }
 
-/// Read the run's arrays from `rec` (module docs).
+/// Read the run's arrays from `rec` (module docs), every gyro sample kept.
 pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
+    let mut gyro = GyroIntake::new(Reduction::Full);
+    for m in &rec.gyro {
+        gyro.push(m);
+    }
+    load_with(rec, gyro)
+}
+
+/// A recording read as a stream: everything but the gyro's messages as [`Recording`] holds it
+/// (its `gyro` is empty), and the gyro's messages reduced as they passed ([`GyroIntake`]).
+#[derive(Debug, Clone)]
+pub struct Streamed {
+    /// The recording without its gyro messages: the other channels, metadata, attachments, how
+    /// the file ended, its damage.
+    pub rec: Recording,
+    /// The gyro's messages, reduced.
+    pub gyro: GyroIntake,
+}
+
+/// Read a recording as a stream (module docs, "Reduction"): the gyro's messages are reduced
+/// as they are read, never all held.
+pub fn read_stream<R: Read>(
+    mut reader: RecordingReader<R>,
+    reduction: Reduction,
+) -> Result<Streamed, RecordingError> {
+    let mut rec = Recording::default();
+    let mut gyro = GyroIntake::new(reduction);
+    for item in reader.by_ref() {
+        match item? {
+            Item::Gyro(m) => gyro.push(&m),
+            Item::Step(m) => {
+                gyro.boundary();
+                rec.steps.push(m);
+            }
+            other => rec.take(other),
+        }
+    }
+    rec.finish_from(&reader);
+    Ok(Streamed { rec, gyro })
+}
+
+/// The run's arrays from a recording read as a stream ([`read_stream`]).
+pub fn load_streamed(s: Streamed) -> Result<RunData, LoadError> {
+    load_with(&s.rec, s.gyro)
+}
+
+/// The run's arrays from `rec`'s other channels and the gyro's intake (module docs).
+fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
     let need = |topic, n: usize| {
         if n < 2 {
             Err(LoadError::MissingChannel { topic, messages: n })
@@ -183,30 +249,26 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
             Ok(())
         }
     };
-    need(TOPIC_GYRO, rec.gyro.len())?;
+    need(TOPIC_GYRO, gyro.messages())?;
     need(TOPIC_TABLE, rec.table.len())?;
     need(TOPIC_CHAMBER, rec.chamber.len())?;
-    let zero_ns = rec.time_zero_ns().unwrap_or(0);
+    let zero_ns = time_zero_ns([
+        gyro.min_log_ns(),
+        rec.table.iter().map(|m| m.log_time_ns).min(),
+        rec.chamber.iter().map(|m| m.log_time_ns).min(),
+        rec.steps.iter().map(|m| m.log_time_ns).min(),
+    ])
+    .unwrap_or(0);
     let secs = |ns: u64| seconds_since(zero_ns, ns);
     let site = rec.site()?;
 
-    let (gyro_times, gyro_base) = channel_times(TOPIC_GYRO, &rec.gyro, zero_ns, |m| Some(m.seq));
-    let mut gyro_time_s = Vec::with_capacity(rec.gyro.len());
-    let mut gyro_rate = Vec::with_capacity(rec.gyro.len());
-    let mut gyro_temp = Vec::with_capacity(rec.gyro.len());
-    let mut bad_gyro_time_s = Vec::new();
-    for (k, (g, &t)) in rec.gyro.iter().zip(&gyro_times).enumerate() {
-        let skipped = k > 0 && g.msg.seq != rec.gyro[k - 1].msg.seq.wrapping_add(1);
-        let valid = status::gyro::usable(g.msg.status, skipped);
-        if !valid || !g.msg.rate_rad_s.is_finite() {
-            bad_gyro_time_s.push(t);
-            continue;
-        }
-        gyro_time_s.push(t);
-        gyro_rate.push(g.msg.rate_rad_s);
-        gyro_temp.push(g.msg.temperature_c.filter(|t| t.is_finite()).unwrap_or(f64::NAN));
-    }
-    bad_gyro_time_s.sort_by(f64::total_cmp);
+    let GyroArrays {
+        time_s: mut gyro_time_s,
+        rate: mut gyro_rate,
+        temp: mut gyro_temp,
+        bad_time_s: bad_gyro_time_s,
+        base: gyro_base,
+    } = gyro.finish(zero_ns);
     strictly_increasing(&mut gyro_time_s, &mut [&mut gyro_rate, &mut gyro_temp]);
     need(TOPIC_GYRO, gyro_time_s.len())?;
     let readings = gyro_temp.iter().filter(|t| t.is_finite()).count();
@@ -222,7 +284,7 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
     });
     let gyro_dt_s = median_interval(&gyro_time_s).unwrap_or(f64::NAN);
 
-    let (table_times, table_base) = channel_times(TOPIC_TABLE, &rec.table, zero_ns, |_| None);
+    let (table_times, table_base) = channel_times(TOPIC_TABLE, &rec.table, zero_ns);
     let mut table_time_s = Vec::with_capacity(rec.table.len());
     let mut angle = Vec::with_capacity(rec.table.len());
     let mut command = Vec::with_capacity(rec.table.len());
@@ -234,8 +296,7 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
         }
     }
     strictly_increasing(&mut table_time_s, &mut [&mut angle, &mut command]);
-    let (chamber_times, chamber_base) =
-        channel_times(TOPIC_CHAMBER, &rec.chamber, zero_ns, |_| None);
+    let (chamber_times, chamber_base) = channel_times(TOPIC_CHAMBER, &rec.chamber, zero_ns);
     let mut chamber_time_s = Vec::with_capacity(rec.chamber.len());
     let mut air = Vec::with_capacity(rec.chamber.len());
     for (m, &t) in rec.chamber.iter().zip(&chamber_times) {
@@ -308,30 +369,40 @@ pub fn load(rec: &Recording) -> Result<RunData, LoadError> {
 }
 
 /// A channel's sample times in s from `zero_ns` (module docs): its device stamps when it has
-/// them, else its device counter (`counter` of a message, for the gyro), else its host stamps.
+/// them, else its host stamps (the gyro's counter is read by its intake, [`GyroIntake`]).
 /// Messages are taken in file order (non-decreasing `log_time` per the format).
 fn channel_times<T>(
     topic: &'static str,
     msgs: &[Stamped<T>],
     zero_ns: u64,
-    counter: impl Fn(&T) -> Option<u64>,
 ) -> (Vec<f64>, TimeBase) {
     let host: Vec<f64> = msgs.iter().map(|m| seconds_since(zero_ns, m.log_time_ns)).collect();
     let stamped = msgs.iter().filter(|m| m.publish_time_ns != m.log_time_ns).count();
-    let host_only = |host| (host, TimeBase { topic, source: TimeSource::Host, fit: None });
     let stamps = (msgs.len() >= 10 && stamped * 2 > msgs.len()).then(|| {
         let first = msgs[0].publish_time_ns;
         msgs.iter().map(|m| seconds_since(first, m.publish_time_ns)).collect::<Vec<f64>>()
     });
     // Device stamps must increase with the file's order to be a clock.
-    let device = match stamps.filter(|d| d.windows(2).all(|w| w[1] > w[0])) {
-        Some(d) => Some((d, TimeSource::DeviceStamps)),
-        None => {
-            let seq: Option<Vec<u64>> = msgs.iter().map(|m| counter(&m.msg)).collect();
-            seq.filter(|s| s.len() >= 10).map(|s| (unwrap_counter(&s), TimeSource::DeviceCounter))
-        }
-    };
-    let Some((device, source)) = device else { return host_only(host) };
+    match stamps.filter(|d| d.windows(2).all(|w| w[1] > w[0])) {
+        Some(d) => on_device_clock(topic, d, TimeSource::DeviceStamps, host, 1.0),
+        None => (host, TimeBase { topic, source: TimeSource::Host, fit: None }),
+    }
+}
+
+/// Times on the device's clock `device` (stamps in s, or a counter's counts) where it keeps
+/// time with the host's stamps `host` (same length), else the host stamps. `per_count` is the
+/// host's median seconds per count, for a counter.
+fn on_device_clock(
+    topic: &'static str,
+    device: Vec<f64>,
+    source: TimeSource,
+    host: Vec<f64>,
+    per_count: f64,
+) -> (Vec<f64>, TimeBase) {
+    let host_only = |host| (host, TimeBase { topic, source: TimeSource::Host, fit: None });
+    if device.len() < 10 {
+        return host_only(host);
+    }
     let Some(fit) = fit_clock(&device, &host) else { return host_only(host) };
     // A clock keeps time with the host's: the line through the host stamps runs at the rate
     // of the device's within 1 % (a real clock drifts by ppm; stamps in another unit, or a
@@ -341,11 +412,11 @@ fn channel_times<T>(
     // A counter counts samples: its rate (seconds per count) is the host's median interval
     // within 10 %.
     let expected = match source {
-        TimeSource::DeviceCounter => (median_interval(&host).unwrap_or(0.0), 0.1),
+        TimeSource::DeviceCounter => (per_count, 0.1),
         _ => (1.0, 0.01),
     };
     let ok_rate = expected.0 > 0.0 && (fit.rate / expected.0 - 1.0).abs() <= expected.1;
-    if !(ok_rate && fit.outliers * 10 < msgs.len()) {
+    if !(ok_rate && fit.outliers * 10 < device.len()) {
         return host_only(host);
     }
     let times = device.iter().map(|&d| fit.host(d)).collect();
@@ -355,6 +426,100 @@ fn channel_times<T>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bench_recording::{ChamberMsg, GyroMsg, Outcome, Recorder, RunInfo, Site, TableMsg};
+    use std::time::Duration;
+
+    fn streamed(bytes: &[u8], reduction: Reduction) -> RunData {
+        let s = read_stream(RecordingReader::new(bytes), reduction).expect("reads");
+        assert!(s.rec.gyro.is_empty(), "the gyro's messages are not held");
+        load_streamed(s).expect("loads")
+    }
+
+    /// At 20 Hz the reduction is the identity: the streamed arrays are the full-rate loader's,
+    /// number for number.
+    #[test]
+    fn a_20_hz_stream_gives_the_full_rate_arrays() {
+        let bytes = crate::testutil::short_run_bytes();
+        let full = load(&Recording::from_bytes(&bytes).expect("reads")).expect("loads");
+        for reduction in [Reduction::ToModelRate, Reduction::Full] {
+            let s = streamed(&bytes, reduction);
+            assert_eq!(s.series, full.series);
+            assert_eq!(s.zero_ns, full.zero_ns);
+            assert_eq!(s.time_bases, full.time_bases);
+            assert_eq!(s.bad_gyro_time_s, full.bad_gyro_time_s);
+            assert_eq!(s.gyro_dt_s.to_bits(), full.gyro_dt_s.to_bits());
+        }
+        assert_eq!(block_len(0.05), 1);
+        assert_eq!(block_len(1.0 / 80.0), 2);
+        assert_eq!(block_len(0.005), 5);
+        assert_eq!(block_len(0.0005), 50);
+    }
+
+    /// A 200 Hz gyro is averaged in blocks of 5 consecutive usable samples; a block never spans
+    /// a lost sample, a flagged one or a step event, and a block's time is its last sample's.
+    #[test]
+    fn a_200_hz_stream_is_reduced_to_block_means_that_span_no_gap_flag_or_step() {
+        let info = RunInfo::new(1_767_225_600_000_000_000, "t", "", Site::at_latitude(45.0), {
+            bench_physics::GyroModel::default().to_metadata()
+        });
+        let mut r = Recorder::new(std::io::Cursor::new(Vec::new()), info).expect("starts");
+        let at = |k: u64| Duration::from_millis(5 * k);
+        r.step(at(0), 0, "record", StepEvent::Start, "record a").expect("step");
+        for k in 1..=200u64 {
+            if k == 53 {
+                continue; // lost: the counter skips
+            }
+            let g = GyroMsg {
+                rate_rad_s: k as f64,
+                temperature_c: Some(20.0 + k as f64 * 0.01),
+                seq: k,
+                status: if k == 100 { 1 } else { 0 },
+            };
+            r.gyro(at(k), None, &g).expect("gyro");
+            if k.is_multiple_of(20) {
+                let tm = TableMsg {
+                    angle_rad: 0.0,
+                    rate_rad_s: 0.0,
+                    rate_command_rad_s: 0.0,
+                    status: 0,
+                };
+                r.table(at(k), None, &tm).expect("table");
+                let c = ChamberMsg { temperature_c: 20.0, setpoint_c: 20.0, status: 0 };
+                r.chamber(at(k), None, &c).expect("chamber");
+            }
+            if k == 71 {
+                r.step(at(k), 0, "record", StepEvent::End, "record a").expect("step");
+                r.step(at(k), 1, "record", StepEvent::Start, "record b").expect("step");
+            }
+        }
+        let bytes = r.finish(&Outcome::Completed).expect("finished").into_inner();
+        let d = streamed(&bytes, Reduction::ToModelRate);
+        // Runs of consecutive usable samples, cut in blocks of 5.
+        let runs = [(1..=52), (54..=71), (72..=99), (101..=200)];
+        let mut rate = Vec::new();
+        let mut time = Vec::new();
+        for run in runs {
+            let ks: Vec<u64> = run.collect();
+            for b in ks.chunks(5) {
+                rate.push(b.iter().sum::<u64>() as f64 / b.len() as f64);
+                time.push(*b.last().expect("a block") as f64 * 0.005);
+            }
+        }
+        assert_eq!(d.series.gyro_rate_rad_s, rate);
+        assert_eq!(d.series.gyro_time_s.len(), time.len());
+        for (got, want) in d.series.gyro_time_s.iter().zip(&time) {
+            assert!((got - want).abs() < 1e-9, "{got} against {want}");
+        }
+        assert!((d.gyro_dt_s - 0.025).abs() < 1e-9, "{}", d.gyro_dt_s);
+        assert_eq!(d.bad_gyro_time_s.len(), 1);
+        assert!((d.bad_gyro_time_s[0] - 0.5).abs() < 1e-9);
+        assert_eq!(d.time_bases[0].source, TimeSource::DeviceCounter);
+        let temp = d.series.gyro_temp_c.as_ref().expect("the sensor reads");
+        assert!((temp[0] - 20.03).abs() < 1e-12, "{}", temp[0]);
+        // The full-rate loader of the same file keeps every usable sample.
+        let full = load(&Recording::from_bytes(&bytes).expect("reads")).expect("loads");
+        assert_eq!(full.series.gyro_time_s.len(), 198);
+    }
 
     #[test]
     fn duplicate_time_stamps_keep_the_first_sample() {

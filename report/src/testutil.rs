@@ -77,6 +77,11 @@ fn legs(dir: &'static str) -> Vec<Leg> {
 
 /// The synthetic run, recorded in memory.
 pub(crate) fn short_run() -> Recording {
+    Recording::from_bytes(&short_run_bytes()).expect("readable")
+}
+
+/// The synthetic run's file.
+pub(crate) fn short_run_bytes() -> Vec<u8> {
     let m = truth();
     let dt = 0.05;
     let omega0 = 10f64.to_radians() / 60.0;
@@ -151,6 +156,5 @@ pub(crate) fn short_run() -> Recording {
             index += 1;
         }
     }
-    let bytes = r.finish(&Outcome::Completed).expect("finished").into_inner();
-    Recording::from_bytes(&bytes).expect("readable")
+    r.finish(&Outcome::Completed).expect("finished").into_inner()
 }

@@ -75,15 +75,15 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     outputs.dir(&args.out)?;
     outputs.file(args.json.as_deref())?;
     let started = std::time::Instant::now();
-    let rec = super::load_recording(&args.recording, args.quiet)?;
-    // The arrays, then the decoded messages freed before the analysis (they are the larger
-    // part of the memory): only the notes on the file are kept.
-    let context = super::analysis_context(&rec, "calibrate", &args.recording);
-    let notes: Vec<String> = rec.cut_note().into_iter().chain(rec.damage_note()).collect();
-    let run = bench_report::load::load(&rec)
+    // Read as a stream, the gyro's samples reduced to the thermal model's rate as they pass;
+    // then the arrays, with only the notes on the file kept.
+    let streamed = super::read_recording_stream(&args.recording, args.quiet)?;
+    let context = super::analysis_context(&streamed.rec, "calibrate", &args.recording);
+    let notes: Vec<String> =
+        streamed.rec.cut_note().into_iter().chain(streamed.rec.damage_note()).collect();
+    let run = bench_report::load::load_streamed(streamed)
         .map_err(bench_report::calibrate::CalibrateError::from)
         .with_context(|| context.clone())?;
-    drop(rec);
     let working = bench::progress::Working::new(
         &format!("calibrating {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),

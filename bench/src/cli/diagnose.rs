@@ -285,21 +285,21 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         threads: threads_from_env(),
         ..Default::default()
     };
-    let rec = super::load_recording(&args.recording, args.quiet)?;
     if args.scan_only {
+        // The scan's benchmark: every sample, as the scan's speed is quoted.
+        let rec = super::load_recording(&args.recording, args.quiet)?;
         return scan_only(&args, nominal, &opts, &rec, started, outputs);
     }
+    // Read as a stream, the gyro's samples reduced to the thermal model's rate as they pass.
+    let streamed = super::read_recording_stream(&args.recording, args.quiet)?;
     let working = bench::progress::Working::new(
         &format!("diagnosing {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),
     );
-    // The arrays, then the decoded messages freed before the analysis (they are the larger
-    // part of the memory).
-    let context = super::analysis_context(&rec, "diagnose", &args.recording);
-    let data = bench_report::load::load(&rec)
+    let context = super::analysis_context(&streamed.rec, "diagnose", &args.recording);
+    let data = bench_report::load::load_streamed(streamed)
         .map_err(bench_report::diagnose::DiagnoseError::from)
         .with_context(|| context.clone())?;
-    drop(rec);
     let out = diagnose_run(data, nominal, &opts).with_context(|| context.clone())?;
     drop(working);
     let name = args

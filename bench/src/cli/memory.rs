@@ -83,13 +83,14 @@ pub fn run(args: MemoryArgs) -> anyhow::Result<ExitCode> {
     // Each analysis from the file, as its own command runs: read, arrays, messages freed.
     let analyses = [("calibrate", !args.no_calibrate), ("diagnose", !args.no_diagnose)];
     for (analysis, _) in analyses.into_iter().filter(|a| a.1) {
-        let rec =
-            phase(&mut phases, "read", || super::load_recording(&args.recording, args.quiet))?;
-        let context = super::analysis_context(&rec, analysis, &args.recording);
-        let run = phase(&mut phases, "load", || bench_report::load::load(&rec))
+        let streamed = phase(&mut phases, "read and reduce", || {
+            super::read_recording_stream(&args.recording, args.quiet)
+        })?;
+        let context = super::analysis_context(&streamed.rec, analysis, &args.recording);
+        let messages = streamed.gyro.messages();
+        let run = phase(&mut phases, "load", || bench_report::load::load_streamed(streamed))
             .with_context(|| context.clone())?;
-        counts = (rec.gyro.len(), run.series.gyro_time_s.len());
-        phase(&mut phases, "free the messages", || drop(rec));
+        counts = (messages, run.series.gyro_time_s.len());
         if analysis == "calibrate" {
             let settings = CalibrateSettings { replicates: args.replicates, ..Default::default() };
             phase(&mut phases, "calibrate", || calibrate_run(run, &settings))

@@ -112,6 +112,38 @@ pub(crate) fn load_recording(
     path: &std::path::Path,
     quiet: bool,
 ) -> anyhow::Result<bench_recording::Recording> {
+    read_with_progress(path, quiet, |reader| {
+        bench_recording::Recording::from_items(reader).map(|rec| (rec, ()))
+    })
+    .map(|(rec, ())| rec)
+}
+
+/// Read the recording at `path` as a stream, as [`load_recording`] shows and warns: the
+/// gyro's samples reduced to the thermal model's rate as they pass
+/// ([`bench_report::load::read_stream`]), so the analysis's memory does not grow with the
+/// sample rate. Its recording holds everything but the gyro's messages.
+pub(crate) fn read_recording_stream(
+    path: &std::path::Path,
+    quiet: bool,
+) -> anyhow::Result<bench_report::load::Streamed> {
+    use bench_report::load::{read_stream, Reduction, Streamed};
+    read_with_progress(path, quiet, |reader| {
+        read_stream(reader, Reduction::ToModelRate).map(|s| (s.rec, s.gyro))
+    })
+    .map(|(rec, gyro)| Streamed { rec, gyro })
+}
+
+/// Open `path` with a progress bar (bytes read / size, with the time left) and read it with
+/// `read`; damage and a cut are named on stderr.
+fn read_with_progress<T>(
+    path: &std::path::Path,
+    quiet: bool,
+    read: impl FnOnce(
+        bench_recording::RecordingReader<
+            bench::progress::ReadProgress<std::io::BufReader<std::fs::File>>,
+        >,
+    ) -> Result<(bench_recording::Recording, T), bench_recording::RecordingError>,
+) -> anyhow::Result<(bench_recording::Recording, T)> {
     use anyhow::Context as _;
     kind::expect(path, &[kind::Kind::Recording])?;
     let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
@@ -119,17 +151,18 @@ pub(crate) fn load_recording(
         .file_name()
         .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     let show = !quiet && bench::progress::stderr_is_styled();
-    let rec = bench_recording::Recording::load_through(path, |file| {
+    let reader = bench_recording::RecordingReader::open_through(path, |file| {
         bench::progress::ReadProgress::new(file, size, &name, show)
     })
     .with_context(|| format!("cannot read {}", path.display()))?;
+    let (rec, out) = read(reader).with_context(|| format!("cannot read {}", path.display()))?;
     if let Some(note) = rec.damage_note() {
         eprintln!("warning: {note}; the analysis uses the intact data");
     }
     if let Some(note) = rec.cut_note() {
         eprintln!("note: {note}");
     }
-    Ok(rec)
+    Ok((rec, out))
 }
 
 /// The context of an analysis error on `rec`: `cannot VERB PATH`, after the cut or the damage
