@@ -131,8 +131,11 @@ pub struct RunData {
     pub model: Option<RecordedModel>,
     /// Times (s) of gyro samples left out for a non-zero status or a non-finite rate.
     pub bad_gyro_time_s: Vec<f64>,
-    /// Median gyro sample interval, s.
+    /// Median gyro sample interval, s (of the blocks, `n·dt`, where samples are averaged in
+    /// blocks: module docs, "Reduction").
     pub gyro_dt_s: f64,
+    /// Gyro samples averaged per block (1: every sample kept as it is).
+    pub gyro_block_len: usize,
     /// Each device channel's time base (gyro, table, chamber).
     pub time_bases: Vec<TimeBase>,
     /// `bench.station` (unit serial, operator, station), empty without the record.
@@ -268,6 +271,7 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         temp: mut gyro_temp,
         bad_time_s: bad_gyro_time_s,
         base: gyro_base,
+        block_len: gyro_block_len,
     } = gyro.finish(zero_ns);
     strictly_increasing(&mut gyro_time_s, &mut [&mut gyro_rate, &mut gyro_temp]);
     need(TOPIC_GYRO, gyro_time_s.len())?;
@@ -361,6 +365,7 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         model_role: rec.gyro_model_role(),
         bad_gyro_time_s,
         gyro_dt_s,
+        gyro_block_len,
         time_bases: vec![gyro_base, table_base, chamber_base],
         station: rec.metadata(META_STATION).cloned().unwrap_or_default(),
         acceptance,

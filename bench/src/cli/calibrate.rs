@@ -84,6 +84,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<ExitCode> {
     let run = bench_report::load::load_streamed(streamed)
         .map_err(bench_report::calibrate::CalibrateError::from)
         .with_context(|| context.clone())?;
+    super::note_reduction(&run, args.quiet);
     let working = bench::progress::Working::new(
         &format!("calibrating {}", args.recording.display()),
         !args.quiet && bench::progress::stderr_is_styled(),

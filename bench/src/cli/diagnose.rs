@@ -300,6 +300,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let data = bench_report::load::load_streamed(streamed)
         .map_err(bench_report::diagnose::DiagnoseError::from)
         .with_context(|| context.clone())?;
+    super::note_reduction(&data, args.quiet);
     let out = diagnose_run(data, nominal, &opts).with_context(|| context.clone())?;
     drop(working);
     let name = args

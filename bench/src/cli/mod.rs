@@ -133,6 +133,19 @@ pub(crate) fn read_recording_stream(
     .map(|(rec, gyro)| Streamed { rec, gyro })
 }
 
+/// Say on stderr (not with `quiet`) that the gyro's samples were averaged in blocks, when they
+/// were (the loader's reduction: docs/calibrate.md, "Reduced samples").
+pub(crate) fn note_reduction(run: &bench_report::load::RunData, quiet: bool) {
+    let n = run.gyro_block_len;
+    if n > 1 && !quiet {
+        eprintln!(
+            "note: gyro samples averaged in blocks of {n} ({:.0} Hz) for the thermal model; the \
+             noise model is that of the block means",
+            1.0 / run.gyro_dt_s
+        );
+    }
+}
+
 /// Open `path` with a progress bar (bytes read / size, with the time left) and read it with
 /// `read`; damage and a cut are named on stderr.
 fn read_with_progress<T>(

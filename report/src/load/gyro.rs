@@ -140,6 +140,7 @@ pub(super) struct GyroArrays {
     pub temp: Vec<f64>,
     pub bad_time_s: Vec<f64>,
     pub base: TimeBase,
+    pub block_len: usize,
 }
 
 impl GyroIntake {
@@ -298,6 +299,7 @@ impl GyroIntake {
             temp: Vec::with_capacity(blocks.len()),
             bad_time_s: Vec::new(),
             base,
+            block_len: n,
         };
         // A block's time is the end of its last sample's interval, as a sample's is: its mean
         // time plus half the samples after the first.
