@@ -1,6 +1,6 @@
-//! `bench memory RECORDING`: the memory benchmark of the analyses. Reads a recording, builds
-//! its arrays and runs calibrate and diagnose on them in one process, as `bench calibrate` and
-//! `bench diagnose` do, and reports each phase's wall time, its peak resident memory and the
+//! `bench memory RECORDING`: the memory benchmark of the analyses. Reads a recording as a
+//! stream (the gyro's samples reduced as they pass), builds its arrays and runs calibrate and
+//! diagnose on them in one process, as `bench calibrate` and `bench diagnose` do, and reports each phase's wall time, its peak resident memory and the
 //! peak per gyro sample (issue 29: the analyses' memory must not grow with the sample rate).
 //!
 //! The peak of each phase is the process's high-water mark (`VmHWM`) reset before the phase
@@ -79,7 +79,7 @@ pub fn run(args: MemoryArgs) -> anyhow::Result<ExitCode> {
         .len();
     let mut phases = Vec::new();
     let started = Instant::now();
-    let mut counts = (0, 0);
+    let mut counts = (0, 0, 1);
     // Each analysis from the file, as its own command runs: read, arrays, messages freed.
     let analyses = [("calibrate", !args.no_calibrate), ("diagnose", !args.no_diagnose)];
     for (analysis, _) in analyses.into_iter().filter(|a| a.1) {
@@ -90,7 +90,7 @@ pub fn run(args: MemoryArgs) -> anyhow::Result<ExitCode> {
         let messages = streamed.gyro.messages();
         let run = phase(&mut phases, "load", || bench_report::load::load_streamed(streamed))
             .with_context(|| context.clone())?;
-        counts = (messages, run.series.gyro_time_s.len());
+        counts = (messages, run.series.gyro_time_s.len(), run.gyro_block_len);
         if analysis == "calibrate" {
             let settings = CalibrateSettings { replicates: args.replicates, ..Default::default() };
             phase(&mut phases, "calibrate", || calibrate_run(run, &settings))
@@ -102,14 +102,15 @@ pub fn run(args: MemoryArgs) -> anyhow::Result<ExitCode> {
                 .with_context(|| context.clone())?;
         }
     }
-    let (gyro_messages, samples) = counts;
+    let (gyro_messages, samples, block_len) = counts;
     let total_s = started.elapsed().as_secs_f64();
 
     let per_sample =
         |mib: Option<f64>| mib.map(|m| m * 1024.0 * 1024.0 / gyro_messages.max(1) as f64);
     let fmt = |v: Option<f64>, d: usize| v.map_or("n/a".to_owned(), |v| format!("{v:.d$}"));
     say!(
-        "{}: {} bytes, {gyro_messages} gyro messages ({samples} usable samples)",
+        "{}: {} bytes, {gyro_messages} gyro messages ({samples} rows of usable samples, in \
+         blocks of {block_len})",
         args.recording.display(),
         file_bytes
     );
@@ -135,6 +136,7 @@ pub fn run(args: MemoryArgs) -> anyhow::Result<ExitCode> {
             "file_bytes": file_bytes,
             "gyro_messages": gyro_messages,
             "usable_samples": samples,
+            "gyro_block_len": block_len,
             "peak_reset_per_phase": resettable,
             "total_s": total_s,
             "phases": phases.iter().map(|p| json!({
