@@ -27,7 +27,7 @@ import subprocess
 import sys
 import tempfile
 
-from labstudy import shorten, write_lab  # noqa: F401 (shared with calibrate_study.py)
+from labstudy import hours_of, shorten, write_lab  # shared with calibrate_study.py
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PY = os.path.join(ROOT, "target/pyenv/bin/python3")
@@ -180,34 +180,6 @@ OUTSIDE = ["kt_kink", "noise_burst"]
 CLASSES = ["null", "effect", "pair", "outside"]
 
 
-def shorten(legs, hours):
-    """The first legs of a drawn chamber profile that fill `hours` (a ramp cut at the budget
-    stops at the temperature it reached): a shorter procedure of the same kind, within the
-    issue's ranges (holds 10–60 min, ramps 0.5–3 °C/min, at least one ramp)."""
-    out, total, temp = [], 0.0, 20.0
-    budget = hours * 3600.0
-    for leg in legs:
-        if total >= budget and any("to_c" in x for x in out):
-            break
-        if "hold_s" in leg:
-            out.append(dict(leg))
-            total += leg["hold_s"]
-            continue
-        span = abs(leg["to_c"] - temp) / leg["rate_c_min"] * 60.0
-        left = budget - total
-        if span > left and any("to_c" in x for x in out) and left > 600.0:
-            frac = left / span
-            to = round(temp + frac * (leg["to_c"] - temp))
-            out.append({"to_c": float(to), "rate_c_min": leg["rate_c_min"]})
-            total = budget
-            temp = to
-            continue
-        out.append(dict(leg))
-        total += span
-        temp = leg["to_c"]
-    return out
-
-
 def draw_random(seed, cls, hours=None):
     """A random procedure (calibrate_study.draw: chamber ramps or soaks, 1–3 rates of 2–30
     °/min, reversals every 4–15 min) with the diagnosis's extras drawn from a second stream:
@@ -230,8 +202,7 @@ def draw_random(seed, cls, hours=None):
         cfg["procedure"]["stop_s"] = round(g.uniform(60.0, seg / 3.0))
     if hours:
         # The procedure's length from a third stream (the others' draws unchanged).
-        h = random.Random(pseed * 7 + 3).uniform(*hours)
-        cfg["procedure"]["legs"] = shorten(cfg["procedure"]["legs"], h)
+        cfg["procedure"]["legs"] = shorten(cfg["procedure"]["legs"], hours_of(pseed, hours))
     preset = "lab-null" if traits else "lab-clean"
     names = []
     if cls == "effect":
@@ -326,22 +297,11 @@ def judge_random(d, truth, names, traits, sensor):
 def one_random(args, cls, seed):
     preset, kind, cfg, names, traits = draw_random(seed, cls, args.hours)
     d = os.path.join(args.work, f"{cls}-{seed}")
-    os.makedirs(d, exist_ok=True)
-    conf = os.path.join(d, "config.json")
-    with open(conf, "w") as f:
-        json.dump(cfg, f, indent=1)
-    mcap = os.path.join(d, "run.mcap")
     pseed = seed * len(CLASSES) + CLASSES.index(cls)
+    mcap, write_secs, error = write_lab(d, cfg, preset, pseed)
+    if error:
+        return {"class": cls, "seed": seed, "error": error}
     import time
-    t0 = time.time()
-    written = os.path.exists(mcap) and os.path.exists(mcap[:-5] + ".done")
-    if not written:
-        w = subprocess.run([PY, WRITER, mcap, "--preset", preset, "--seed", str(pseed),
-                            "--config", conf, "-q"], capture_output=True, text=True)
-        if w.returncode != 0:
-            return {"class": cls, "seed": seed, "error": "writer: " + w.stderr.strip()[-300:]}
-        open(mcap[:-5] + ".done", "w").close()
-    write_secs = time.time() - t0
     if args.write_only:
         return {"class": cls, "seed": seed, "written": True, "write_secs": write_secs}
     out = os.path.join(d, "result.json")
@@ -422,6 +382,7 @@ def main_random(argv):
         random_table(rows)
         return
     args.work = args.work or tempfile.mkdtemp(prefix="diag-random-")
+    os.makedirs(args.work, exist_ok=True)
     import time
     start = time.time()
     jobs = [(c, s) for s in range(args.first_seed, args.first_seed + args.files)
