@@ -954,10 +954,10 @@ impl Stamps {
             return;
         }
         out.extend_from_slice(self.prefix.as_bytes());
-        let digits = itoa::Buffer::new().format(nanos).as_bytes().to_vec();
+        // Nine digits with their leading zeros: those of 10⁹ + nanos after its leading 1.
+        let mut digits = itoa::Buffer::new();
         out.push(b'.');
-        out.extend(std::iter::repeat_n(b'0', 9 - digits.len()));
-        out.extend_from_slice(&digits);
+        out.extend_from_slice(&digits.format(NS + nanos).as_bytes()[1..]);
         out.push(b'Z');
     }
 }

@@ -254,13 +254,19 @@ impl Decode for Items {
     }
 
     fn channel(&self, out: &mut Vec<Slot>, chan: &Chan) {
-        if chan.kind != Kind::Other && chan.info.message_encoding != MESSAGE_ENCODING {
+        if !conforms(chan.kind, &chan.info.message_encoding) {
             out.push(Slot::Error(RecordingError::UnsupportedEncoding {
                 topic: chan.info.topic.clone(),
                 encoding: chan.info.message_encoding.clone(),
             }));
         }
     }
+}
+
+/// Whether a channel of `kind` in `encoding` is one the contract allows: the contract's channels
+/// are JSON; other channels are kept raw whatever their encoding.
+fn conforms(kind: Kind, encoding: &str) -> bool {
+    kind == Kind::Other || encoding == MESSAGE_ENCODING
 }
 
 /// A reader not started yet (options may still change).
@@ -552,13 +558,11 @@ pub(crate) fn summary_records<S: Read + Seek>(src: &mut S, len: u64) -> Option<V
         if !allowed.contains(&opcode) || record.is_err() {
             return None;
         }
-        let conforms = match record {
-            Ok(Record::Channel(c)) => {
-                Kind::of(&c.topic) == Kind::Other || c.message_encoding == MESSAGE_ENCODING
-            }
+        let kept = match record {
+            Ok(Record::Channel(c)) => conforms(Kind::of(&c.topic), &c.message_encoding),
             _ => true,
         };
-        if intact || conforms {
+        if intact || kept {
             out.push((opcode, body.to_vec()));
         }
         at = end;
