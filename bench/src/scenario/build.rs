@@ -59,6 +59,13 @@ struct State {
     overflow: bool,
 }
 
+/// `[safe]`: where an abort leaves the bench.
+struct Safe {
+    decel_rad_s2: f64,
+    temp_c: f64,
+    chamber_hold: bool,
+}
+
 struct Builder<'a> {
     text: &'a str,
     source: &'a str,
@@ -494,7 +501,6 @@ impl<'a> Builder<'a> {
             return None;
         };
         let top = Tbl { entries, span: &root.span };
-        let start = 0..0;
         self.check_keys(
             top,
             &[
@@ -513,8 +519,52 @@ impl<'a> Builder<'a> {
             ],
             "the scenario file",
         );
+        let name = self.scenario_section(top);
+        let site = self.site_section(top);
+        let table_t = self.table(top, "table").unwrap_or(None);
+        if let Some(t) = table_t {
+            self.check_keys(t, &["poll_rate", "poll_rate_hz", "accel", "accel_rad_s2"], "[table]");
+            if let Ok(Some((q, span))) = self.quantity(t, "accel", Dim::AngularAccel) {
+                self.check_accel(&q, &span, "default table acceleration");
+                self.table_accel = q.si;
+            }
+        }
+        let table_poll_hz = self.poll_rate(table_t, "table poll rate");
+        let chamber_t = self.table(top, "chamber").unwrap_or(None);
+        if let Some(t) = chamber_t {
+            self.check_keys(t, &["poll_rate", "poll_rate_hz"], "[chamber]");
+        }
+        let chamber_poll_hz = self.poll_rate(chamber_t, "chamber poll rate");
+        let gyro = self.gyro_section(top);
+        let sim = self.simulation_section(top, &gyro);
+        if let Ok(Some(t)) = self.table(top, "interlocks") {
+            self.interlocks_section(t);
+        }
+        let safe = self.safe_section(top);
+        let station = self.station_sections(top);
+        let flush_interval = self.recording_section(top);
+        self.steps_section(top, sim.initial_temp_c);
+        Some(RunPlan {
+            name,
+            text: self.text.to_string(),
+            source: self.source.to_string(),
+            site,
+            gyro,
+            table_poll_hz,
+            chamber_poll_hz,
+            sim,
+            safe_decel_rad_s2: safe.decel_rad_s2,
+            safe_temp_c: safe.temp_c,
+            safe_chamber_hold: safe.chamber_hold,
+            interlocks: self.interlocks.clone(),
+            station,
+            flush_interval,
+            steps: std::mem::take(&mut self.steps),
+        })
+    }
 
-        // [scenario]
+    /// `[scenario]`: the run's name.
+    fn scenario_section(&mut self, top: Tbl<'a>) -> String {
         let mut name = String::new();
         match self.table(top, "scenario") {
             Ok(Some(t)) => {
@@ -529,44 +579,30 @@ impl<'a> Builder<'a> {
                 let _ = self.string(t, "description");
             }
             Ok(None) => {
-                self.err(&start, "missing [scenario] section with `name`");
+                self.err(&(0..0), "missing [scenario] section with `name`");
             }
             Err(Reported) => {}
         }
+        name
+    }
 
-        // [site]
-        let mut site =
-            Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis: Some(Axis::Up) };
+    /// `[site]`, required (the Earth's rate needs the latitude).
+    fn site_section(&mut self, top: Tbl<'a>) -> Site {
         match self.table(top, "site") {
-            Ok(Some(t)) => site = self.site(t),
+            Ok(Some(t)) => return self.site(t),
             Ok(None) => {
                 self.err(
-                    &start,
+                    &(0..0),
                     "missing [site] section with `latitude_deg` (needed for Earth rate)",
                 );
             }
             Err(Reported) => {}
         }
+        Site { latitude_deg: 0.0, longitude_deg: None, height_m: None, axis: Some(Axis::Up) }
+    }
 
-        // [table]
-        let table_t = self.table(top, "table").unwrap_or(None);
-        if let Some(t) = table_t {
-            self.check_keys(t, &["poll_rate", "poll_rate_hz", "accel", "accel_rad_s2"], "[table]");
-            if let Ok(Some((q, span))) = self.quantity(t, "accel", Dim::AngularAccel) {
-                self.check_accel(&q, &span, "default table acceleration");
-                self.table_accel = q.si;
-            }
-        }
-        let table_poll_hz = self.poll_rate(table_t, "table poll rate");
-
-        // [chamber]
-        let chamber_t = self.table(top, "chamber").unwrap_or(None);
-        if let Some(t) = chamber_t {
-            self.check_keys(t, &["poll_rate", "poll_rate_hz"], "[chamber]");
-        }
-        let chamber_poll_hz = self.poll_rate(chamber_t, "chamber poll rate");
-
-        // [gyro]
+    /// `[gyro]`: sample rate (checked against the gyro's, the default 20 Hz too) and model.
+    fn gyro_section(&mut self, top: Tbl<'a>) -> GyroSetup {
         let mut gyro = GyroSetup {
             sample_rate_hz: 20.0,
             model: GyroModel::default(),
@@ -594,10 +630,14 @@ impl<'a> Builder<'a> {
         if !rate_checked {
             // The default 20 Hz must be offered too.
             let q = Quantity::si(Dim::Frequency, 20.0);
-            self.check_sample_rate(&q, &start);
+            self.check_sample_rate(&q, &(0..0));
         }
+        gyro
+    }
 
-        // [simulation]
+    /// `[simulation]`: the start temperature and the simulated gyro's truth (the nominal
+    /// model unless given).
+    fn simulation_section(&mut self, top: Tbl<'a>, gyro: &GyroSetup) -> SimSetup {
         let mut sim = SimSetup {
             initial_temp_c: 20.0,
             truth: gyro.model.clone(),
@@ -614,16 +654,16 @@ impl<'a> Builder<'a> {
                 self.model(m, &mut sim.truth, &mut sim.truth_effects, "[simulation.truth]");
             }
         }
+        sim
+    }
 
-        // [interlocks]
-        if let Ok(Some(t)) = self.table(top, "interlocks") {
-            self.interlocks_section(t);
-        }
-
-        // [safe]
-        let mut safe_decel = 10.0 * bench_physics::units::DEG;
-        let mut safe_temp = 20.0;
-        let mut safe_hold = false;
+    /// `[safe]`: where an abort leaves the bench; the defaults must fit the devices too.
+    fn safe_section(&mut self, top: Tbl<'a>) -> Safe {
+        let mut safe = Safe {
+            decel_rad_s2: 10.0 * bench_physics::units::DEG,
+            temp_c: 20.0,
+            chamber_hold: false,
+        };
         if let Ok(Some(t)) = self.table(top, "safe") {
             self.check_keys(
                 t,
@@ -631,28 +671,31 @@ impl<'a> Builder<'a> {
                 "[safe]",
             );
             if let Ok(Some(hold)) = self.boolean(t, "chamber_hold") {
-                safe_hold = hold;
+                safe.chamber_hold = hold;
             }
             if let Ok(Some((q, span))) = self.quantity(t, "decel", Dim::AngularAccel) {
                 self.check_accel(&q, &span, "safe-state deceleration");
-                safe_decel = q.si;
+                safe.decel_rad_s2 = q.si;
             }
             if let Ok(Some((q, span))) = self.quantity(t, "temperature", Dim::Temperature) {
                 self.check_temp(&q, &span, "safe-state temperature");
-                safe_temp = q.si;
+                safe.temp_c = q.si;
             }
         } else {
-            // The defaults must fit the devices too.
-            let a =
-                Quantity {
-                    si: safe_decel, unit: "°/s²".into(), factor: bench_physics::units::DEG
-                };
-            self.check_accel(&a, &start, "default safe-state deceleration");
-            let t = Quantity::si(Dim::Temperature, safe_temp);
-            self.check_temp(&t, &start, "default safe-state temperature");
+            let a = Quantity {
+                si: safe.decel_rad_s2,
+                unit: "°/s²".into(),
+                factor: bench_physics::units::DEG,
+            };
+            self.check_accel(&a, &(0..0), "default safe-state deceleration");
+            let t = Quantity::si(Dim::Temperature, safe.temp_c);
+            self.check_temp(&t, &(0..0), "default safe-state temperature");
         }
+        safe
+    }
 
-        // [station], [acceptance]
+    /// `[station]` (free text for the report) and `[acceptance]` (positive limits).
+    fn station_sections(&mut self, top: Tbl<'a>) -> Station {
         let mut station = Station::default();
         if let Ok(Some(t)) = self.table(top, "station") {
             self.check_keys(t, STATION_KEYS, "[station]");
@@ -677,33 +720,37 @@ impl<'a> Builder<'a> {
                 }
             }
         }
+        station
+    }
 
-        // [recording]
-        let mut flush_interval = None;
-        if let Ok(Some(t)) = self.table(top, "recording") {
-            self.check_keys(t, &["flush_interval", "flush_interval_s"], "[recording]");
-            if let Ok(Some((d, span, q))) =
-                self.duration(t, "flush_interval", "[recording] flush_interval")
-            {
-                if d > Duration::from_secs(3600) {
-                    self.err(
-                        &span,
-                        format!(
-                            "[recording] flush_interval {} is longer than 1 h: a kill could lose that \
-                             much of the run",
-                            q.show_self()
-                        ),
-                    );
-                } else {
-                    flush_interval = Some(d);
-                }
-            }
+    /// `[recording]`: the flush interval, at most 1 h.
+    fn recording_section(&mut self, top: Tbl<'a>) -> Option<Duration> {
+        let Ok(Some(t)) = self.table(top, "recording") else { return None };
+        self.check_keys(t, &["flush_interval", "flush_interval_s"], "[recording]");
+        let Ok(Some((d, span, q))) =
+            self.duration(t, "flush_interval", "[recording] flush_interval")
+        else {
+            return None;
+        };
+        if d > Duration::from_secs(3600) {
+            self.err(
+                &span,
+                format!(
+                    "[recording] flush_interval {} is longer than 1 h: a kill could lose that \
+                     much of the run",
+                    q.show_self()
+                ),
+            );
+            return None;
         }
+        Some(d)
+    }
 
-        // [[step]]
+    /// `[[step]]`: expanded into `self.steps`, the chamber starting at `initial_temp_c`.
+    fn steps_section(&mut self, top: Tbl<'a>, initial_temp_c: f64) {
         let mut st = State {
-            setpoint_c: sim.initial_temp_c,
-            ramp_from_c: sim.initial_temp_c,
+            setpoint_c: initial_temp_c,
+            ramp_from_c: initial_temp_c,
             ramp_active: false,
             ramp_duration_s: 0.0,
             overflow: false,
@@ -716,27 +763,9 @@ impl<'a> Builder<'a> {
                 }
             }
             None => {
-                self.err(&start, "the scenario has no steps: add [[step]] tables");
+                self.err(&(0..0), "the scenario has no steps: add [[step]] tables");
             }
         }
-
-        Some(RunPlan {
-            name,
-            text: self.text.to_string(),
-            source: self.source.to_string(),
-            site,
-            gyro,
-            table_poll_hz,
-            chamber_poll_hz,
-            sim,
-            safe_decel_rad_s2: safe_decel,
-            safe_temp_c: safe_temp,
-            safe_chamber_hold: safe_hold,
-            interlocks: self.interlocks.clone(),
-            station,
-            flush_interval,
-            steps: std::mem::take(&mut self.steps),
-        })
     }
 
     fn site(&mut self, t: Tbl<'_>) -> Site {
