@@ -355,7 +355,6 @@ fn exclusions(h: &mut String, o: &CalibrationOutcome) {
 
 pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, String)]) -> String {
     let src = escape(source);
-    let opts = &o.calibration.options;
     let mut h = String::with_capacity(64 * 1024 + figures.iter().map(|f| f.1.len()).sum::<usize>());
     let _ = write!(
         h,
@@ -364,8 +363,26 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
          <title>Calibration report: {src}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n\
          <h1>FOG thermal calibration report</h1>\n<p>Recording: <b>{src}</b></p>\n"
     );
+    setting(&mut h, o);
+    summary(&mut h, o);
+    fit_quality(&mut h, o, source);
+    coefficients(&mut h, o);
+    against_truth(&mut h, o);
+    noise_terms(&mut h, o);
+    thermal_lag(&mut h, o);
+    windows(&mut h, o);
+    exclusions(&mut h, o);
+    compensation_sections(&mut h, o);
+    lacking(&mut h, o);
+    let _ = writeln!(h, "<h2>Figures</h2>");
+    h.push_str(&figures_html(figures));
+    h.push_str("</body>\n</html>\n");
+    h
+}
 
-    // Setting.
+/// The run, the site, the model temperature and the error model.
+fn setting(h: &mut String, o: &CalibrationOutcome) {
+    let opts = &o.calibration.options;
     let d = &o.data;
     let duration = match (d.run.series.gyro_time_s.first(), d.run.series.gyro_time_s.last()) {
         (Some(a), Some(b)) => b - a,
@@ -393,11 +410,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         },
         sig(opts.joint.rate_window_s, 3)
     );
+}
 
-    summary(&mut h, o);
-    fit_quality(&mut h, o, source);
-
-    // Coefficients.
+/// The coefficients in both domains, with the seed method and the truth, and their notes.
+fn coefficients(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(
         h,
         "<h2>Coefficients</h2>\n<table>\n<tr><th class=l>coefficient</th><th class=l>unit</th>\
@@ -442,8 +458,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
             escape(&model_summary(m))
         );
     }
+}
 
-    // Function errors and thermal error removed.
+/// Where the recording carries its simulator's truth: the error functions and the thermal error removed.
+fn against_truth(h: &mut String, o: &CalibrationOutcome) {
     if let Some(t) = &o.truth {
         let _ = writeln!(
             h,
@@ -470,8 +488,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
             removal_row("seed method", t.seed_removal.as_ref()),
         );
     }
+}
 
-    // Noise terms.
+/// IEEE 952's noise terms read off the Allan deviation.
+fn noise_terms(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(h, "<h2>Noise terms (IEEE 952, from the Allan deviation)</h2>");
     match &o.calibration.allan {
         Ok(a) => {
@@ -509,8 +529,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
             let _ = writeln!(h, "<p class=bad>Not available: {}</p>", escape(&e.to_string()));
         }
     }
+}
 
-    // Thermal lag.
+/// The thermal lag's profile, or why it was not profiled.
+fn thermal_lag(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(h, "<h2>Thermal lag</h2>");
     let truth_tau = o.truth.as_ref().map(|t| t.model.thermal_time_constant);
     match &o.calibration.lag {
@@ -548,8 +570,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
             );
         }
     }
+}
 
-    // Windows.
+/// The record windows.
+fn windows(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(
         h,
         "<h2>Record windows</h2>\n<table>\n<tr><th class=l>label</th><th class=l>kind</th>\
@@ -577,11 +601,10 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         );
     }
     let _ = writeln!(h, "</table>");
-    exclusions(&mut h, o);
+}
 
-    compensation_sections(&mut h, o);
-
-    // What the data lack.
+/// What the data lack.
+fn lacking(h: &mut String, o: &CalibrationOutcome) {
     let _ = writeln!(h, "<h2>What the data lack</h2>");
     if o.calibration.missing.is_empty() {
         let _ = writeln!(h, "<p>Nothing: every term could be estimated.</p>");
@@ -592,12 +615,6 @@ pub(super) fn page(o: &CalibrationOutcome, source: &str, figures: &[(Figure, Str
         }
         let _ = writeln!(h, "</ul>");
     }
-
-    // Figures.
-    let _ = writeln!(h, "<h2>Figures</h2>");
-    h.push_str(&figures_html(figures));
-    h.push_str("</body>\n</html>\n");
-    h
 }
 
 #[cfg(test)]
