@@ -30,6 +30,7 @@
 //! (`recording/FORMAT.md`).
 
 pub mod allan_fit;
+pub mod allan_sub;
 pub mod angle_fit;
 pub mod calibrate;
 pub mod compensation;

@@ -32,6 +32,9 @@ pub struct RecordWindow {
     /// The table rate's error, when known: (the reference it comes from — windows with the
     /// same key share one error —, its σ in rad/s).
     reference_error: Option<(usize, f64)>,
+    /// The Allan variance's sums below the block, where the gyro's samples are averaged in
+    /// blocks ([`crate::allan_sub`]).
+    sub_block: Option<crate::allan_sub::SubBlockAllan>,
 }
 
 fn check_finite(label: &str, array: &'static str, v: &[f64]) -> Result<(), AnalysisError> {
@@ -94,6 +97,7 @@ impl RecordWindow {
             chamber_temp_c,
             smoothed: None,
             reference_error: None,
+            sub_block: None,
         })
     }
 
@@ -102,6 +106,17 @@ impl RecordWindow {
     /// of the table's angle). The joint fit adds it to its coefficients' covariance.
     pub fn with_reference_error(self, reference: usize, sigma_rad_s: f64) -> Self {
         Self { reference_error: Some((reference, sigma_rad_s)), ..self }
+    }
+
+    /// The same window with the Allan variance's sums below the block of its samples (block
+    /// means: [`crate::allan_sub`]), pooled by the noise model with the block-level curve.
+    pub fn with_sub_block(self, sub: crate::allan_sub::SubBlockAllan) -> Self {
+        Self { sub_block: Some(sub), ..self }
+    }
+
+    /// The Allan variance's sums below the block ([`Self::with_sub_block`]), if any.
+    pub fn sub_block(&self) -> Option<&crate::allan_sub::SubBlockAllan> {
+        self.sub_block.as_ref()
     }
 
     /// The table rate's error ([`Self::with_reference_error`]), if known.

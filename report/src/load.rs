@@ -31,12 +31,15 @@
 //! interval `n·dt`, so "the samples whose whole interval lies in a span" reads the same on
 //! blocks. The rules above apply to blocks as they did to samples: the time base is chosen and
 //! fitted on them (the fitted time is a line of the device's time, so a block's mean device
-//! time gives its mean fitted time exactly), messages left out stay one each. Table, chamber,
+//! time gives its mean fitted time exactly), messages left out stay one each. The full-rate
+//! Allan variance below the block is kept as the samples pass ([`RunData::gyro_sub_block`],
+//! `bench_analysis::allan_sub`): the noise model's curve starts at τ = dt again. Table, chamber,
 //! steps, metadata and damage are kept whole, as [`load`] keeps them. Why the analyses' noise
 //! model holds for block means: docs/calibrate.md, "Reduced samples".
 
 use std::collections::BTreeMap;
 
+use bench_analysis::allan_sub::SubBlockSums;
 use bench_analysis::interp::interp_at;
 use bench_analysis::run::{RunSeries, StepEnd, StepSpan};
 use bench_analysis::timebase::{fit_clock, median_interval, ClockFit};
@@ -136,6 +139,9 @@ pub struct RunData {
     pub gyro_dt_s: f64,
     /// Gyro samples averaged per block (1: every sample kept as it is).
     pub gyro_block_len: usize,
+    /// The full-rate Allan variance's sums below the block, one entry per gyro block (where
+    /// `gyro_block_len > 1`; module docs, "Reduction").
+    pub gyro_sub_block: Option<SubBlockSums>,
     /// Each device channel's time base (gyro, table, chamber).
     pub time_bases: Vec<TimeBase>,
     /// `bench.station` (unit serial, operator, station), empty without the record.
@@ -167,19 +173,36 @@ impl RunData {
 
 /// Keep only strictly increasing times (a duplicate time stamp keeps its first sample).
 fn strictly_increasing(t: &mut Vec<f64>, cols: &mut [&mut Vec<f64>]) {
+    strictly_increasing_with(t, cols, None);
+}
+
+/// [`strictly_increasing`], with the gyro blocks' sub-block sums kept in step.
+fn strictly_increasing_with(
+    t: &mut Vec<f64>,
+    cols: &mut [&mut Vec<f64>],
+    mut sub: Option<&mut SubBlockSums>,
+) {
     let mut keep = 0;
+    let mut last = None;
     for i in 0..t.len() {
         if keep == 0 || t[i] > t[keep - 1] {
             t[keep] = t[i];
             for c in cols.iter_mut() {
                 c[keep] = c[i];
             }
+            if let Some(s) = sub.as_deref_mut() {
+                s.move_block(i, keep, last);
+            }
+            last = Some(i);
             keep += 1;
         }
     }
     t.truncate(keep);
     for c in cols.iter_mut() {
         c.truncate(keep);
+    }
+    if let Some(s) = sub {
+        s.truncate(keep);
     }
 }
 
@@ -272,8 +295,13 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         bad_time_s: bad_gyro_time_s,
         base: gyro_base,
         block_len: gyro_block_len,
+        sub_block: mut gyro_sub_block,
     } = gyro.finish(zero_ns);
-    strictly_increasing(&mut gyro_time_s, &mut [&mut gyro_rate, &mut gyro_temp]);
+    strictly_increasing_with(
+        &mut gyro_time_s,
+        &mut [&mut gyro_rate, &mut gyro_temp],
+        gyro_sub_block.as_mut(),
+    );
     need(TOPIC_GYRO, gyro_time_s.len())?;
     let readings = gyro_temp.iter().filter(|t| t.is_finite()).count();
     let gyro_temp_c = (readings >= 2 && readings * 2 > gyro_temp.len()).then(|| {
@@ -366,6 +394,7 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         bad_gyro_time_s,
         gyro_dt_s,
         gyro_block_len,
+        gyro_sub_block,
         time_bases: vec![gyro_base, table_base, chamber_base],
         station: rec.metadata(META_STATION).cloned().unwrap_or_default(),
         acceptance,

@@ -440,13 +440,19 @@ fn noise_stage(
         Some(o) => {
             let mut start = 0;
             let mut parts: Vec<(&[f64], &[f64])> = Vec::new();
+            let mut subs = Vec::new();
             for (i, w) in model_windows.iter().enumerate() {
                 if pooled.contains(&i) {
                     parts.push((w.time_s(), &o.residual[start..start + w.len()]));
+                    subs.extend(w.sub_block());
                 }
                 start += w.len();
             }
-            let points = pooled_adev_series(&parts);
+            // Block means: the octaves below the block from the full-rate samples' sums (the
+            // gyro's rate; the model's residual differs from it by what moves over minutes,
+            // which a second difference over ≤ n samples removes: `crate::allan_sub`).
+            let mut points = crate::allan_sub::sub_block_points(subs);
+            points.extend(pooled_adev_series(&parts));
             allan_fit(&points, opts.confidence).map(|fit| AllanResult {
                 windows: pooled.iter().map(|&i| windows[i].label().to_owned()).collect(),
                 points,

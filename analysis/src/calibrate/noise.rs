@@ -231,6 +231,10 @@ fn fit_noise_spec_weighted(
 /// windows that reach it (each with ≥ 8 terms). A point's `n_samples` is the pooled sample
 /// count of those windows, so its degrees of freedom are those of one record as long as all of
 /// them — right for short τ, slightly generous at the longest τ.
+///
+/// Where the windows' samples are block means with the sums below the block
+/// ([`RecordWindow::sub_block`]), the octaves below the block come first, from those sums
+/// ([`crate::allan_sub::sub_block_points`]).
 pub fn pooled_adev(windows: &[&RecordWindow]) -> Vec<AdevPoint> {
     let r: Vec<Vec<f64>> = windows
         .iter()
@@ -238,7 +242,9 @@ pub fn pooled_adev(windows: &[&RecordWindow]) -> Vec<AdevPoint> {
         .collect();
     let parts: Vec<(&[f64], &[f64])> =
         windows.iter().zip(&r).map(|(w, r)| (w.time_s(), r.as_slice())).collect();
-    pooled_adev_series(&parts)
+    let mut points = crate::allan_sub::sub_block_points(windows.iter().filter_map(|w| w.sub_block()));
+    points.extend(pooled_adev_series(&parts));
+    points
 }
 
 /// [`pooled_adev`] of any series `(time, values)`: e.g. a fit's residual, window by window.

@@ -127,9 +127,14 @@ pub(crate) fn read_recording_stream(
     quiet: bool,
 ) -> anyhow::Result<bench_report::load::Streamed> {
     use bench_report::load::{read_stream, Reduction, Streamed};
-    read_with_progress(path, quiet, |reader| {
-        read_stream(reader, Reduction::ToModelRate).map(|s| (s.rec, s.gyro))
-    })
+    // A study tool, not an option: `BENCH_GYRO_FULL_RATE=1` keeps every sample (the analysis
+    // before the reduction, its memory growing with the rate) to compare against the reduced
+    // analysis (docs/calibrate.md, "Reduced samples").
+    let reduction = match std::env::var_os("BENCH_GYRO_FULL_RATE") {
+        Some(v) if v == "1" => Reduction::Full,
+        _ => Reduction::ToModelRate,
+    };
+    read_with_progress(path, quiet, |reader| read_stream(reader, reduction).map(|s| (s.rec, s.gyro)))
     .map(|(rec, gyro)| Streamed { rec, gyro })
 }
 
@@ -140,7 +145,7 @@ pub(crate) fn note_reduction(run: &bench_report::load::RunData, quiet: bool) {
     if n > 1 && !quiet {
         eprintln!(
             "note: gyro samples averaged in blocks of {n} ({:.0} Hz) for the thermal model; the \
-             noise model is that of the block means",
+             Allan curve below the block from every sample",
             1.0 / run.gyro_dt_s
         );
     }

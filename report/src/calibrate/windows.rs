@@ -303,6 +303,11 @@ fn part_window(
     let w = RecordWindow::new(label, time, rate, table, sensor, air)
         .map_err(CalibrateError::Analysis)?
         .with_reference_error(seg, motion.segments[seg].rate_sigma_rad_s);
+    // Block means: the full-rate Allan sums below the block over the window's blocks.
+    let w = match &inp.run.gyro_sub_block {
+        Some(sub) => w.with_sub_block(sub.pooled(&keep)),
+        None => w,
+    };
     let (ta, tb) =
         (s.table_time_s.partition_point(|&t| t < a), s.table_time_s.partition_point(|&t| t <= b));
     // The angle-domain reference: the readout through the steady motion at the reading times;

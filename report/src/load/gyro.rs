@@ -13,7 +13,12 @@
 //! that skips (a lost sample: a gap), at a step event, and when it holds `n` samples. A message
 //! left out is a block of its own, kept for the clock fit and for the times of samples left
 //! out, as the full-rate loader kept every message.
+//!
+//! With `n > 1` each usable block also leaves the full-rate Allan variance's sums below the
+//! block ([`SubBlockSums`]: its own samples and, when joined, the full block before it; a
+//! break — a message left out, a counter skip, a step — joins nothing across it).
 
+use bench_analysis::allan_sub::SubBlockSums;
 use bench_analysis::timebase::median_interval;
 use bench_recording::reader::seconds_since;
 use bench_recording::{status, GyroMsg, Stamped};
@@ -131,6 +136,12 @@ pub struct GyroIntake {
     max_seq: u64,
     wraps: u32,
     min_log_ns: Option<u64>,
+    /// The Allan variance's sums below the block (`n > 1`), per usable block.
+    sub: Option<SubBlockSums>,
+    /// The open block's rates and the previous block's (when full and joined to it).
+    sub_cur: Vec<f64>,
+    sub_prev: Vec<f64>,
+    sub_scratch: Vec<f64>,
 }
 
 /// The gyro's arrays from the intake.
@@ -141,6 +152,7 @@ pub(super) struct GyroArrays {
     pub bad_time_s: Vec<f64>,
     pub base: TimeBase,
     pub block_len: usize,
+    pub sub_block: Option<SubBlockSums>,
 }
 
 impl GyroIntake {
@@ -154,6 +166,10 @@ impl GyroIntake {
         GyroIntake {
             reduction,
             n,
+            sub: (n > 1).then(|| SubBlockSums::new(n)),
+            sub_cur: Vec::new(),
+            sub_prev: Vec::new(),
+            sub_scratch: Vec::new(),
             probe: Vec::new(),
             blocks: Vec::new(),
             open: None,
@@ -196,6 +212,7 @@ impl GyroIntake {
             return;
         }
         self.close();
+        self.sub_prev.clear();
     }
 
     /// Take one message, in file order.
@@ -226,16 +243,27 @@ impl GyroIntake {
             Reduction::Full => 1,
             Reduction::Blocks(n) => n.max(1),
         };
+        self.sub = (self.n > 1).then(|| SubBlockSums::new(self.n));
         for (m, boundary) in &probe {
             self.take(m);
             if *boundary {
                 self.close();
+                self.sub_prev.clear();
             }
         }
     }
 
     fn close(&mut self) {
         if let Some(b) = self.open.take() {
+            if let Some(sub) = self.sub.as_mut() {
+                sub.push_block(&self.sub_prev, &self.sub_cur, &mut self.sub_scratch);
+                if self.sub_cur.len() == self.n {
+                    std::mem::swap(&mut self.sub_prev, &mut self.sub_cur);
+                } else {
+                    self.sub_prev.clear();
+                }
+                self.sub_cur.clear();
+            }
             self.blocks.push(b);
         }
     }
@@ -264,11 +292,16 @@ impl GyroIntake {
         let usable = status::gyro::usable(m.msg.status, skipped) && m.msg.rate_rad_s.is_finite();
         if !usable {
             self.close();
+            self.sub_prev.clear();
             self.blocks.push(Block::new(m, self.wraps, false));
             return;
         }
         if skipped {
             self.close();
+            self.sub_prev.clear();
+        }
+        if self.sub.is_some() {
+            self.sub_cur.push(m.msg.rate_rad_s);
         }
         match self.open.as_mut() {
             Some(b) => b.add(m),
@@ -300,6 +333,7 @@ impl GyroIntake {
             bad_time_s: Vec::new(),
             base,
             block_len: n,
+            sub_block: None,
         };
         // A block's time is the end of its last sample's interval, as a sample's is: its mean
         // time plus half the samples after the first.
@@ -310,6 +344,10 @@ impl GyroIntake {
         } else {
             0.0
         };
+        out.sub_block = self.sub.take().map(|mut s| {
+            s.set_dt_s(dt_sample);
+            s
+        });
         for (b, &t) in blocks.iter().zip(&times) {
             if !b.usable {
                 out.bad_time_s.push(t);

@@ -13,6 +13,7 @@ mod lab_calibrate;
 mod lab_diagnose;
 mod lab_fixture;
 mod lab_model_elsewhere;
+mod lab_reduction;
 mod peers_bench_run;
 mod peers_chamber;
 mod peers_faults;

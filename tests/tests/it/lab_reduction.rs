@@ -1,0 +1,150 @@
+//! The loader's reduction (issue 29: block means of `n = ⌊f/40 Hz⌋` samples, the Allan sums
+//! below the block kept from the full-rate samples) against the full-rate analysis, on a file
+//! of the independent lab writer (`tests/fixtures/lab/labwriter.py`) with every lab trait on:
+//! jittered host stamps and latency, device stamps, lost and flagged frames, a 10 Hz table with
+//! a 1″ readout, a 1 Hz chamber. Both analyses read the same file; the full-rate one keeps
+//! every sample (`Reduction::Full`, what `BENCH_GYRO_FULL_RATE=1` gives the CLI).
+//!
+//! `lab_reduction::study` (ignored) runs the same comparison on the files named in
+//! `BENCH_REDUCTION_FILES` (`:`-separated, each with its `.truth.json`) and prints the tables
+//! docs/calibrate.md quotes.
+
+use bench_physics::allan::AdevPoint;
+use bench_physics::ModelKey;
+use bench_recording::reader::RecordingReader;
+use bench_report::calibrate::{calibrate_run, CalibrateSettings, CalibrationOutcome};
+use bench_report::load::{load_streamed, read_stream, Reduction};
+use bench_tests::{lab_fixture, lab_truth};
+use serde_json::Value;
+use std::path::Path;
+
+fn calibrate(path: &Path, reduction: Reduction) -> CalibrationOutcome {
+    let reader = RecordingReader::open(path).expect("opens");
+    let run = load_streamed(read_stream(reader, reduction).expect("reads")).expect("loads");
+    calibrate_run(run, &CalibrateSettings::default()).expect("calibrates")
+}
+
+/// The comparison of one file: the largest |Δvalue|/σ and |Δσ|/σ over the coefficients, the
+/// sub-block Allan points' largest relative difference from the full-rate ones at the same τ,
+/// and the reduced analysis's noise model against the writer's truth (ARW, floor ratios).
+struct Comparison {
+    block_len: usize,
+    max_value_z: f64,
+    max_sigma_z: f64,
+    sub_points: Vec<(f64, f64, f64)>,
+    arw_ratio: f64,
+    floor_ratio: f64,
+    full_arw_ratio: f64,
+    full_floor_ratio: f64,
+}
+
+fn points(out: &CalibrationOutcome) -> &[AdevPoint] {
+    &out.calibration.allan.as_ref().expect("an Allan curve").points
+}
+
+fn compare(path: &Path) -> Comparison {
+    let truth: Value = serde_json::from_slice(&std::fs::read(lab_truth(path)).expect("truth"))
+        .expect("truth JSON");
+    let reduced = calibrate(path, Reduction::ToModelRate);
+    let full = calibrate(path, Reduction::Full);
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let n = reduced.data.run.gyro_block_len;
+    assert_eq!(full.data.run.gyro_block_len, 1);
+    let (jr, jf) = (
+        reduced.calibration.joint.as_ref().expect("joint fit"),
+        full.calibration.joint.as_ref().expect("joint fit"),
+    );
+    let (mut max_value_z, mut max_sigma_z) = (0.0f64, 0.0f64);
+    eprintln!("{name}: n = {n}");
+    eprintln!("  coefficient            reduced ± σ                full-rate ± σ        Δ/σ      Δσ/σ");
+    for key in ModelKey::CALIBRATED {
+        let (r, f) = (jr.estimate(key).expect("estimate"), jf.estimate(key).expect("estimate"));
+        let dz = (r.value - f.value) / f.std_err;
+        let ds = (r.std_err - f.std_err) / f.std_err;
+        max_value_z = max_value_z.max(dz.abs());
+        max_sigma_z = max_sigma_z.max(ds.abs());
+        eprintln!(
+            "  {:<22} {:+.5e} ± {:.3e}  {:+.5e} ± {:.3e}  {:+.4}  {:+.4}",
+            key.key(),
+            r.value,
+            r.std_err,
+            f.value,
+            f.std_err,
+            dz,
+            ds
+        );
+    }
+    let dt = points(&full).first().map_or(f64::NAN, |p| p.tau_s);
+    let mut sub_points = Vec::new();
+    eprintln!("  τ (s)        reduced ADEV   full-rate ADEV   rel. diff");
+    for p in points(&reduced).iter().filter(|p| p.tau_s < n as f64 * dt * 0.999) {
+        let f = points(&full)
+            .iter()
+            .find(|f| f.m == p.m)
+            .unwrap_or_else(|| panic!("{name}: no full-rate point at m = {}", p.m));
+        let rel = p.adev / f.adev - 1.0;
+        eprintln!("  {:<11.6} {:.5e}    {:.5e}      {:+.5}", p.tau_s, p.adev, f.adev, rel);
+        sub_points.push((p.tau_s, f.tau_s, rel));
+    }
+    let t_arw = truth["noise"]["arw_rad_sqrt_s"].as_f64().expect("truth arw");
+    let t_floor = truth["noise"]["flicker"]["adev_floor_rad_s"].as_f64().expect("truth floor");
+    let (nr, nf) = (
+        reduced.calibration.noise_model.expect("noise model"),
+        full.calibration.noise_model.expect("noise model"),
+    );
+    let c = Comparison {
+        block_len: n,
+        max_value_z,
+        max_sigma_z,
+        sub_points,
+        arw_ratio: nr.arw / t_arw,
+        floor_ratio: nr.flicker_floor / t_floor,
+        full_arw_ratio: nf.arw / t_arw,
+        full_floor_ratio: nf.flicker_floor / t_floor,
+    };
+    eprintln!(
+        "  ARW/truth reduced {:.4} full {:.4}; floor/truth reduced {:.4} full {:.4}; \
+         max |Δ|/σ {:.4}, max |Δσ|/σ {:.4}",
+        c.arw_ratio, c.full_arw_ratio, c.floor_ratio, c.full_floor_ratio, max_value_z, max_sigma_z
+    );
+    c
+}
+
+/// A 40-minute procedure (a hold, a ramp, a hold: the noise model's constant-temperature time
+/// and a ramp for k_dt) at 200 Hz (n = 5: the octaves τ = dt and 2·dt below the block).
+const LEGS: &str = r#"[{"hold_s":900},{"to_c":40.0,"rate_c_min":2.0},{"hold_s":900}]"#;
+
+#[test]
+fn a_lab_file_at_200_hz_reduced_calibrates_as_at_full_rate() {
+    let path = lab_fixture(
+        "lab-null",
+        3,
+        &[("gyro.sample_rate_hz", "200"), ("procedure.legs", LEGS)],
+    );
+    let c = compare(&path);
+    assert_eq!(c.block_len, 5);
+    // Every coefficient and σ within 0.1σ of the full-rate analysis.
+    assert!(c.max_value_z < 0.1, "a coefficient moved by {:.3}σ", c.max_value_z);
+    assert!(c.max_sigma_z < 0.1, "a σ moved by {:.3} of itself", c.max_sigma_z);
+    // The octaves below the block are read again, from τ = dt: the same points as the
+    // full-rate curve's (the gyro's rate against the model's residual, the reduced windows'
+    // blocks against the full-rate windows' samples).
+    assert_eq!(c.sub_points.len(), 2, "{:?}", c.sub_points);
+    for &(tau, full_tau, rel) in &c.sub_points {
+        assert!((tau / full_tau - 1.0).abs() < 1e-3, "τ {tau} against {full_tau}");
+        assert!(rel.abs() < 0.01, "τ {tau}: ADEV off the full-rate one by {rel:+.4}");
+    }
+    // The noise model against the writer's truth.
+    assert!((c.arw_ratio - 1.0).abs() < 0.03, "ARW / truth {:.4}", c.arw_ratio);
+    assert!((c.arw_ratio / c.full_arw_ratio - 1.0).abs() < 0.005, "ARW reduced vs full");
+    assert!((c.floor_ratio / c.full_floor_ratio - 1.0).abs() < 0.05, "floor reduced vs full");
+}
+
+#[test]
+#[ignore = "a study: BENCH_REDUCTION_FILES=a.mcap:b.mcap"]
+fn study() {
+    let files = std::env::var("BENCH_REDUCTION_FILES").unwrap_or_default();
+    for f in files.split(':').filter(|f| !f.is_empty()) {
+        compare(Path::new(f));
+    }
+}
