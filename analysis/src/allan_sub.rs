@@ -213,7 +213,9 @@ pub struct SubBlockAllan {
 /// as [`bench_physics::allan::overlapping_adev`] states them: `σ² = Σd²/(2m²·terms)`; a
 /// point's `n_samples` is the pooled samples, as the block-level pooling counts them. Empty
 /// where no window has sums.
-pub fn sub_block_points<'a>(windows: impl IntoIterator<Item = &'a SubBlockAllan>) -> Vec<AdevPoint> {
+pub fn sub_block_points<'a>(
+    windows: impl IntoIterator<Item = &'a SubBlockAllan>,
+) -> Vec<AdevPoint> {
     let mut acc: Vec<SubPoint> = Vec::new();
     let mut dt = f64::NAN;
     for w in windows {

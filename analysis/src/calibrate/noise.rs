@@ -242,7 +242,8 @@ pub fn pooled_adev(windows: &[&RecordWindow]) -> Vec<AdevPoint> {
         .collect();
     let parts: Vec<(&[f64], &[f64])> =
         windows.iter().zip(&r).map(|(w, r)| (w.time_s(), r.as_slice())).collect();
-    let mut points = crate::allan_sub::sub_block_points(windows.iter().filter_map(|w| w.sub_block()));
+    let mut points =
+        crate::allan_sub::sub_block_points(windows.iter().filter_map(|w| w.sub_block()));
     points.extend(pooled_adev_series(&parts));
     points
 }

@@ -134,7 +134,9 @@ pub(crate) fn read_recording_stream(
         Some(v) if v == "1" => Reduction::Full,
         _ => Reduction::ToModelRate,
     };
-    read_with_progress(path, quiet, |reader| read_stream(reader, reduction).map(|s| (s.rec, s.gyro)))
+    read_with_progress(path, quiet, |reader| {
+        read_stream(reader, reduction).map(|s| (s.rec, s.gyro))
+    })
     .map(|(rec, gyro)| Streamed { rec, gyro })
 }
 

@@ -56,7 +56,9 @@ fn compare(path: &Path) -> Comparison {
     );
     let (mut max_value_z, mut max_sigma_z) = (0.0f64, 0.0f64);
     eprintln!("{name}: n = {n}");
-    eprintln!("  coefficient            reduced ± σ                full-rate ± σ        Δ/σ      Δσ/σ");
+    eprintln!(
+        "  coefficient            reduced ± σ                full-rate ± σ        Δ/σ      Δσ/σ"
+    );
     for key in ModelKey::CALIBRATED {
         let (r, f) = (jr.estimate(key).expect("estimate"), jf.estimate(key).expect("estimate"));
         let dz = (r.value - f.value) / f.std_err;
@@ -116,11 +118,8 @@ const LEGS: &str = r#"[{"hold_s":900},{"to_c":40.0,"rate_c_min":2.0},{"hold_s":9
 
 #[test]
 fn a_lab_file_at_200_hz_reduced_calibrates_as_at_full_rate() {
-    let path = lab_fixture(
-        "lab-null",
-        3,
-        &[("gyro.sample_rate_hz", "200"), ("procedure.legs", LEGS)],
-    );
+    let path =
+        lab_fixture("lab-null", 3, &[("gyro.sample_rate_hz", "200"), ("procedure.legs", LEGS)]);
     let c = compare(&path);
     assert_eq!(c.block_len, 5);
     // Every coefficient and σ within 0.1σ of the full-rate analysis.
