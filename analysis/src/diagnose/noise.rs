@@ -102,6 +102,48 @@ impl ReferenceLines {
         Self { var, rows }
     }
 
+    /// The same with each segment's angle error from the readout's rounding added where it does
+    /// not average down ([`rounding_variance`]): the readings `(time_s, angle_rad)` of the
+    /// table, on a grid of `motion.quantum_rad`. A table at rest reads one value for the whole
+    /// segment, so its line's angle is known only to ±q/2 (σ = q/√12, 1.4e-6 rad for 1″: 1.4e-7
+    /// rad/s over a 10 s bin, seven times a quiet FOG's bin noise) while the readings' scatter
+    /// is 0; a turning table whose rate is near a whole number of steps per `m` readings
+    /// repeats `m` rounding phases, σ = q/(m√12). Only the part beyond the white `q²/12n` that
+    /// the scatter already carries is added.
+    pub fn with_rounding(
+        mut self,
+        motion: &TableMotion,
+        time_s: &[f64],
+        angle_rad: &[f64],
+    ) -> Self {
+        let q = motion.quantum_rad;
+        if q <= 0.0 {
+            return self;
+        }
+        for (v, s) in self.var.iter_mut().zip(&motion.segments) {
+            let lo = time_s.partition_point(|&t| t < s.start_s);
+            let hi = time_s.partition_point(|&t| t <= s.end_s).min(angle_rad.len());
+            if hi < lo + 2 {
+                continue;
+            }
+            let (t, y) = (&time_s[lo..hi], &angle_rad[lo..hi]);
+            let Some(dt) = crate::timebase::median_interval(t).filter(|d| *d > 0.0) else {
+                continue;
+            };
+            // The readings' places on the sampling grid (a host's jitter moves stamps, not
+            // values), and the advance per reading in readout steps from the angles themselves.
+            let k: Vec<f64> = t.iter().map(|x| ((x - t[0]) / dt).round()).collect();
+            let n = k.last().map_or(1.0, |l| l + 1.0);
+            let per_reading =
+                crate::stats::line(k.iter().copied().zip(y.iter().copied())).intercept_slope(0.0).1;
+            let extra = rounding_variance(per_reading / q, n) - 1.0 / (12.0 * n);
+            if extra > 0.0 {
+                v[0] += q * q * extra;
+            }
+        }
+        self
+    }
+
     /// The term as arrays, for another implementation to rebuild `J·D·Jᵀ` (the residual
     /// scan's inputs): per bin, `ref_seg0`, `ref_angle0`, `ref_rate0` (its start) and the same
     /// with `1` (its end); per segment, `ref_var_angle` and `ref_var_rate`.
@@ -143,6 +185,31 @@ impl ReferenceLines {
             }
         }
     }
+}
+
+/// Variance, in squared readout steps, of the mean rounding error of `n` consecutive readings
+/// whose true angle advances `a` steps per reading, the rounding's phase at the first one
+/// uniform: with `u − round(u) = Σ_h (−1)^{h+1} sin(2πhu)/(πh)`, the mean over the readings
+/// has variance `Σ_h |c_h|²/(2π²h²)`, `c_h = (1/n)Σ_k e^{2πiha·k}` (a Dirichlet kernel). It is
+/// `1/12` at rest or a whole number of steps per reading, `1/(12m²)` for `m` repeating phases,
+/// and about `1/(12n)` (white) when the phase runs through every value.
+pub fn rounding_variance(a: f64, n: f64) -> f64 {
+    /// Harmonics summed: phases repeating every m ≤ 256 readings.
+    const HARMONICS: u32 = 256;
+    let n = n.max(1.0);
+    (1..=HARMONICS)
+        .map(|h| {
+            let x = f64::from(h) * a;
+            let x = x - x.round();
+            let den = n * (std::f64::consts::PI * x).sin();
+            let c2 = if den.abs() < 1e-12 {
+                1.0
+            } else {
+                ((std::f64::consts::PI * x * n).sin() / den).powi(2)
+            };
+            c2 / (2.0 * std::f64::consts::PI.powi(2) * f64::from(h * h))
+        })
+        .sum()
 }
 
 impl BinNoise {
@@ -442,5 +509,71 @@ mod tests {
             .with_reference(r);
         let got = m.quad(&a, &c);
         assert!((got - want).abs() < 1e-12 * want.abs(), "{got:e} vs {want:e}");
+    }
+
+    #[test]
+    fn the_rounding_of_a_stepped_readout_is_whole_at_rest_and_white_when_its_phase_runs() {
+        // At rest (or a whole number of steps per reading) every reading has one rounding (the
+        // sum stops at 256 harmonics: 0.24 % short).
+        assert!((rounding_variance(0.0, 1000.0) * 12.0 - 1.0).abs() < 4e-3);
+        assert!((rounding_variance(60.0, 1000.0) * 12.0 - 1.0).abs() < 4e-3);
+        // 8.87 °/min read at 2 Hz in 1″ steps: 266.1 steps a reading, ten phases that repeat.
+        let m10 = rounding_variance(266.1, 1600.0) * 12.0 * 100.0;
+        assert!((m10 - 1.0).abs() < 0.05, "{m10}");
+        // A phase that runs through every value evenly (a golden-ratio advance): the
+        // roundings cancel, below the white 1/(12n) the scatter already carries.
+        let golden = 0.5 * (5f64.sqrt() - 1.0);
+        let w = rounding_variance(123.0 + golden, 1000.0) * 12.0 * 1000.0;
+        assert!(w < 0.1, "{w}");
+    }
+
+    #[test]
+    fn a_table_at_rest_read_in_steps_leaves_its_angle_known_to_a_step() {
+        // Rest until 100 s read at 2 Hz as one value of a 1″ grid, then 10 °/min from 102 s
+        // (60 steps a reading: one phase too); the bin 95..105 s spans the start.
+        let q = 4.848_136_811_095_36e-6;
+        let w = 10.0 * std::f64::consts::PI / 180.0 / 60.0;
+        let time: Vec<f64> = (0..400).map(|i| f64::from(i) * 0.5).collect();
+        let angle: Vec<f64> = time
+            .iter()
+            .map(
+                |&t| if t <= 101.0 { 7.0 * q } else { 7.0 * q + (w * (t - 101.0) / q).round() * q },
+            )
+            .collect();
+        let seg =
+            |start_s: f64, end_s: f64, rate: f64, readings: usize| crate::steady::TableSegment {
+                start_s,
+                end_s,
+                angle0_rad: 7.0 * q + rate * (start_s - 101.0),
+                rate_rad_s: rate,
+                command_rad_s: rate,
+                scatter_rad: 0.0,
+                readings,
+                rate_sigma_rad_s: 0.0,
+            };
+        let motion = TableMotion {
+            segments: vec![seg(0.0, 100.0, 0.0, 201), seg(102.0, 199.5, w, 196)],
+            quantum_rad: q,
+            ..TableMotion::default()
+        };
+        let bins = vec![Bin {
+            first: 0,
+            end: 1,
+            start_s: 95.0,
+            end_s: 105.0,
+            table_rate_rad_s: 0.0,
+            table_accel_rad_s2: 0.0,
+            transition: true,
+        }];
+        let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
+        // Without the rounding the readings' scatter (0) says the lines are exact.
+        let bare = BinNoise::new(&bins, spec).with_reference(ReferenceLines::new(&motion, &bins));
+        assert_eq!(bare.quad(&[1.0], &[1.0]), 0.0);
+        // With it each line's angle is uniform over a step: (q²/12 + q²/12)/S².
+        let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
+        let m = BinNoise::new(&bins, spec).with_reference(r);
+        let want = 2.0 * q * q / 12.0 / 100.0;
+        let got = m.quad(&[1.0], &[1.0]);
+        assert!((got / want - 1.0).abs() < 0.02, "{got:e} vs {want:e}");
     }
 }

@@ -149,7 +149,11 @@ pub(super) fn prepare(
     let short_adev = native_adev(&native, &motion, axis, &thermal);
     let readout_offset_sigma_s =
         readout_offset_sigma_s(&motion, &run.table_time_s, &run.table_angle_rad);
-    let reference = noise::ReferenceLines::new(&motion, &bins);
+    let reference = noise::ReferenceLines::new(&motion, &bins).with_rounding(
+        &motion,
+        &run.table_time_s,
+        &run.table_angle_rad,
+    );
     let hysteresis = HysteresisStateSeries::new(HYST_C_S, &temp_rate).0;
     Ok(Prepared {
         native,
