@@ -110,6 +110,14 @@ impl ReferenceLines {
     /// is 0; a turning table whose rate is near a whole number of steps per `m` readings
     /// repeats `m` rounding phases, σ = q/(m√12). Only the part beyond the white `q²/12n` that
     /// the scatter already carries is added.
+    ///
+    /// Nothing is added where the readout rounds coherently with the motion (a turning segment
+    /// keeps one phase, [`super::prepare::rounding_coherent`]): every line's rounding is then
+    /// fixed by the motion before it, one systematic in the time offset's σ, not a new draw
+    /// per line. Bench's simulated table is such a readout (1″ steps; 10 °/min read at 2 Hz is
+    /// 300″ a reading, a 1 °/s² start 50″): its readings lie on a 50″ grid, the only step
+    /// [`crate::steady::TableMotion::quantum_rad`] can read off them, and `q²/12` of that is
+    /// 2500 times the 1″ readout's — it hid the demo's 1/rev and a 0.2 ms time offset.
     pub fn with_rounding(
         mut self,
         motion: &TableMotion,
@@ -117,7 +125,7 @@ impl ReferenceLines {
         angle_rad: &[f64],
     ) -> Self {
         let q = motion.quantum_rad;
-        if q <= 0.0 {
+        if q <= 0.0 || super::prepare::rounding_coherent(motion, time_s, angle_rad) {
             return self;
         }
         for (v, s) in self.var.iter_mut().zip(&motion.segments) {
@@ -529,10 +537,41 @@ mod tests {
 
     #[test]
     fn a_table_at_rest_read_in_steps_leaves_its_angle_known_to_a_step() {
-        // Rest until 100 s read at 2 Hz as one value of a 1″ grid, then 10 °/min from 102 s
-        // (60 steps a reading: one phase too); the bin 95..105 s spans the start.
+        // Rest until 100 s read at 2 Hz as one value of a 1″ grid, then 8.87 °/min from 102 s
+        // (266.1 steps a reading: ten phases that repeat, σ = q/(10√12)); the bin 95..105 s
+        // spans the start.
+        let q = 4.848_136_811_095_36e-6;
+        let w = 8.87 * std::f64::consts::PI / 180.0 / 60.0;
+        let (time, angle, motion, bins) = rest_then_turning(q, w);
+        let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
+        // Without the rounding the readings' scatter (0) says the lines are exact.
+        let bare = BinNoise::new(&bins, spec).with_reference(ReferenceLines::new(&motion, &bins));
+        assert_eq!(bare.quad(&[1.0], &[1.0]), 0.0);
+        // With it the rest line's angle is uniform over a step, the turning line's over a tenth
+        // of one: (q²/12 + q²/1200)/S².
+        let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
+        let m = BinNoise::new(&bins, spec).with_reference(r);
+        let want = q * q / 12.0 * 1.01 / 100.0;
+        let got = m.quad(&[1.0], &[1.0]);
+        assert!((got / want - 1.0).abs() < 0.02, "{got:e} vs {want:e}");
+    }
+
+    #[test]
+    fn a_readout_that_rounds_in_phase_with_the_motion_adds_no_bin_noise() {
+        // The same at 10 °/min: 300″ a reading, one phase for the whole turn. Each line's
+        // rounding is then set by the motion before it (the time offset's systematic,
+        // `prepare::readout_offset_sigma_s`), not drawn anew per line.
         let q = 4.848_136_811_095_36e-6;
         let w = 10.0 * std::f64::consts::PI / 180.0 / 60.0;
+        let (time, angle, motion, bins) = rest_then_turning(q, w);
+        let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
+        let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
+        assert_eq!(BinNoise::new(&bins, spec).with_reference(r).quad(&[1.0], &[1.0]), 0.0);
+    }
+
+    /// A table at rest until 100 s, then turning at `w` from 101 s, read at 2 Hz on a grid of
+    /// `q` (its readings, its two steady lines), and one 10 s bin across the start.
+    fn rest_then_turning(q: f64, w: f64) -> (Vec<f64>, Vec<f64>, TableMotion, Vec<Bin>) {
         let time: Vec<f64> = (0..400).map(|i| f64::from(i) * 0.5).collect();
         let angle: Vec<f64> = time
             .iter()
@@ -565,15 +604,6 @@ mod tests {
             table_accel_rad_s2: 0.0,
             transition: true,
         }];
-        let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
-        // Without the rounding the readings' scatter (0) says the lines are exact.
-        let bare = BinNoise::new(&bins, spec).with_reference(ReferenceLines::new(&motion, &bins));
-        assert_eq!(bare.quad(&[1.0], &[1.0]), 0.0);
-        // With it each line's angle is uniform over a step: (q²/12 + q²/12)/S².
-        let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
-        let m = BinNoise::new(&bins, spec).with_reference(r);
-        let want = 2.0 * q * q / 12.0 / 100.0;
-        let got = m.quad(&[1.0], &[1.0]);
-        assert!((got / want - 1.0).abs() < 0.02, "{got:e} vs {want:e}");
+        (time, angle, motion, bins)
     }
 }

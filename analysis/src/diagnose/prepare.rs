@@ -215,6 +215,21 @@ pub(super) fn readout_offset_sigma_s(
     }
 }
 
+/// Whether the table's readout rounds coherently with its whole motion: every turning segment's
+/// readings keep one rounding phase ([`rounding_in_phase`]), as on bench's simulated table
+/// (every rate a whole number of steps a reading, every start and reversal timed on the
+/// readings' clock). Then each line's rounding is fixed by the motion before it — a turn's by
+/// its rate and phase, a rest's by the line it stopped from and the stopping distance — one
+/// systematic, which lives in the time offset's σ ([`readout_offset_sigma_s`]), not a new draw
+/// per line ([`super::noise::ReferenceLines::with_rounding`] adds nothing). One turn whose
+/// phase runs shows the starts are not on the readings' clock: each line's rounding is then
+/// its own.
+pub(super) fn rounding_coherent(motion: &TableMotion, time_s: &[f64], angle_rad: &[f64]) -> bool {
+    let q = motion.quantum_rad;
+    let mut turns = motion.segments.iter().filter(|s| s.command_rad_s != 0.0).peekable();
+    q > 0.0 && turns.peek().is_some() && turns.all(|s| rounding_in_phase(s, time_s, angle_rad, q))
+}
+
 /// Whether segment `s`'s readings keep one rounding phase: read off the angles themselves, not
 /// their stamps (a host's jitter moves the stamps, not the values). Each step between
 /// consecutive readings, in readout steps, is a whole number of the segment's usual step `m`

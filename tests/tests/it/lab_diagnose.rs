@@ -79,8 +79,6 @@ fn a_lost_frame_in_a_reversal_bin_is_not_a_bias_at_the_rate_changes() {
     assert!(strongest.wald < strongest.threshold, "{family:?}");
 }
 
-/// Diagnose the writer's `preset` at `seed` with `sets`: only the stamping offset is named,
-/// within 3σ of the writer's realised one (σ below 0.5 ms), nothing unexplained. The finding.
 /// The randomised study's null seed 3 (writer seed 12, a lab's traits): 0.87 h, one rate of
 /// 8.87 °/min, the table read at 2 Hz in 1″ steps. The table rests before its start and after
 /// its stop, where every reading is one value of the 1″ grid: each rest line's angle is known
@@ -89,7 +87,8 @@ fn a_lost_frame_in_a_reversal_bin_is_not_a_bias_at_the_rate_changes() {
 /// start bin (−9.6e-8 rad/s, five times a steady bin's scatter) read as "dΩ/dt while speeding
 /// up only" (Wald 23.3 > 13.4) and the offset was reported unexplained — 12 of the study's 60
 /// nulls. The reference lines now carry the rounding that does not average down
-/// (`diagnose::noise::rounding_variance`).
+/// (`diagnose::noise::rounding_variance`): here the turning line's ten phases leave it
+/// q/(10√12), so the rounding is each line's own, not the motion's.
 #[test]
 fn a_table_at_rest_read_in_steps_is_not_a_bias_while_speeding_up() {
     let sets = [
@@ -116,6 +115,8 @@ fn a_table_at_rest_read_in_steps_is_not_a_bias_while_speeding_up() {
     assert!(strongest.wald < strongest.threshold, "{family:?}");
 }
 
+/// Diagnose the writer's `preset` at `seed` with `sets`: only the stamping offset is named,
+/// within 3σ of the writer's realised one (σ below 0.5 ms), nothing unexplained. The finding.
 fn only_the_stamping_offset(
     preset: &str,
     seed: u64,
