@@ -180,7 +180,6 @@ fn a_ripple_the_model_lacks_makes_the_fit_poor_and_is_located() {
 #[test]
 fn a_lag_that_trades_with_a_held_coefficient_states_the_sigma_of_both() {
     let legs = r#"[{"hold_s":734.2203293748237},{"to_c":40.0,"rate_c_min":0.648},{"hold_s":561},{"to_c":-4.0,"rate_c_min":2.864},{"hold_s":86},{"to_c":52.0,"rate_c_min":1.024}]"#;
-    let cycling = r#"{"enabled":true,"amplitude_c":0.0482,"period_s":299,"shape":"triangle","duty":0.335,"phase_s":253.9}"#;
     let path = lab_fixture(
         "lab-null",
         9,
@@ -194,7 +193,12 @@ fn a_lag_that_trades_with_a_held_coefficient_states_the_sigma_of_both() {
             ("gyro.sensor", "false"),
             ("gyro.thermal_time_constant", "1192"),
             ("traits.chamber_rate_hz", "10.0"),
-            ("traits.chamber_cycling", cycling),
+            ("traits.chamber_cycling.enabled", "true"),
+            ("traits.chamber_cycling.amplitude_c", "0.0482"),
+            ("traits.chamber_cycling.period_s", "299"),
+            ("traits.chamber_cycling.shape", "triangle"),
+            ("traits.chamber_cycling.duty", "0.335"),
+            ("traits.chamber_cycling.phase_s", "253.9"),
         ],
     );
     let truth: Value = serde_json::from_slice(&std::fs::read(lab_truth(&path)).expect("truth"))
