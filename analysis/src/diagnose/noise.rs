@@ -111,13 +111,13 @@ impl ReferenceLines {
     /// repeats `m` rounding phases, σ = q/(m√12). Only the part beyond the white `q²/12n` that
     /// the scatter already carries is added.
     ///
-    /// Nothing is added where the readout rounds coherently with the motion (a turning segment
-    /// keeps one phase, [`super::prepare::rounding_coherent`]): every line's rounding is then
-    /// fixed by the motion before it, one systematic in the time offset's σ, not a new draw
-    /// per line. Bench's simulated table is such a readout (1″ steps; 10 °/min read at 2 Hz is
-    /// 300″ a reading, a 1 °/s² start 50″): its readings lie on a 50″ grid, the only step
-    /// [`crate::steady::TableMotion::quantum_rad`] can read off them, and `q²/12` of that is
-    /// 2500 times the 1″ readout's — it hid the demo's 1/rev and a 0.2 ms time offset.
+    /// Not for a readout that rounds coherently with the motion (every turning segment keeps
+    /// one phase: [`super::prepare::reference_lines`] leaves the term out): every line's
+    /// rounding is then fixed by the motion before it, one systematic in the time offset's σ,
+    /// not a new draw per line. Bench's simulated table is such a readout (1″ steps; 10 °/min
+    /// read at 2 Hz is 300″ a reading, a 1 °/s² start 50″): its readings lie on a 50″ grid, the
+    /// only step [`crate::steady::TableMotion::quantum_rad`] can read off them, and `q²/12` of
+    /// that is 2500 times the 1″ readout's — it hid the demo's 1/rev and a 0.2 ms time offset.
     pub fn with_rounding(
         mut self,
         motion: &TableMotion,
@@ -125,7 +125,7 @@ impl ReferenceLines {
         angle_rad: &[f64],
     ) -> Self {
         let q = motion.quantum_rad;
-        if q <= 0.0 || super::prepare::rounding_coherent(motion, time_s, angle_rad) {
+        if q <= 0.0 {
             return self;
         }
         for (v, s) in self.var.iter_mut().zip(&motion.segments) {
@@ -565,7 +565,8 @@ mod tests {
         let w = 10.0 * std::f64::consts::PI / 180.0 / 60.0;
         let (time, angle, motion, bins) = rest_then_turning(q, w);
         let spec = NoiseSpec { arw: 0.0, flicker_floor: 0.0, rrw: 0.0 };
-        let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
+        let phases = super::super::prepare::TurnPhases::new(&motion, &time, &angle);
+        let r = super::super::prepare::reference_lines(&motion, &bins, &time, &angle, &phases);
         assert_eq!(BinNoise::new(&bins, spec).with_reference(r).quad(&[1.0], &[1.0]), 0.0);
     }
 

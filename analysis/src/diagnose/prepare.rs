@@ -147,13 +147,10 @@ pub(super) fn prepare(
         .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
         .collect();
     let short_adev = native_adev(&native, &motion, axis, &thermal);
-    let readout_offset_sigma_s =
-        readout_offset_sigma_s(&motion, &run.table_time_s, &run.table_angle_rad);
-    let reference = noise::ReferenceLines::new(&motion, &bins).with_rounding(
-        &motion,
-        &run.table_time_s,
-        &run.table_angle_rad,
-    );
+    let phases = TurnPhases::new(&motion, &run.table_time_s, &run.table_angle_rad);
+    let readout_offset_sigma_s = readout_offset_sigma_s(&motion, &phases);
+    let reference =
+        reference_lines(&motion, &bins, &run.table_time_s, &run.table_angle_rad, &phases);
     let hysteresis = HysteresisStateSeries::new(HYST_C_S, &temp_rate).0;
     Ok(Prepared {
         native,
@@ -177,6 +174,32 @@ pub(super) fn prepare(
     })
 }
 
+/// Which of the table's turning segments keep one rounding phase ([`rounding_in_phase`]), read
+/// once for the time offset's σ ([`readout_offset_sigma_s`]: any) and the reference lines'
+/// rounding ([`reference_lines`]: all). Both false without a readout grid or a turn.
+pub(super) struct TurnPhases {
+    /// At least one turn keeps one phase.
+    pub(super) any: bool,
+    /// Every turn keeps one phase, and there is one.
+    pub(super) all: bool,
+}
+
+impl TurnPhases {
+    pub(super) fn new(motion: &TableMotion, time_s: &[f64], angle_rad: &[f64]) -> Self {
+        let q = motion.quantum_rad;
+        if q <= 0.0 {
+            return Self { any: false, all: false };
+        }
+        let flags: Vec<bool> = motion
+            .segments
+            .iter()
+            .filter(|s| s.command_rad_s != 0.0)
+            .map(|s| rounding_in_phase(s, time_s, angle_rad, q))
+            .collect();
+        Self { any: flags.contains(&true), all: !flags.is_empty() && !flags.contains(&false) }
+    }
+}
+
 /// σ that the table's angle readout leaves a time offset, s. The offset lives in the bins that
 /// hold a rate change, as the angle step between the two steady lines; each line is known only
 /// to within its readings' rounding. A readout whose rounding stays in phase along a segment
@@ -185,22 +208,9 @@ pub(super) fn prepare(
 /// that rate and phase: at each reversal `(e_after − e_before)/Δω`, the same at every reversal,
 /// so it does not average down. With the two offsets uniform in ±q/2: `σ = q/√6/|Δω|` (1″ at
 /// ±10 °/min: 0.34 ms), Δω the largest step between consecutive segments' rates. 0 without a
-/// grid or where the rounding's phase runs through the steps ([`rounding_in_phase`]).
-pub(super) fn readout_offset_sigma_s(
-    motion: &TableMotion,
-    time_s: &[f64],
-    angle_rad: &[f64],
-) -> f64 {
-    let q = motion.quantum_rad;
-    if q <= 0.0 {
-        return 0.0;
-    }
-    let in_phase = motion
-        .segments
-        .iter()
-        .filter(|s| s.command_rad_s != 0.0)
-        .any(|s| rounding_in_phase(s, time_s, angle_rad, q));
-    if !in_phase {
+/// grid or where no turn's rounding keeps its phase ([`TurnPhases::any`]).
+pub(super) fn readout_offset_sigma_s(motion: &TableMotion, phases: &TurnPhases) -> f64 {
+    if !phases.any {
         return 0.0;
     }
     let step = motion
@@ -209,25 +219,33 @@ pub(super) fn readout_offset_sigma_s(
         .map(|w| (w[1].rate_rad_s - w[0].rate_rad_s).abs())
         .fold(0.0, f64::max);
     if step > 0.0 {
-        q / 6f64.sqrt() / step
+        motion.quantum_rad / 6f64.sqrt() / step
     } else {
         0.0
     }
 }
 
-/// Whether the table's readout rounds coherently with its whole motion: every turning segment's
-/// readings keep one rounding phase ([`rounding_in_phase`]), as on bench's simulated table
-/// (every rate a whole number of steps a reading, every start and reversal timed on the
-/// readings' clock). Then each line's rounding is fixed by the motion before it — a turn's by
-/// its rate and phase, a rest's by the line it stopped from and the stopping distance — one
-/// systematic, which lives in the time offset's σ ([`readout_offset_sigma_s`]), not a new draw
-/// per line ([`super::noise::ReferenceLines::with_rounding`] adds nothing). One turn whose
-/// phase runs shows the starts are not on the readings' clock: each line's rounding is then
-/// its own.
-pub(super) fn rounding_coherent(motion: &TableMotion, time_s: &[f64], angle_rad: &[f64]) -> bool {
-    let q = motion.quantum_rad;
-    let mut turns = motion.segments.iter().filter(|s| s.command_rad_s != 0.0).peekable();
-    q > 0.0 && turns.peek().is_some() && turns.all(|s| rounding_in_phase(s, time_s, angle_rad, q))
+/// The steady lines' reference term, with the readout's rounding
+/// ([`noise::ReferenceLines::with_rounding`]) unless the readout rounds coherently with its
+/// whole motion ([`TurnPhases::all`]), as on bench's simulated table (every rate a whole number
+/// of steps a reading, every start and reversal timed on the readings' clock). Then each line's
+/// rounding is fixed by the motion before it — a turn's by its rate and phase, a rest's by the
+/// line it stopped from and the stopping distance — one systematic, which lives in the time
+/// offset's σ ([`readout_offset_sigma_s`]), not a new draw per line. One turn whose phase runs
+/// shows the starts are not on the readings' clock: each line's rounding is then its own.
+pub(super) fn reference_lines(
+    motion: &TableMotion,
+    bins: &[Bin],
+    time_s: &[f64],
+    angle_rad: &[f64],
+    phases: &TurnPhases,
+) -> noise::ReferenceLines {
+    let lines = noise::ReferenceLines::new(motion, bins);
+    if phases.all {
+        lines
+    } else {
+        lines.with_rounding(motion, time_s, angle_rad)
+    }
 }
 
 /// Whether segment `s`'s readings keep one rounding phase: read off the angles themselves, not
