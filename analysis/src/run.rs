@@ -38,6 +38,9 @@ pub struct RunSeries {
     pub gyro_time_s: Vec<f64>,
     /// Gyro output, rad/s.
     pub gyro_rate_rad_s: Vec<f64>,
+    /// Where the loader averaged the gyro in blocks, the full-rate Allan variance's sums below
+    /// the block, one entry per sample above ([`crate::allan_sub`]); `None` at full rate.
+    pub gyro_sub_block: Option<crate::allan_sub::SubBlockSums>,
     /// The gyro's own temperature, °C, if it reports one.
     pub gyro_temp_c: Option<Vec<f64>>,
     /// Table sample times, s.

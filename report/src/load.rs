@@ -32,7 +32,7 @@
 //! blocks. The rules above apply to blocks as they did to samples: the time base is chosen and
 //! fitted on them (the fitted time is a line of the device's time, so a block's mean device
 //! time gives its mean fitted time exactly), messages left out stay one each. The full-rate
-//! Allan variance below the block is kept as the samples pass ([`RunData::gyro_sub_block`],
+//! Allan variance below the block is kept as the samples pass ([`RunSeries::gyro_sub_block`],
 //! `bench_analysis::allan_sub`): the noise model's curve starts at τ = dt again. Table, chamber,
 //! steps, metadata and damage are kept whole, as [`load`] keeps them. Why the analyses' noise
 //! model holds for block means: docs/calibrate.md, "Reduced samples".
@@ -139,9 +139,6 @@ pub struct RunData {
     pub gyro_dt_s: f64,
     /// Gyro samples averaged per block (1: every sample kept as it is).
     pub gyro_block_len: usize,
-    /// The full-rate Allan variance's sums below the block, one entry per gyro block (where
-    /// `gyro_block_len > 1`; module docs, "Reduction").
-    pub gyro_sub_block: Option<SubBlockSums>,
     /// Each device channel's time base (gyro, table, chamber).
     pub time_bases: Vec<TimeBase>,
     /// `bench.station` (unit serial, operator, station), empty without the record.
@@ -378,6 +375,7 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         series: RunSeries {
             gyro_time_s,
             gyro_rate_rad_s: gyro_rate,
+            gyro_sub_block,
             gyro_temp_c,
             table_time_s,
             table_angle_rad: angle,
@@ -394,7 +392,6 @@ fn load_with(rec: &Recording, gyro: GyroIntake) -> Result<RunData, LoadError> {
         bad_gyro_time_s,
         gyro_dt_s,
         gyro_block_len,
-        gyro_sub_block,
         time_bases: vec![gyro_base, table_base, chamber_base],
         station: rec.metadata(META_STATION).cloned().unwrap_or_default(),
         acceptance,

@@ -1,6 +1,7 @@
 //! Everything computed once per run: the recording's arrays, bins, the nominal residual and the noise model.
 
 use super::*;
+use crate::allan_sub::SubBlockSums;
 
 /// Time-constant regressors by effect and τ's bits ([`candidate_columns`]).
 pub(super) type DecayMemo =
@@ -146,7 +147,7 @@ pub(super) fn prepare(
     let thermal: Vec<f64> = (0..native.t.len())
         .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
         .collect();
-    let short_adev = native_adev(&native, &motion, axis, &thermal);
+    let short_adev = native_adev(&native, &motion, axis, &thermal, run.gyro_sub_block.as_ref());
     let phases = TurnPhases::new(&motion, &run.table_time_s, &run.table_angle_rad);
     let readout_offset_sigma_s = readout_offset_sigma_s(&motion, &phases);
     let reference =
@@ -304,12 +305,15 @@ impl HysteresisStateSeries {
 /// Allan deviation of the gyro minus the nominal model (table rate and thermal terms) over the
 /// settled table segments of at least 60 s, pooled: the noise model's data. The refitted
 /// bin residual is not used for it: the refit absorbs slow wander and would understate the
-/// flicker floor several times over on a short run.
+/// flicker floor several times over on a short run. Where the samples are block means, each
+/// stretch carries the full-rate sums below the block (`sub`, [`crate::allan_sub`]), so the
+/// curve starts at τ = dt as at full rate.
 pub(super) fn native_adev(
     native: &Native,
     motion: &TableMotion,
     axis: f64,
     thermal: &[f64],
+    sub: Option<&SubBlockSums>,
 ) -> Vec<AdevPoint> {
     let mut windows = Vec::new();
     for seg in &motion.segments {
@@ -329,7 +333,10 @@ pub(super) fn native_adev(
                         .collect();
                     let zeros = vec![0.0; k - s];
                     if let Ok(w) = RecordWindow::new("segment", t, v, zeros.clone(), None, zeros) {
-                        windows.push(w);
+                        windows.push(match sub {
+                            Some(sub) => w.with_sub_block(sub.pooled(&(s..k).collect::<Vec<_>>())),
+                            None => w,
+                        });
                     }
                 }
                 s = k;

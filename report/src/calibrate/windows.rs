@@ -304,7 +304,7 @@ fn part_window(
         .map_err(CalibrateError::Analysis)?
         .with_reference_error(seg, motion.segments[seg].rate_sigma_rad_s);
     // Block means: the full-rate Allan sums below the block over the window's blocks.
-    let w = match &inp.run.gyro_sub_block {
+    let w = match &s.gyro_sub_block {
         Some(sub) => w.with_sub_block(sub.pooled(&keep)),
         None => w,
     };
