@@ -177,6 +177,8 @@ RANDOM_EFFECTS = {
 }
 # Effects outside the library: the right answer is "unexplained", never a library name.
 OUTSIDE = ["kt_kink", "noise_burst"]
+# What the diagnosis says of each when it reports it (an unexplained entry holding these words).
+OUTSIDE_WORDS = {"kt_kink": "k_t changes near", "noise_burst": "× the model's from"}
 CLASSES = ["null", "effect", "pair", "outside"]
 
 
@@ -269,6 +271,9 @@ def judge_random(d, truth, names, traits, sensor):
     wrong = any(e not in allowed for e in named)
     # An honest "not told apart: A or B" naming the truth is not a wrong name.
     found = bool(lib) and all(e in named for e in lib)
+    if names and all(n in OUTSIDE for n in names):
+        # Outside the library, found is reported for what it is: unexplained, in its words.
+        found = all(any(OUTSIDE_WORDS[n] in u for u in unexpl) for n in names)
     ok = None
     if found:
         ok = True
@@ -338,7 +343,8 @@ def random_table(rows):
     for r in rows:
         if "error" in r or r.get("written"):
             continue
-        key = r["class"] if r["class"] != "effect" else "effect " + r["names"][0]
+        key = r["class"] if r["class"] not in ("effect", "outside") else \
+            r["class"] + " " + r["names"][0]
         groups.setdefault(key, []).append(r)
     for key in sorted(groups, key=lambda k: (CLASSES.index(k.split()[0]), k)):
         g = groups[key]

@@ -12,7 +12,7 @@
 //! | `periodic_bias` P | periods P/2 … P/16 (down to four bins: a shape that is not a sinusoid) and 2P |
 //! | `warm_up` τ | decays with τ/3 and 3τ, a linear drift |
 //! | `bias_step` t_s | a second step (every grid instant), a ramp from t_s |
-//! | temperature terms | (T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating only, (T − T0)·Ω, the lag at τ/2 and 2τ |
+//! | temperature terms | (T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating only, (T − T0)·Ω, the lag at τ/2 and 2τ, a kink in k_t at the recording's temperature deciles ([`super::hinge`]) |
 //! | `rate_squared`, `scale_factor_asymmetry` | the other's shape (\|Ω\| or Ω²), Ω·(T − T0)² |
 //! | `time_offset` | \|dΩ/dt\| (a bias at rate changes), dΩ/dt by direction |
 //!
@@ -51,6 +51,12 @@ pub(super) struct Member {
     pub cols: Vec<Vec<f64>>,
     /// Whether it is a rate-independent harmonic of the table angle.
     pub angle_harmonic: bool,
+    /// How many grid values it is one of (a hinge's knots, [`super::hinge`]): the grid counts
+    /// as one member of the family, each of its values tested at the member's share of the
+    /// level over `looks` (its look-elsewhere). 1 for a member without a grid.
+    pub looks: usize,
+    /// Whether it is a kink in k_t ([`super::hinge`]): an effect must be told apart from it.
+    pub kink: bool,
 }
 
 /// A member of the family found in the residual.
@@ -171,7 +177,13 @@ pub(super) fn members(
     p: f64,
     model: &GyroModel,
 ) -> (String, Vec<Member>) {
-    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols, angle_harmonic: false };
+    let m = |name: String, cols: Vec<Vec<f64>>| Member {
+        name,
+        cols,
+        angle_harmonic: false,
+        looks: 1,
+        kink: false,
+    };
     let nat = &prep.native;
     let t0 = prep.t0;
     let dtemp = |i: usize| prep.temp[i] - t0;
@@ -187,6 +199,8 @@ pub(super) fn members(
                     name: format!("table angle, {j} cycles/rev"),
                     cols: sin_cos(prep, j),
                     angle_harmonic: true,
+                    looks: 1,
+                    kink: false,
                 })
                 .collect();
             v.push(m(format!("table rate ripple, {k} cycles/rev (∝ rate)"), ripple(prep, k)));
@@ -308,7 +322,13 @@ fn temperature_members(
     p: f64,
     model: &GyroModel,
 ) -> (String, Vec<Member>) {
-    let m = |name: String, cols: Vec<Vec<f64>>| Member { name, cols, angle_harmonic: false };
+    let m = |name: String, cols: Vec<Vec<f64>>| Member {
+        name,
+        cols,
+        angle_harmonic: false,
+        looks: 1,
+        kink: false,
+    };
     let dtemp = |i: usize| prep.temp[i] - prep.t0;
     let mut v = Vec::new();
     // The other temperature shapes of the library, by their own regressors.
@@ -328,7 +348,9 @@ fn temperature_members(
             ));
         }
     }
-    ("(T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating, T·Ω".into(), v)
+    // A kink in k_t (outside the library), at knots on the recording's temperatures.
+    v.extend(super::hinge::members(prep));
+    ("(T − T0)², (T − T0)³, heating vs cooling, dT/dt while heating, T·Ω, a kink in k_t".into(), v)
 }
 
 /// Fitted size of a member in rad/s: a sinusoid's amplitude, else its contribution's RMS.
@@ -377,12 +399,15 @@ pub(super) fn gate(
     let mut with: Vec<Vec<f64>> = others.to_vec();
     with.extend(cols.iter().cloned());
     let p_with = Projector::new(&with, &all).ok()?;
-    let m = members.len() as f64;
+    // Members with a grid count once ([`Member::looks`]); each value at its share over the grid.
+    let m: f64 = members.iter().map(|x| 1.0 / x.looks.max(1) as f64).sum();
+    let thr_of =
+        |x: &Member| chi2_quantile(1.0 - level / (m * x.looks.max(1) as f64), x.cols.len() as f64);
     // Each member: Wald with the effect in, its threshold at level / members.
     let mut tested: Vec<(usize, FamilyMember)> = Vec::new();
     for (j, mem) in members.iter().enumerate() {
         let Some(t) = p_with.test(&mem.cols, y, noise) else { continue };
-        let thr = chi2_quantile(1.0 - level / m, mem.cols.len() as f64);
+        let thr = thr_of(mem);
         tested.push((
             j,
             FamilyMember {
@@ -414,14 +439,20 @@ pub(super) fn gate(
     // Told apart from each relative: with member j in the model the effect must stay
     // significant (one test at `level`) whenever j alone explains the data too (its own
     // threshold); else the data cannot say which of the two it is.
-    let mut rival: Option<(usize, f64)> = None;
+    let mut rival: Option<(usize, f64, f64)> = None;
     let thr_effect = chi2_quantile(1.0 - level, cols.len() as f64);
     // Only between the gyro's angle harmonics: other families' members are the same term at
     // another grid value (a lag's τ/2) or shapes one run may not separate by design (rate² and
     // |rate| at one speed), which identifiability states instead.
+    // A kink in k_t is outside the library: a temperature effect must be told from it too,
+    // unless the kink is significant beside the effect (then that is what is reported).
     let harmonic = matches!(id.effect().columns(), Columns::Angle(_));
-    for (j, mem) in members.iter().enumerate().filter(|(_, m)| harmonic && m.angle_harmonic) {
-        let thr_j = chi2_quantile(1.0 - level / m, mem.cols.len() as f64);
+    let beside_significant = |j: usize| tested.iter().any(|(i, t)| *i == j && t.wald > t.threshold);
+    let rivalling = |(j, x): &(usize, &Member)| {
+        (harmonic && x.angle_harmonic) || (x.kink && !beside_significant(*j))
+    };
+    for (j, mem) in members.iter().enumerate().filter(rivalling) {
+        let thr_j = thr_of(mem);
         let Some(alone) = p_o.test(&mem.cols, y, noise) else { continue };
         if alone.wald <= thr_j {
             continue;
@@ -430,13 +461,17 @@ pub(super) fn gate(
         with_j.extend(mem.cols.iter().cloned());
         let Ok(p_j) = Projector::new(&with_j, &all) else { continue };
         let w = p_j.test(cols, y, noise).map_or(0.0, |t| t.wald);
-        if w <= thr_effect && rival.is_none_or(|(_, best)| w < best) {
-            rival = Some((j, w));
+        // A harmonic: the one beside which the effect keeps least; a kink: the knot that
+        // explains the data best.
+        let score = if mem.kink { alone.wald } else { -w };
+        if w <= thr_effect && rival.is_none_or(|(_, _, best)| score > best) {
+            rival = Some((j, w, score));
         }
     }
+    let rival = rival.map(|(j, w, _)| (j, w));
     if let Some((j, w)) = rival {
         // The rival is the member to report.
-        let thr = chi2_quantile(1.0 - level / m, members[j].cols.len() as f64);
+        let thr = thr_of(&members[j]);
         let alone = p_o.test(&members[j].cols, y, noise);
         strongest = Some((
             j,
@@ -460,13 +495,20 @@ pub(super) fn gate(
         let mut design = base.to_vec();
         design.extend(cols.iter().cloned());
         let mut left: Vec<usize> = (0..members.len()).collect();
+        // A kink not told apart from the effect holds the structure as well as it does: kept
+        // beside it.
+        if let Some((j, _)) = rival.filter(|(j, _)| members[*j].kink) {
+            design.extend(members[j].cols.iter().cloned());
+            nuisance.push(members[j].clone());
+            left.retain(|&x| x != j);
+        }
         for _ in 0..members.len().min(NUISANCE_MAX) {
             let Ok(pd) = Projector::new(&design, &all) else { break };
             let best = left
                 .iter()
                 .filter_map(|&j| {
                     let t = pd.test(&members[j].cols, y, noise)?;
-                    let thr = chi2_quantile(1.0 - level / m, members[j].cols.len() as f64);
+                    let thr = thr_of(&members[j]);
                     (t.wald > thr).then_some((j, t.wald / thr))
                 })
                 .max_by(|a, b| a.1.total_cmp(&b.1));

@@ -41,6 +41,7 @@ mod columns;
 pub mod family;
 mod final_fit;
 pub mod fit;
+mod hinge;
 mod holdout;
 pub mod identify;
 mod locate;
@@ -52,6 +53,7 @@ mod regrid;
 mod residual_scan;
 mod rivals;
 pub mod scan;
+mod scatter;
 mod search;
 pub mod series;
 mod stepwise;
@@ -160,7 +162,9 @@ impl BaseFit {
         let proj = Projector::new(&prep.base, &all)?;
         let r = proj.residual(&y, n);
         let noise_spec = noise_model(prep)?;
-        let noise = BinNoise::new(&prep.bins, noise_spec).with_reference(prep.reference.clone());
+        let noise = BinNoise::new(&prep.bins, noise_spec)
+            .with_reference(prep.reference.clone())
+            .with_white_scale(&prep.bins, &prep.scatter.scale);
         let beta0 = proj.beta(&y);
         let cov0 = proj.covariance(&noise);
         let p0 = beta0.len();
@@ -212,6 +216,8 @@ pub fn diagnose(
     let mut unexplained = unexplained(&prep, &search.r, &search.noise, opts);
     unexplained
         .splice(0..0, std::mem::take(&mut search.downgraded).into_iter().map(|d| d.unexplained));
+    // Windows whose own scatter exceeds the model's ([`scatter`]), first.
+    unexplained.splice(0..0, prep.scatter.unexplained());
     let verdict = if !search.findings.is_empty() || !unexplained.is_empty() {
         Verdict::MissingPhysics
     } else if base.wald.value > base.wald.threshold {

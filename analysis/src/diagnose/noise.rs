@@ -266,6 +266,18 @@ impl BinNoise {
         self
     }
 
+    /// The same covariance with each bin's white variance times `scale` (a bin in a window
+    /// whose own scatter exceeds the model's, [`super::scatter`]: 1 elsewhere).
+    pub fn with_white_scale(mut self, bins: &[Bin], scale: &[f64]) -> Self {
+        let white = self.spec.arw * self.spec.arw;
+        for ((d, b), s) in self.diag.iter_mut().zip(bins).zip(scale) {
+            if *s > 1.0 {
+                *d += (s - 1.0) * white / b.span_s();
+            }
+        }
+        self
+    }
+
     /// The noise model.
     pub fn spec(&self) -> NoiseSpec {
         self.spec

@@ -27,6 +27,9 @@ pub(super) struct Prepared {
     pub(super) pred: Vec<f64>,
     pub(super) base: Vec<Vec<f64>>,
     pub(super) short_adev: Vec<AdevPoint>,
+    /// Windows whose own scatter exceeds the rest of the run's ([`scatter`]): left out of
+    /// `short_adev`, their bins deweighted by it.
+    pub(super) scatter: scatter::Scatter,
     /// σ of a time offset from the table's angle readout ([`readout_offset_sigma_s`]), s.
     pub(super) readout_offset_sigma_s: f64,
     /// The table reference's error in the bins, for the noise model ([`noise::ReferenceLines`]).
@@ -147,7 +150,9 @@ pub(super) fn prepare(
     let thermal: Vec<f64> = (0..native.t.len())
         .map(|k| model.temp_coeff * (temp[k] - t0) + model.temp_rate_coeff * temp_rate[k])
         .collect();
-    let short_adev = native_adev(&native, &motion, axis, &thermal, run.gyro_sub_block.as_ref());
+    let scatter = scatter::check(&native, &bins, opts.alpha);
+    let short_adev =
+        native_adev(&native, &motion, axis, &thermal, &scatter, run.gyro_sub_block.as_ref());
     let phases = TurnPhases::new(&motion, &run.table_time_s, &run.table_angle_rad);
     let readout_offset_sigma_s = readout_offset_sigma_s(&motion, &phases);
     let reference =
@@ -167,6 +172,7 @@ pub(super) fn prepare(
         pred,
         base,
         short_adev,
+        scatter,
         readout_offset_sigma_s,
         reference,
         memo: columns::ColumnMemo::default(),
@@ -313,6 +319,7 @@ pub(super) fn native_adev(
     motion: &TableMotion,
     axis: f64,
     thermal: &[f64],
+    scatter: &scatter::Scatter,
     sub: Option<&SubBlockSums>,
 ) -> Vec<AdevPoint> {
     let mut windows = Vec::new();
@@ -322,11 +329,12 @@ pub(super) fn native_adev(
         }
         let a = native.t.partition_point(|t| *t - 0.05 < seg.start_s);
         let b = native.t.partition_point(|t| *t <= seg.end_s);
-        // Split at gaps.
+        // Split at gaps, and around windows whose scatter exceeds the rest's (left out).
+        let out = |k: usize| scatter.flagged_at(native.t[k]);
         let mut s = a;
         for k in a..=b {
-            if k == b || (k > s && native.gap_before[k]) {
-                if k - s >= 256 {
+            if k == b || (k > s && (native.gap_before[k] || out(k) != out(s))) {
+                if k - s >= 256 && !out(s) {
                     let t = native.t[s..k].to_vec();
                     let v: Vec<f64> = (s..k)
                         .map(|i| native.v[i] - axis * native.table_rate_rad_s[i] - thermal[i])

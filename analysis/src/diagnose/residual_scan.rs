@@ -75,7 +75,9 @@ pub fn residual_scan(
     let y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
     let proj = Projector::new(&prep.base, &all)?;
     let spec = noise_model(&prep)?;
-    let noise = BinNoise::new(&prep.bins, spec).with_reference(prep.reference.clone());
+    let noise = BinNoise::new(&prep.bins, spec)
+        .with_reference(prep.reference.clone())
+        .with_white_scale(&prep.bins, &prep.scatter.scale);
     let prepare_s = started.elapsed().as_secs_f64();
     let ids = residual_scan_effects(effects);
     let started = std::time::Instant::now();
