@@ -531,8 +531,8 @@ fn the_suggested_scenario_names_a_once_per_revolution_bias_the_arcs_could_not() 
 /// per °C above 25 °C, on the short procedure's 0..50 °C) is half a V in temperature, and
 /// `(T − T0)²` takes most of it: the previous build named `temperature_quadratic`. The
 /// temperature family now holds the hinges `max(0, T − T_k)` at the recording's temperature
-/// deciles (`diagnose::hinge`), so the quadratic is not named and the structure is reported
-/// unexplained as a change of k_t (or not told apart from one).
+/// deciles (`diagnose::hinge`), so the quadratic is not named: here it is not told apart from
+/// a change of k_t, and the reason says so.
 #[test]
 fn a_kink_in_k_t_is_not_named_a_temperature_quadratic() {
     let sets = [("effects.kt_kink.enabled", "true"), ("effects.kt_kink.temp_c", "25")];
@@ -540,8 +540,9 @@ fn a_kink_in_k_t_is_not_named_a_temperature_quadratic() {
     let rec = Recording::load(&path).expect("reads");
     let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
     assert_eq!(accepted(&d), [EffectId::TimeOffset], "{:?}", d.findings);
-    let kink = d.unexplained.iter().find(|u| u.correlates_with.contains("k_t changes near"));
-    assert!(kink.is_some(), "{:?}", d.unexplained);
+    let q = d.findings.iter().find(|f| f.effect == EffectId::TemperatureQuadratic);
+    let why = q.and_then(|f| f.rejected_because.as_deref()).unwrap_or_default();
+    assert!(why.starts_with("not named") && why.contains("k_t changes near"), "{why}");
 }
 
 /// Issue 26, physics outside the library: a burst of white noise four times the gyro's for
