@@ -275,7 +275,7 @@ def judge_random(d, truth, names, traits, sensor):
         # Outside the library, found is reported for what it is: unexplained, in its words.
         found = all(any(OUTSIDE_WORDS[n] in u for u in unexpl) for n in names)
     ok = None
-    if found:
+    if found and lib:
         ok = True
         for n in names:
             if n not in RANDOM_EFFECTS:

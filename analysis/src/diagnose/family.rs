@@ -451,10 +451,14 @@ pub(super) fn gate(
     let rivalling = |(j, x): &(usize, &Member)| {
         (harmonic && x.angle_harmonic) || (x.kink && !beside_significant(*j))
     };
+    // A kink rivals the effect only where it explains the data better than the effect does,
+    // each judged against its own threshold (the kink's carries its look-elsewhere over the
+    // knots): a true quadratic's best hinge takes ρ² ≈ 0.94 of its Wald, plus the knots' luck.
+    let effect_excess = p_o.test(cols, y, noise).map_or(f64::INFINITY, |t| t.wald) - thr_effect;
     for (j, mem) in members.iter().enumerate().filter(rivalling) {
         let thr_j = thr_of(mem);
         let Some(alone) = p_o.test(&mem.cols, y, noise) else { continue };
-        if alone.wald <= thr_j {
+        if alone.wald <= thr_j || (mem.kink && alone.wald - thr_j <= effect_excess) {
             continue;
         }
         let mut with_j = others.to_vec();
