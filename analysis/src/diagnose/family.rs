@@ -59,6 +59,13 @@ pub(super) struct Member {
     pub kink: bool,
 }
 
+impl Member {
+    /// A member without a grid, neither an angle harmonic nor a kink.
+    fn plain(name: String, cols: Vec<Vec<f64>>) -> Self {
+        Self { name, cols, angle_harmonic: false, looks: 1, kink: false }
+    }
+}
+
 /// A member of the family found in the residual.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FamilyMember {
@@ -177,13 +184,7 @@ pub(super) fn members(
     p: f64,
     model: &GyroModel,
 ) -> (String, Vec<Member>) {
-    let m = |name: String, cols: Vec<Vec<f64>>| Member {
-        name,
-        cols,
-        angle_harmonic: false,
-        looks: 1,
-        kink: false,
-    };
+    let m = Member::plain;
     let nat = &prep.native;
     let t0 = prep.t0;
     let dtemp = |i: usize| prep.temp[i] - t0;
@@ -322,13 +323,7 @@ fn temperature_members(
     p: f64,
     model: &GyroModel,
 ) -> (String, Vec<Member>) {
-    let m = |name: String, cols: Vec<Vec<f64>>| Member {
-        name,
-        cols,
-        angle_harmonic: false,
-        looks: 1,
-        kink: false,
-    };
+    let m = Member::plain;
     let dtemp = |i: usize| prep.temp[i] - prep.t0;
     let mut v = Vec::new();
     // The other temperature shapes of the library, by their own regressors.
