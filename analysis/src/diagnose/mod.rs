@@ -37,6 +37,7 @@
 //! [`locate`] (step 5), [`identify`]; [`residual_scan`] is the first round alone, timed.
 
 mod candidates;
+mod coil_lag;
 mod columns;
 pub mod family;
 mod final_fit;
@@ -204,14 +205,37 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis, AnalysisError> {
     check_options(opts)?;
-    let prep = prepare(run, model, effects, opts)?;
+    let mut prep = prepare(run, model, effects, opts)?;
+    // A gyro without its own sensor: the coil's lag refitted where the run determines it
+    // ([`coil_lag`]), and everything after prepared with it.
+    let lag =
+        coil_lag::profile(&prep, run, model, effects, opts.alpha)?.filter(|l| l.significant());
+    let lagged_model;
+    let model = match lag {
+        Some(l) => {
+            let mut m = model.clone();
+            m.thermal_time_constant = l.fitted_s;
+            lagged_model = m;
+            prep = prepare(run, &lagged_model, effects, opts)?;
+            &lagged_model
+        }
+        None => model,
+    };
     let base = BaseFit::new(&prep, opts.alpha)?;
     let location = locate(&prep, run, &base.r, &base.noise, &base.proj, &base.y);
     let mut search = Search::new(&prep, model, effects, run.latitude_deg.is_some(), opts, &base);
     search.run()?;
     let rejections = search.rejections();
     search.refine_time_constants()?;
-    let fit = final_fit(&mut search, effects)?;
+    let mut fit = final_fit(&mut search, effects)?;
+    if let Some(l) = lag {
+        fit.parameter_updates.push(ParameterUpdate {
+            key: ModelKey::ThermalTimeConstant,
+            nominal: l.nominal_s,
+            fitted: l.fitted_s,
+            sigma: l.sigma_s,
+        });
+    }
     let collinearity = identifiability(&search);
     let mut unexplained = unexplained(&prep, &search.r, &search.noise, opts);
     unexplained
@@ -220,7 +244,7 @@ pub fn diagnose(
     unexplained.splice(0..0, prep.scatter.unexplained());
     let verdict = if !search.findings.is_empty() || !unexplained.is_empty() {
         Verdict::MissingPhysics
-    } else if base.wald.value > base.wald.threshold {
+    } else if base.wald.value > base.wald.threshold || lag.is_some() {
         Verdict::ParametersOnly
     } else {
         Verdict::Consistent
