@@ -128,7 +128,7 @@ pub(super) fn profile(
         (0..n).map(|i| (kt * (tp[i] - tmn[i]) + kdt * (rp[i] - rmn[i])) / (2.0 * h)).collect();
     let c = base_at.residual(&d, n);
     let cc: f64 = c.iter().map(|x| x * x).sum();
-    if !(cc > 0.0) {
+    if cc.is_nan() || cc <= 0.0 {
         return Ok(None);
     }
     let noise = BinNoise::new(bins, noise_model(prep)?).with_reference(prep.reference.clone());
