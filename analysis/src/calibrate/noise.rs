@@ -166,7 +166,11 @@ pub fn fit_noise_spec_all_points(points: &[AdevPoint], with_rrw: bool) -> Option
     if pts.len() < 3 {
         return None;
     }
-    fit_noise_spec_weighted(&pts, with_rrw, None)
+    // A floor the curve does not resolve is raised to the largest it cannot rule out, as in
+    // the calibration: a dropped floor would take every bin for independent and pass hour-scale
+    // wander as structure (lab null seed 27 of the diagnosis study: a 1/rev, an 8/rev and two
+    // unexplained windows on a floor fitted at 0, the writer's 1e-8).
+    fit_noise_spec_weighted(&pts, with_rrw, None).map(|s| with_flicker_limit(s, &pts, with_rrw).0)
 }
 
 /// Standardised excess of an Allan-variance point over the fitted curve beyond which
