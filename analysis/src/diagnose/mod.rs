@@ -234,6 +234,7 @@ pub fn diagnose(
             nominal: l.nominal_s,
             fitted: l.fitted_s,
             sigma: l.sigma_s,
+            held: None,
         });
     }
     let collinearity = identifiability(&search);

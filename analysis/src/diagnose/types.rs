@@ -78,6 +78,11 @@ pub struct ParameterUpdate {
     pub fitted: f64,
     /// 1σ of the fitted value (noise model).
     pub sigma: f64,
+    /// Why the parameter is held at its nominal value rather than refitted (`fitted` is then
+    /// the nominal value and `sigma` the σ it would have had): the effects and unexplained
+    /// structure in the model carry more than [`crate::information::CONFOUNDED`] of its
+    /// information.
+    pub held: Option<String>,
 }
 
 /// A fitted parameter of an effect.

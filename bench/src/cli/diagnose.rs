@@ -10,7 +10,9 @@ use super::say::say;
 use anyhow::Context as _;
 use bench_analysis::diagnose::{DiagnoseOptions, Verdict};
 use bench_physics::ModelKey;
-use bench_recording::model_file::{CalibrationFile, ModelKeys, Source, Uncertainty};
+use bench_recording::model_file::{
+    CalibrationFile, HeldEntry, ModelKeys, Source, Uncertainty, HOLDABLE_KEYS,
+};
 use bench_report::diagnose::{diagnose_run, json, report};
 use bench_report::display;
 
@@ -321,6 +323,15 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     say!("| --- | --- | --- | --- |");
     for u in &d.parameter_updates {
         let unit = display::model_key_unit(u.key);
+        if u.held.is_some() {
+            say!(
+                "| {} | {} | held (σ would be {}) | — |",
+                u.key.key(),
+                display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name),
+                display::si_value(unit, u.sigma, 2)
+            );
+            continue;
+        }
         say!(
             "| {} | {} | {} | {} |",
             u.key.key(),
@@ -328,6 +339,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
             display::si_value_sigma(unit, u.fitted, u.sigma),
             display::sig((u.fitted - u.nominal) / u.sigma, 2)
         );
+    }
+    for u in d.parameter_updates.iter().filter(|u| u.held.is_some()) {
+        say!("held {}: {}", u.key.key(), u.held.as_deref().unwrap_or_default());
     }
     for f in d.findings.iter().filter(|f| f.accepted) {
         let params: Vec<String> = f
@@ -378,8 +392,31 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     }
     outputs.prepare()?;
     let sigma = |key: ModelKey| {
-        d.parameter_updates.iter().find(|u| u.key == key).map(|u| u.sigma).filter(|s| s.is_finite())
+        d.parameter_updates
+            .iter()
+            .find(|u| u.key == key && u.held.is_none())
+            .map(|u| u.sigma)
+            .filter(|s| s.is_finite())
     };
+    // A parameter the final model does not determine: its nominal value, under [held].
+    let held = d
+        .parameter_updates
+        .iter()
+        .filter_map(|u| {
+            let reason = u.held.clone()?;
+            let (_, name) = HOLDABLE_KEYS.iter().find(|(k, _)| *k == u.key)?;
+            let entry = HeldEntry {
+                value: u.nominal,
+                sigma: None,
+                source: "nominal".into(),
+                reason,
+                determination: "a run whose procedure separates it from the effects found \
+                                (`bench diagnose --suggest-scenario`)"
+                    .into(),
+            };
+            Some(((*name).to_owned(), entry))
+        })
+        .collect();
     let file = CalibrationFile {
         source: Source {
             recording: name.clone(),
@@ -395,7 +432,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         },
         // The gyro's effects: the table's motion and the clocks are the recording's bench's.
         effects: d.effects.travelling(),
-        held: Default::default(),
+        held,
         covariance: None,
     };
     let path = args.out.join("model.toml");

@@ -92,7 +92,8 @@ pub fn to_json(o: &DiagnoseOutcome, recording: &str) -> Value {
     for u in &d.parameter_updates {
         updates.insert(
             u.key.key().into(),
-            json!({"nominal": num(u.nominal), "fitted": num(u.fitted), "sigma": num(u.sigma)}),
+            json!({"nominal": num(u.nominal), "fitted": num(u.fitted), "sigma": num(u.sigma),
+                   "held": u.held}),
         );
     }
     let l = &d.location;

@@ -349,14 +349,22 @@ fn page(o: &DiagnoseOutcome, source: &str, figures: &[(Figure, String)]) -> Stri
     h.push_str("<h2>Parameters</h2>\n<table><tr><th class=l>key</th><th>nominal</th><th>fitted ± 1σ</th><th>z</th></tr>\n");
     for u in &d.parameter_updates {
         let unit = display::model_key_unit(u.key);
-        let _ = writeln!(
-            h,
-            "<tr><td class=l>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            u.key.key(),
-            escape(&display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name)),
-            escape(&display::si_value_sigma(unit, u.fitted, u.sigma)),
-            sig((u.fitted - u.nominal) / u.sigma, 2)
-        );
+        let nominal = escape(&display::value_like(unit.of(u.nominal), unit.of(u.sigma), unit.name));
+        let _ = match &u.held {
+            Some(reason) => writeln!(
+                h,
+                "<tr><td class=l>{}</td><td>{nominal}</td><td>held: {}</td><td>—</td></tr>",
+                u.key.key(),
+                escape(reason)
+            ),
+            None => writeln!(
+                h,
+                "<tr><td class=l>{}</td><td>{nominal}</td><td>{}</td><td>{}</td></tr>",
+                u.key.key(),
+                escape(&display::si_value_sigma(unit, u.fitted, u.sigma)),
+                sig((u.fitted - u.nominal) / u.sigma, 2)
+            ),
+        };
     }
     let _ = writeln!(
         h,
