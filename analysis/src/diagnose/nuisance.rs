@@ -202,9 +202,10 @@ pub(super) fn check_families(
                 id.key()
             ),
             (None, Some(m)) => format!(
-                "a {}-like term{effect_size} whose size moves {:.1}σ when {} is freed",
+                "a {}-like term{effect_size} whose size moves {:.1}σ (> {:.2}) when {} is freed",
                 id.key(),
                 g.check.size_change_z,
+                g.check.size_change_limit,
                 m.name
             ),
             (None, None) => format!("a {}-like term{effect_size}", id.key()),

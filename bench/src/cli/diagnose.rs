@@ -78,12 +78,14 @@ fn print_checks(d: &bench_analysis::diagnose::Diagnosis) {
             format!("; strongest: {} (Wald {:.1}, threshold {:.1})", m.name, m.wald, m.threshold)
         });
         say!(
-            "  {} family check ({}, {} members): {}{strongest}; size moves {:.1}σ when it is freed",
+            "  {} family check ({}, {} members): {}{strongest}; size moves {:.1}σ (limit {:.2}) \
+             when it is freed",
             f.effect.key(),
             c.family,
             c.members,
             if c.passed { "passed" } else { "FAILED — not named" },
-            c.size_change_z
+            c.size_change_z,
+            c.size_change_limit
         );
         if let Some(r) = &f.rate_dependence {
             say!(

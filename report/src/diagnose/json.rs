@@ -55,6 +55,7 @@ fn finding(f: &Finding) -> Value {
                 "members": c.members,
                 "passed": c.passed,
                 "size_change_z": num(c.size_change_z),
+                "size_change_limit": num(c.size_change_limit),
                 "strongest": c.strongest.as_ref().map(|m| json!({
                     "name": m.name, "wald": num(m.wald), "threshold": num(m.threshold),
                     "size_rad_s": num(m.size_rad_s)})),
