@@ -76,9 +76,7 @@ pub(super) fn profile(
         return Ok(None);
     }
     let thermal = |tau: f64| -> Result<[Vec<f64>; 2], AnalysisError> {
-        let temp = lag_temperature(&nat.t, &nat.air_c, tau);
-        let rate =
-            crate::temperature_rate::local_linear_rate(&nat.t, &temp, series::TEMP_RATE_WINDOW_S)?;
+        let (temp, rate) = series::coil_temperature(&nat.t, &nat.air_c, tau)?;
         Ok([bin_mean(bins, dt, |k| temp[k] - t0), bin_mean(bins, dt, |k| rate[k])])
     };
     let design = |tau: f64| -> Result<Vec<Vec<f64>>, AnalysisError> {

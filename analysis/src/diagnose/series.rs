@@ -107,11 +107,10 @@ impl Native {
         }
         let air_c: Vec<f64> =
             t.iter().map(|&x| interp(&run.chamber_time_s, &run.chamber_temp_c, x)).collect();
-        let temp_c = match &run.gyro_temp_c {
-            Some(g) => g.clone(),
-            None => lag_temperature(&t, &air_c, lag_s),
+        let (temp_c, temp_rate_c_s) = match &run.gyro_temp_c {
+            Some(g) => (g.clone(), local_linear_rate(&t, g, TEMP_RATE_WINDOW_S)?),
+            None => coil_temperature(&t, &air_c, lag_s)?,
         };
-        let temp_rate_c_s = local_linear_rate(&t, &temp_c, TEMP_RATE_WINDOW_S)?;
         let mut angle_mid_rad = Vec::with_capacity(n);
         let mut table_rate_rad_s = Vec::with_capacity(n);
         for k in 0..n {
@@ -141,6 +140,19 @@ impl Native {
     pub fn hysteresis(&self, threshold_c_s: f64) -> Vec<f64> {
         HysteresisState::series(threshold_c_s, &self.temp_rate_c_s)
     }
+}
+
+/// A gyro without its own sensor: its coil's temperature at times `t` (s), behind the chamber
+/// air `air_c` (°C) through a first-order lag of `lag_s`, and that temperature's rate (°C/s,
+/// local linear regression over [`TEMP_RATE_WINDOW_S`]) — what the model is driven by.
+pub fn coil_temperature(
+    t: &[f64],
+    air_c: &[f64],
+    lag_s: f64,
+) -> Result<(Vec<f64>, Vec<f64>), AnalysisError> {
+    let temp_c = lag_temperature(t, air_c, lag_s);
+    let rate_c_s = local_linear_rate(t, &temp_c, TEMP_RATE_WINDOW_S)?;
+    Ok((temp_c, rate_c_s))
 }
 
 /// One time bin: a contiguous run of gyro samples.
