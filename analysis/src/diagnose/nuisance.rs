@@ -68,6 +68,8 @@ pub(super) struct FamilyState<'a> {
     pub(super) tested: &'a [EffectId],
     /// The candidates still to test: a rival the data prefer goes back to them.
     pub(super) candidates: &'a mut Vec<EffectId>,
+    /// The search's candidate columns, for the rivals' grids.
+    pub(super) cache: &'a ColumnCache,
 }
 
 /// The family check ([`family`]) of each accepted effect in `ids` against the rest of the
@@ -125,8 +127,15 @@ pub(super) fn check_families(
         st.findings[pos].rate_dependence = rd;
         let rival = if g.check.passed {
             let accepted: Vec<EffectId> = st.accepted.iter().map(|a| a.id).collect();
-            let ctx =
-                rivals::RivalCtx { prep, model, tested: st.tested, accepted: &accepted, level };
+            let ctx = rivals::RivalCtx {
+                prep,
+                model,
+                tested: st.tested,
+                accepted: &accepted,
+                level,
+                cache: st.cache,
+                thresholds: st.thresholds,
+            };
             rivals::judge_rivals(&ctx, id, &cols, &others, y, noise)
         } else {
             None

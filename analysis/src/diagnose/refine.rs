@@ -156,7 +156,18 @@ pub(super) fn refit_grid_profile(
     if g.len() < 2 {
         return None;
     }
-    let cached = cache.get(&id)?;
+    // A candidate whose grid the search never computed (a rival judged beside an accepted
+    // effect) has its columns computed here, through the run's memo.
+    let computed: Vec<Vec<Vec<f64>>>;
+    let cached = match cache.get(&id) {
+        Some(c) => c,
+        None => {
+            prep.prefill_sinusoids(&g.iter().map(|&p| (id, p)).collect::<Vec<_>>());
+            computed =
+                columns::par_map(prep.threads, &g, |&p| candidate_columns(prep, id, p, model));
+            &computed
+        }
+    };
     let mut top: Option<Fitted> = None;
     let mut profile = Vec::new();
     let tests = columns::par_map(prep.threads, cached, |cols| proj.test(cols, y, noise));

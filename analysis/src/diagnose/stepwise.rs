@@ -362,6 +362,7 @@ impl<'a> Search<'a> {
             thresholds: &self.thresholds,
             tested: &self.tested,
             candidates: &mut self.candidates,
+            cache: &self.column_cache,
         };
         let (y, noise, level) = (&self.y, &self.noise, self.level);
         if check_families(prep, model, &ids, &mut state, y, noise, level) {

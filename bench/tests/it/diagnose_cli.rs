@@ -15,6 +15,9 @@ fn scenario_with(effects: &str) -> String {
     format!("{text}\n{effects}\n")
 }
 
+/// A warm-up of 4e-7 rad/s (τ 600 s) on the demo procedure. At 2e-7 (seed 31) its decay's
+/// shape beside an early bias step keeps Wald 11.1 against 11.7: "not told apart: warm_up or
+/// bias_step", the declared rivalry, which the diagnosis says rather than guess.
 #[test]
 fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -22,7 +25,7 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     std::fs::write(
         d.join("s.toml"),
         scenario_with(
-            "[simulation.truth.effects]\nwarm_up = { amplitude_rad_s = 2e-7, time_constant_s = 600 }",
+            "[simulation.truth.effects]\nwarm_up = { amplitude_rad_s = 4e-7, time_constant_s = 600 }",
         ),
     )
     .expect("write scenario");
@@ -41,7 +44,7 @@ fn a_concealed_warm_up_is_named_modelled_and_the_updated_model_simulates_clean()
     let findings: Vec<_> = all.iter().filter(|f| f["effect"] == "warm_up").collect();
     let amp = &findings[0]["parameters"]["amplitude_rad_s"];
     let (v, s) = (amp["value"].as_f64().expect("value"), amp["sigma"].as_f64().expect("sigma"));
-    assert!((v - 2e-7).abs() < 3.0 * s, "amplitude {v:e} ± {s:e}");
+    assert!((v - 4e-7).abs() < 3.0 * s, "amplitude {v:e} ± {s:e}");
     let ev = &findings[0]["evidence"];
     assert!(ev["delta_bic"].as_f64().is_some_and(|x| x > 0.0));
     assert!(ev["rms_after"].as_f64() < ev["rms_before"].as_f64());
