@@ -168,16 +168,24 @@ pub(super) fn check_families(
             Some(rivals::RivalVerdict::NotToldApart(n)) => Some(n),
             None => None,
         };
-        if g.check.passed && rival.is_none() {
+        // Told apart from its relatives and rivals, the effect must still be told from the
+        // nominal parameters refitted beside it.
+        let confounded = if g.check.passed && rival.is_none() && !is_earth(id) {
+            parameter_confounded(id, &cols, &others, &all, noise)
+        } else {
+            None
+        };
+        if g.check.passed && rival.is_none() && confounded.is_none() {
             continue;
         }
         changed = true;
         st.accepted.remove(i);
         let mut f = st.findings.remove(pos);
         f.accepted = false;
-        f.rejected_because = Some(match &rival {
-            Some(r) => r.words(id),
-            None => format!("not named: {}", g.check.reason()),
+        f.rejected_because = Some(match (&rival, &confounded) {
+            (Some(r), _) => r.words(id),
+            (None, Some(words)) => words.clone(),
+            (None, None) => format!("not named: {}", g.check.reason()),
         });
         // The nuisance blocks beside the effect: its significant relatives, or the rival.
         let extra: Vec<Vec<f64>> = match &rival {
@@ -202,6 +210,7 @@ pub(super) fn check_families(
             .map_or(String::new(), |q| format!(" of {}", family::deg_h(q.value)));
         let correlates_with = match (&rival, &g.check.strongest) {
             (Some(r), _) => r.words(id),
+            (None, _) if confounded.is_some() => confounded.clone().unwrap_or_default(),
             (None, Some(m)) if m.wald > m.threshold => format!(
                 "{}, {} (Wald {:.1} > {:.1}), beside a {}-like term{effect_size}",
                 m.name,
@@ -234,4 +243,59 @@ pub(super) fn check_families(
         st.rejected.push(f);
     }
     changed
+}
+
+/// Whether the nominal parameters carry more than [`crate::information::CONFOUNDED`] of effect
+/// `id`'s information (columns `cols`; `others` the design without it, the calibrated
+/// parameters first): the effect's coefficients' variance with the design over their variance
+/// with one parameter's column left out is `VIF = 1/(1 − ρ²)`. Such an effect is not named —
+/// its value is whatever the parameter leaves it (a temperature quadratic on a run that holds
+/// one ramp and a plateau, ρ = 0.996 with `temp_coeff`, came out 0.0000007 ± 0.0000045
+/// °/h/°C² and was named, the parameter then held). Returns the words for the report.
+fn parameter_confounded(
+    id: EffectId,
+    cols: &[Vec<f64>],
+    others: &[Vec<f64>],
+    all: &[usize],
+    noise: &BinNoise,
+) -> Option<String> {
+    let mut with = others.to_vec();
+    with.extend(cols.iter().cloned());
+    let first = others.len();
+    let variance = |design: &[Vec<f64>]| -> Option<f64> {
+        let p = Projector::new(design, all).ok()?;
+        let cov = p.covariance(noise);
+        let mut v = 0.0;
+        for j in first..design.len() {
+            let c = p.kept.iter().position(|&k| k == j)?;
+            v += cov[(c, c)];
+        }
+        Some(v)
+    };
+    let full = variance(&with);
+    for (j, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
+        if j >= first || others[j].iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        let mut without = with.clone();
+        without[j] = vec![0.0; all.len()];
+        let Some(apart) = variance(&without).filter(|v| *v > 0.0) else { continue };
+        // Spanned by the design with the parameter in (a column dropped): ρ = 1.
+        let rho2 = full.map_or(1.0, |f| (1.0 - apart / f).max(0.0));
+        if rho2 <= crate::information::CONFOUNDED {
+            continue;
+        }
+        let when = id.rivalry_with(key.key()).unwrap_or("this procedure");
+        return Some(format!(
+            "not told apart: {} or {} (alike on {when}: ρ = {:.4}, the run holds less than {:.1} \
+             % of the effect's information apart from {}); the run that separates them: {}",
+            id.key(),
+            key.key(),
+            rho2.sqrt(),
+            100.0 * (1.0 - crate::information::CONFOUNDED),
+            key.key(),
+            id.effect().separated_by().words()
+        ));
+    }
+    None
 }

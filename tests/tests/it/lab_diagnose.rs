@@ -664,3 +664,48 @@ fn a_warm_up_as_slow_as_the_run_is_not_told_apart_from_a_drift() {
         .unwrap_or_else(|| panic!("{:?}", d.unexplained));
     assert!(apart.correlates_with.contains("a longer run"), "{}", apart.correlates_with);
 }
+
+/// Issue 26: on one ramp from 20 to −10 °C and a long plateau (the randomised study's effect
+/// seed 80: a bias step, a gyro without its own sensor) a temperature quadratic is almost
+/// `temp_coeff` (ρ = 0.996). It was named beside the step with 0.0000007 ± 0.0000045
+/// °/h/°C². Now the step is named, the quadratic is "not told apart" from `temp_coeff`, and
+/// `temp_coeff` is held at the nominal model's value, never written as measured.
+#[test]
+fn an_effect_a_parameter_takes_over_is_not_named_and_the_parameter_is_held() {
+    let legs = r#"[{"hold_s":587.915814560916},{"to_c":-10.0,"rate_c_min":3.912},{"hold_s":3387}]"#;
+    let sets = [
+        ("procedure.legs", legs),
+        ("procedure.rates_deg_min", "[22.58]"),
+        ("procedure.rate_deg_min", "22.58"),
+        ("procedure.segment_s", "795"),
+        ("procedure.first_direction", "ccw"),
+        ("gyro.sample_rate_hz", "20.0"),
+        ("gyro.sensor", "false"),
+        ("gyro.thermal_time_constant", "237"),
+        ("effects.bias_step.enabled", "true"),
+        ("effects.bias_step.step", "1.304161739139859e-07"),
+        ("effects.bias_step.time_fraction", "0.725"),
+    ];
+    let path = lab_fixture("lab-clean", 321, &sets);
+    let truth = truth_of(&path);
+    let rec = Recording::load(&path).expect("reads");
+    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    assert_eq!(accepted(&d), [EffectId::BiasStep], "{:?}", d.findings);
+    let f = d.findings.iter().find(|f| f.effect == EffectId::BiasStep).expect("the step");
+    let (v, s) = param(f, "step_rad_s");
+    let want = truth["effects"]["bias_step"]["parameters"]["step"].as_f64().expect("step");
+    assert!((v - want).abs() <= 3.0 * s, "step {v} ± {s} vs {want}");
+    assert!(
+        d.unexplained.iter().any(|u| u
+            .correlates_with
+            .contains("not told apart: temperature_quadratic or temp_coeff")),
+        "{:?}",
+        d.unexplained
+    );
+    let kt = d
+        .parameter_updates
+        .iter()
+        .find(|u| u.key == bench_physics::ModelKey::TempCoeff)
+        .expect("k_t");
+    assert!(kt.held.is_some() && kt.fitted == kt.nominal, "{kt:?}");
+}
