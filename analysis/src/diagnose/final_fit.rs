@@ -58,10 +58,12 @@ pub(super) fn held_parameters(with: &[f64], without: &[f64]) -> Vec<Option<Strin
 }
 
 /// Parameters and effects' coefficients fitted together on the search's final model; each
-/// accepted effect's finding gets its final parameters.
+/// accepted effect's finding gets its final parameters. `refit` is the parameter refit's
+/// projector (the nominal design alone), against which a parameter is held.
 pub(super) fn final_fit(
     search: &mut Search<'_>,
     effects: &Effects,
+    refit: &Projector,
 ) -> Result<FinalFit, AnalysisError> {
     let model = search.ctx.model;
     let n = search.y.len();
@@ -74,8 +76,8 @@ pub(super) fn final_fit(
             })
             .collect()
     };
-    let refit = Projector::new(&search.ctx.prep.base, &all).map(|p| sigmas(&p))?;
-    let held = held_parameters(&sigmas(&search.proj), &refit);
+    let with_terms = sigmas(&search.proj);
+    let held = held_parameters(&with_terms, &sigmas(refit));
     let mut proj = search.proj.clone();
     if held.iter().any(Option::is_some) {
         // The rest refitted with the held ones out of the design (a zero column is not kept).
@@ -95,14 +97,13 @@ pub(super) fn final_fit(
             .position(|&c| c == j)
             .map_or((0.0, f64::NAN), |c| (beta[c], cov[(c, c)].sqrt()))
     };
-    let final_sigmas = sigmas(&search.proj);
     let mut parameter_updates = Vec::new();
     let mut updated = model.clone();
     for (j, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
         let nominal = model.get(key);
         let held = held[j].clone();
         let (fitted, sigma) = match held {
-            Some(_) => (nominal, final_sigmas[j]),
+            Some(_) => (nominal, with_terms[j]),
             None => {
                 let (d, s) = coef(j);
                 (nominal + d, s)

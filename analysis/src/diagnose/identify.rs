@@ -74,7 +74,8 @@ fn bound(t: &TermTest) -> f64 {
     size + z * sigma
 }
 
-fn trace(t: &TermTest) -> f64 {
+/// The summed variances of a term's coefficients (noise model).
+pub(super) fn trace(t: &TermTest) -> f64 {
     (0..t.theta.len()).map(|a| t.cov[(a, a)]).sum()
 }
 

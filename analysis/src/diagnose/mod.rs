@@ -227,7 +227,7 @@ pub fn diagnose(
     search.run()?;
     let rejections = search.rejections();
     search.refine_time_constants()?;
-    let mut fit = final_fit(&mut search, effects)?;
+    let mut fit = final_fit(&mut search, effects, &base.proj)?;
     if let Some(l) = lag {
         fit.parameter_updates.push(ParameterUpdate {
             key: ModelKey::ThermalTimeConstant,

@@ -171,7 +171,7 @@ pub(super) fn check_families(
         // Told apart from its relatives and rivals, the effect must still be told from the
         // nominal parameters refitted beside it.
         let confounded = if g.check.passed && rival.is_none() && !is_earth(id) {
-            parameter_confounded(id, &cols, &others, &all, noise)
+            parameter_confounded(id, &cols, &others, &all, y, noise)
         } else {
             None
         };
@@ -257,30 +257,22 @@ fn parameter_confounded(
     cols: &[Vec<f64>],
     others: &[Vec<f64>],
     all: &[usize],
+    y: &[f64],
     noise: &BinNoise,
 ) -> Option<String> {
-    let mut with = others.to_vec();
-    with.extend(cols.iter().cloned());
-    let first = others.len();
-    let variance = |design: &[Vec<f64>]| -> Option<f64> {
-        let p = Projector::new(design, all).ok()?;
-        let cov = p.covariance(noise);
-        let mut v = 0.0;
-        for j in first..design.len() {
-            let c = p.kept.iter().position(|&k| k == j)?;
-            v += cov[(c, c)];
-        }
-        Some(v)
+    // The effect's coefficients' summed variance against a design, as identifiability reads it.
+    let variance = |design: &[Vec<f64>]| {
+        Projector::new(design, all).ok()?.test(cols, y, noise).map(|t| identify::trace(&t))
     };
-    let full = variance(&with);
+    let full = variance(others);
     for (j, key) in ModelKey::CALIBRATED.into_iter().enumerate() {
-        if j >= first || others[j].iter().all(|v| *v == 0.0) {
+        if j >= others.len() || others[j].iter().all(|v| *v == 0.0) {
             continue;
         }
-        let mut without = with.clone();
+        let mut without = others.to_vec();
         without[j] = vec![0.0; all.len()];
         let Some(apart) = variance(&without).filter(|v| *v > 0.0) else { continue };
-        // Spanned by the design with the parameter in (a column dropped): ρ = 1.
+        // Spanned by the design with the parameter in (nothing of it left to test): ρ = 1.
         let rho2 = full.map_or(1.0, |f| (1.0 - apart / f).max(0.0));
         if rho2 <= crate::information::CONFOUNDED {
             continue;

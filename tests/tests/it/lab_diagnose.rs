@@ -200,7 +200,17 @@ fn truth_of(path: &std::path::Path) -> Value {
 }
 
 fn diagnose(preset: &str) -> (bench_analysis::diagnose::Diagnosis, Value) {
-    let path = lab_fixture(preset, 1, &[]);
+    diagnose_with(preset, 1, &[])
+}
+
+/// The writer's `preset` at `seed` with `sets` ([`lab_fixture`]), diagnosed against its own
+/// model; with its truth.
+fn diagnose_with(
+    preset: &str,
+    seed: u64,
+    sets: &[(&str, &str)],
+) -> (bench_analysis::diagnose::Diagnosis, Value) {
+    let path = lab_fixture(preset, seed, sets);
     let truth = truth_of(&path);
     let rec = Recording::load(&path).expect("reads");
     let out = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses");
@@ -357,10 +367,7 @@ fn a_rate_squared_term_on_one_rate_is_not_told_from_an_asymmetry() {
 /// beside the lab's stamping offset, its slope within 3σ.
 #[test]
 fn a_linear_bias_drift_is_named_with_its_slope() {
-    let path = lab_fixture("short-lab-null", 2, &[("effects.bias_drift.enabled", "true")]);
-    let truth = truth_of(&path);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, truth) = diagnose_with("short-lab-null", 2, &[("effects.bias_drift.enabled", "true")]);
     assert_eq!(accepted(&d), [EffectId::TimeOffset, EffectId::BiasDrift], "{:?}", d.findings);
     let f = d.findings.iter().find(|f| f.effect == EffectId::BiasDrift).expect("found");
     let want = truth["effects"]["bias_drift"]["parameters"]["slope"].as_f64().expect("slope");
@@ -373,9 +380,7 @@ fn a_linear_bias_drift_is_named_with_its_slope() {
 /// the comparison against Ω_E·sin(latitude) at the writer's site (43.56°).
 #[test]
 fn earth_rate_left_out_of_the_model_is_named_with_the_comparison() {
-    let path = lab_fixture("short-lab-null", 5, &[("nominal_earth_rate", "false")]);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose_with("short-lab-null", 5, &[("nominal_earth_rate", "false")]);
     let f = d.findings.iter().find(|f| f.effect == EffectId::EarthRate).expect("Earth's rate");
     let remark = f.remark.as_deref().expect("the comparison");
     assert!(remark.contains("15.04 °/h × sin 43.6°"), "{remark}");
@@ -462,9 +467,7 @@ fn a_term_collinear_with_a_parameter_is_stated_with_its_bound() {
 /// simulation of it with a concealed 400 s coil lag has the lag named, τ and gain within 3σ.
 #[test]
 fn the_suggested_scenario_separates_a_lag_from_temp_rate_coeff() {
-    let path = lab_fixture("effect-gradient", 1, &[]);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose("effect-gradient");
     let mut s =
         bench::suggest::suggest(&d, &facts("gradient.mcap", &d)).expect("builds").expect("one");
     bench::suggest::predict(&mut s, 1).expect("predicts");
@@ -534,9 +537,7 @@ fn the_suggestion_for_a_gyro_without_a_sensor_lowers_what_it_separates_and_soaks
 /// per-revolution structure is unexplained, with the harmonic it cannot be told apart from.
 #[test]
 fn per_revolution_harmonics_that_cannot_be_told_apart_are_not_named() {
-    let path = lab_fixture("effect-1rev", 8, &[]);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose_with("effect-1rev", 8, &[]);
     let found = accepted(&d);
     assert!(!found.contains(&EffectId::AngleHarmonic), "{:?}", d.findings);
     let named_1rev = found.contains(&EffectId::OncePerRevolution);
@@ -549,9 +550,7 @@ fn per_revolution_harmonics_that_cannot_be_told_apart_are_not_named() {
 /// concealed names it, amplitude and phase within 3σ.
 #[test]
 fn the_suggested_scenario_names_a_once_per_revolution_bias_the_arcs_could_not() {
-    let path = lab_fixture("effect-1rev", 8, &[]);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose_with("effect-1rev", 8, &[]);
     let s = bench::suggest::suggest(&d, &facts("1rev.mcap", &d)).expect("builds").expect("one");
     assert!(s.text.contains("full revolutions"), "{}", s.text);
     let (amplitude, phase) = (5e-8, 0.7);
@@ -587,9 +586,7 @@ fn a_kink_in_k_t_is_not_named_a_temperature_quadratic() {
         ("effects.kt_kink.temp_c", "40"),
         ("effects.kt_kink.coeff", "2e-8"),
     ];
-    let path = lab_fixture("short-lab-null", 1, &sets);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose_with("short-lab-null", 1, &sets);
     assert_eq!(accepted(&d), [EffectId::TimeOffset], "{:?}", d.findings);
     let kink = d.unexplained.iter().find(|u| u.correlates_with.starts_with("k_t changes near"));
     assert!(kink.is_some(), "{:?}", d.unexplained);
@@ -603,10 +600,7 @@ fn a_kink_in_k_t_is_not_named_a_temperature_quadratic() {
 /// named.
 #[test]
 fn a_burst_of_noise_is_reported_unexplained_with_its_factor_and_span() {
-    let path = lab_fixture("short-lab-null", 1, &[("effects.noise_burst.enabled", "true")]);
-    let truth = truth_of(&path);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, truth) = diagnose_with("short-lab-null", 1, &[("effects.noise_burst.enabled", "true")]);
     assert_eq!(accepted(&d), [EffectId::TimeOffset], "{:?}", d.findings);
     let burst: Vec<_> =
         d.unexplained.iter().filter(|u| u.correlates_with.starts_with("noise ")).collect();
@@ -653,9 +647,7 @@ fn a_warm_up_as_slow_as_the_run_is_not_told_apart_from_a_drift() {
         ("effects.warm_up.amplitude", "-1.616048267451e-07"),
         ("effects.warm_up.time_constant_s", "1923"),
     ];
-    let path = lab_fixture("lab-null", 105, &sets);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, _) = diagnose_with("lab-null", 105, &sets);
     assert_eq!(accepted(&d), [EffectId::TimeOffset], "{:?}", d.findings);
     let apart = d
         .unexplained
@@ -686,10 +678,7 @@ fn an_effect_a_parameter_takes_over_is_not_named_and_the_parameter_is_held() {
         ("effects.bias_step.step", "1.304161739139859e-07"),
         ("effects.bias_step.time_fraction", "0.725"),
     ];
-    let path = lab_fixture("lab-clean", 321, &sets);
-    let truth = truth_of(&path);
-    let rec = Recording::load(&path).expect("reads");
-    let d = diagnose_recording(&rec, None, &Default::default()).expect("diagnoses").diagnosis;
+    let (d, truth) = diagnose_with("lab-clean", 321, &sets);
     assert_eq!(accepted(&d), [EffectId::BiasStep], "{:?}", d.findings);
     let f = d.findings.iter().find(|f| f.effect == EffectId::BiasStep).expect("the step");
     let (v, s) = param(f, "step_rad_s");
