@@ -45,10 +45,12 @@ impl CoilLag {
     }
 }
 
-/// Profile the coil's lag on `prep` (prepared with `model`'s lag); `None` where the gyro has its
-/// own sensor, the nominal effects already lag the temperature, or the profile is flat.
+/// Profile the coil's lag on `prep` (prepared with `model`'s lag, `noise_spec` its noise
+/// model); `None` where the gyro has its own sensor, the nominal effects already lag the
+/// temperature, or the profile is flat.
 pub(super) fn profile(
     prep: &Prepared,
+    noise_spec: NoiseSpec,
     run: &RunSeries,
     model: &GyroModel,
     effects: &Effects,
@@ -129,7 +131,7 @@ pub(super) fn profile(
     if cc.is_nan() || cc <= 0.0 {
         return Ok(None);
     }
-    let noise = BinNoise::new(bins, noise_model(prep)?).with_reference(prep.reference.clone());
+    let noise = BinNoise::new(bins, noise_spec).with_reference(prep.reference.clone());
     let sigma = noise.quad(&c, &c).sqrt() / cc;
     // The test: the change the fitted lag makes to the model (at the fitted k_t, k_dt), the
     // model lag's base projected out, as one column against the model lag's residual under

@@ -156,13 +156,13 @@ struct BaseFit {
 }
 
 impl BaseFit {
-    fn new(prep: &Prepared, alpha: f64) -> Result<Self, AnalysisError> {
+    /// The refit on `prep` under its noise model `noise_spec` ([`noise_model`] of `prep`).
+    fn new(prep: &Prepared, noise_spec: NoiseSpec, alpha: f64) -> Result<Self, AnalysisError> {
         let n = prep.bins.len();
         let all: Vec<usize> = (0..n).collect();
         let y: Vec<f64> = prep.y.iter().zip(&prep.pred).map(|(a, b)| a - b).collect();
         let proj = Projector::new(&prep.base, &all)?;
         let r = proj.residual(&y, n);
-        let noise_spec = noise_model(prep)?;
         let noise = BinNoise::new(&prep.bins, noise_spec)
             .with_reference(prep.reference.clone())
             .with_white_scale(&prep.bins, &prep.scatter.scale);
@@ -206,10 +206,11 @@ pub fn diagnose(
 ) -> Result<Diagnosis, AnalysisError> {
     check_options(opts)?;
     let mut prep = prepare(run, model, effects, opts)?;
+    let mut noise_spec = noise_model(&prep)?;
     // A gyro without its own sensor: the coil's lag refitted where the run determines it
     // ([`coil_lag`]), and everything after prepared with it.
-    let lag =
-        coil_lag::profile(&prep, run, model, effects, opts.alpha)?.filter(|l| l.significant());
+    let lag = coil_lag::profile(&prep, noise_spec, run, model, effects, opts.alpha)?
+        .filter(|l| l.significant());
     let lagged_model;
     let model = match lag {
         Some(l) => {
@@ -217,11 +218,12 @@ pub fn diagnose(
             m.thermal_time_constant = l.fitted_s;
             lagged_model = m;
             prep = prepare(run, &lagged_model, effects, opts)?;
+            noise_spec = noise_model(&prep)?;
             &lagged_model
         }
         None => model,
     };
-    let base = BaseFit::new(&prep, opts.alpha)?;
+    let base = BaseFit::new(&prep, noise_spec, opts.alpha)?;
     let location = locate(&prep, run, &base.r, &base.noise, &base.proj, &base.y);
     let mut search = Search::new(&prep, model, effects, run.latitude_deg.is_some(), opts, &base);
     search.run()?;
