@@ -27,7 +27,7 @@ import subprocess
 import sys
 import tempfile
 
-from labstudy import hours_of, shorten, write_lab  # shared with calibrate_study.py
+from labstudy import PY, WRITER, hours_of, shorten, write_lab  # shared with calibrate_study.py
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PY = os.path.join(ROOT, "target/pyenv/bin/python3")
@@ -365,6 +365,8 @@ def main_random(argv):
     ap = argparse.ArgumentParser(prog="lab_diagnose_study.py random")
     ap.add_argument("--files", type=int, default=20, help="files per class")
     ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--seeds", default=None, metavar="S,S,…",
+                    help="these seeds instead of --first-seed/--files (re-running chosen files)")
     ap.add_argument("--classes", default=",".join(CLASSES))
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--work", default=None)
@@ -391,8 +393,9 @@ def main_random(argv):
     os.makedirs(args.work, exist_ok=True)
     import time
     start = time.time()
-    jobs = [(c, s) for s in range(args.first_seed, args.first_seed + args.files)
-            for c in args.classes.split(",")]
+    seeds = [int(x) for x in args.seeds.split(",")] if args.seeds else \
+        range(args.first_seed, args.first_seed + args.files)
+    jobs = [(c, s) for s in seeds for c in args.classes.split(",")]
     rows = []
     with open(os.path.join(args.work, "results.jsonl"), "a") as log:
         for c, s in jobs:
@@ -409,9 +412,46 @@ def main_random(argv):
     random_table(rows)
 
 
+def main_sets(argv):
+    """A study file as the writer's preset, seed and `--set` overrides (the leaves of the drawn
+    configuration that differ from the preset's), for a test that writes the same bytes."""
+    ap = argparse.ArgumentParser(prog="lab_diagnose_study.py sets")
+    ap.add_argument("seed", type=int)
+    ap.add_argument("--class", dest="cls", default="effect", choices=CLASSES)
+    ap.add_argument("--hours", default=None, metavar="LO,HI")
+    a = ap.parse_args(argv)
+    hours = tuple(float(x) for x in a.hours.split(",")) if a.hours else None
+    preset, _, cfg, names, _ = draw_random(a.seed, a.cls, hours)
+    base = json.loads(subprocess.run([PY, WRITER, "--print-config", "--preset", preset],
+                                     capture_output=True, text=True, check=True).stdout)
+
+    def leaves(node, path):
+        if isinstance(node, dict) and node:
+            for k, v in node.items():
+                yield from leaves(v, path + [k])
+        else:
+            yield ".".join(path), node
+
+    def at(tree, path):
+        for k in path.split("."):
+            if not isinstance(tree, dict) or k not in tree:
+                return None
+            tree = tree[k]
+        return tree
+
+    print(f"preset {preset}, writer seed {a.seed * len(CLASSES) + CLASSES.index(a.cls)}, "
+          f"effects {names}")
+    for key, value in leaves(cfg, []):
+        if at(base, key) != value and value != {}:  # an empty table merges nothing
+            text = value if isinstance(value, str) else json.dumps(value, separators=(",", ":"))
+            print(f"({json.dumps(key)}, {json.dumps(text)}),")
+
+
 def main():
     if len(sys.argv) > 1 and sys.argv[1] == "random":
         return main_random(sys.argv[2:])
+    if len(sys.argv) > 1 and sys.argv[1] == "sets":
+        return main_sets(sys.argv[2:])
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
