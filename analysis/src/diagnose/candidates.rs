@@ -82,7 +82,18 @@ pub(super) fn regressor_columns(
 
 /// The grid of a candidate's nonlinear parameter (a single NaN for none).
 pub(super) fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
-    match id.effect().grid() {
+    grid_values(prep, id.effect().grid())
+}
+
+/// The values of effect `id`'s rival grid ([`bench_physics::effects::Effect::rival_grid`]) on
+/// this recording.
+pub(super) fn rival_grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
+    grid_values(prep, id.effect().rival_grid())
+}
+
+/// The values of grid `g` on this recording.
+fn grid_values(prep: &Prepared, g: Grid) -> Vec<f64> {
+    match g {
         Grid::None => vec![f64::NAN],
         Grid::TimeConstants(values) => values.to_vec(),
         Grid::BinStarts { positions } => {

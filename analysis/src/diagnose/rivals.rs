@@ -36,6 +36,9 @@ pub(super) enum RivalVerdict {
 pub(super) struct NotToldApart {
     /// The rival.
     pub rival: EffectId,
+    /// The rival's best value lies beyond the grid it is searched on (a periodic bias under
+    /// four cycles in the run): preferred or not, it is not named.
+    pub beyond_search: bool,
     /// Its columns at its best grid value.
     pub cols: Vec<Vec<f64>>,
     /// The effect's test with the rival in the model.
@@ -115,13 +118,8 @@ pub(super) fn judge_rivals(
         if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
             continue;
         }
-        let r_cols = if grid(ctx.prep, r).len() == 1 {
-            candidate_columns(ctx.prep, r, f64::NAN, ctx.model)
-        } else {
-            match refit_grid(ctx.prep, r, &proj_o, y, noise, ctx.model, ctx.cache) {
-                Some(f) => f.cols,
-                None => continue,
-            }
+        let Some((r_cols, beyond_search)) = rival_columns(ctx, r, &proj_o, y, noise) else {
+            continue;
         };
         let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
         let single = threshold(r_cols.len());
@@ -147,6 +145,7 @@ pub(super) fn judge_rivals(
         }
         best = Some(NotToldApart {
             rival: r,
+            beyond_search,
             cols: r_cols,
             effect: WaldTest { value: w_e, threshold: thr_e },
             alone: WaldTest { value: t_r.wald, threshold: thr_r },
@@ -160,9 +159,48 @@ pub(super) fn judge_rivals(
         .ok()
         .and_then(|p| p.test(&best.cols, y, noise))
         .map_or(0.0, |t| t.wald);
-    if w_r > best.alone.threshold {
+    // A rival the search would not find again (its value beyond its search grid) does not take
+    // the effect's place: neither is named.
+    if w_r > best.alone.threshold && !best.beyond_search {
         let beside = WaldTest { value: w_r, threshold: best.alone.threshold };
         return Some(RivalVerdict::Prefer(best.rival, best.effect, beside));
     }
     Some(RivalVerdict::NotToldApart(best))
+}
+
+/// Rival `r`'s columns at its best value against projector `proj`, and whether that value lies
+/// beyond the grid it is searched on: fitted on its rival grid
+/// ([`bench_physics::effects::Effect::rival_grid`]), which is its search grid unless wider (a
+/// periodic bias down to 1.5 cycles in the run), by least squares over it; its only columns
+/// for a rival without a grid.
+fn rival_columns(
+    ctx: &RivalCtx<'_>,
+    r: EffectId,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+) -> Option<(Vec<Vec<f64>>, bool)> {
+    let wide = candidates::rival_grid(ctx.prep, r);
+    if wide.len() <= 1 {
+        return Some((candidate_columns(ctx.prep, r, f64::NAN, ctx.model), false));
+    }
+    let searched = grid(ctx.prep, r);
+    if wide == searched {
+        return refit_grid(ctx.prep, r, proj, y, noise, ctx.model, ctx.cache)
+            .map(|f| (f.cols, false));
+    }
+    let cols: Vec<Vec<Vec<f64>>> = columns::par_map(ctx.prep.threads, &wide, |&p| {
+        candidate_columns(ctx.prep, r, p, ctx.model)
+    });
+    let tests = columns::par_map(ctx.prep.threads, &cols, |c| proj.test(c, y, noise));
+    let (p, c, _) = wide
+        .iter()
+        .zip(cols)
+        .zip(tests)
+        .filter_map(|((&p, c), t)| t.map(|t| (p, c, t.delta_rss)))
+        .max_by(|a, b| a.2.total_cmp(&b.2))?;
+    let (lo, hi) = searched
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    Some((c, !(lo..=hi).contains(&p)))
 }

@@ -206,13 +206,38 @@ fn parameters_only_run_is_named_so() {
     assert!((bias.fitted - 2e-7).abs() < 3.0 * bias.sigma, "{bias:?}");
 }
 
+/// Turns at 10 and 30 °/min: a revolution lasts 36 or 12 minutes, so a once-per-revolution
+/// term is no sinusoid in time.
 #[test]
 fn once_per_revolution_is_found() {
-    let d = run_with(on(&[(EffectId::OncePerRevolution, &[3e-8, 0.8])]), 4);
+    let e = on(&[(EffectId::OncePerRevolution, &[3e-8, 0.8])]);
+    let table = TableParams { ripple_rel: 0.0, ..TableParams::default() };
+    let run = simulate_steps(&procedure_two_rates(), table, &nominal(), e, 4);
+    let d = diagnose(&run, &nominal(), &Effects::default(), &DiagnoseOptions::default())
+        .expect("diagnosis");
     assert_eq!(accepted(&d), vec![EffectId::OncePerRevolution], "{}", check(&d));
     within_3_sigma(&d, EffectId::OncePerRevolution, "amplitude_rad_s", 3e-8);
     within_3_sigma(&d, EffectId::OncePerRevolution, "phase_rad", 0.8);
     assert!(d.rms.after < d.rms.before);
+}
+
+/// At one table rate (10 °/min, a revolution in 36 minutes, turning most of the run) a
+/// once-per-revolution term is nearly a periodic bias of the revolution's period: on this
+/// gyro seed it keeps Wald 12.1 beside one, under one test's 14.9. Not named; "not told
+/// apart", with the run that separates them (turns at two rates: the test above).
+#[test]
+fn once_per_revolution_at_one_slow_rate_is_not_told_apart_from_a_periodic_bias() {
+    let d = run_with(on(&[(EffectId::OncePerRevolution, &[3e-8, 0.8])]), 4);
+    assert!(accepted(&d).is_empty(), "{}", check(&d));
+    let apart: Vec<_> = d
+        .unexplained
+        .iter()
+        .filter(|u| {
+            u.correlates_with.starts_with("not told apart: once_per_revolution or periodic_bias")
+        })
+        .collect();
+    assert_eq!(apart.len(), 1, "{}", check(&d));
+    assert!(apart[0].correlates_with.contains("two table rates"), "{}", apart[0].correlates_with);
 }
 
 #[test]

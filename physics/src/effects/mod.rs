@@ -57,6 +57,11 @@ pub trait Effect: Sync {
     fn columns(&self) -> Columns;
     /// The grid of its non-linear parameter.
     fn grid(&self) -> Grid;
+    /// The grid it is fitted on when judged as another accepted effect's rival, where that is
+    /// wider than the grid it is searched on (the same by default).
+    fn rival_grid(&self) -> Grid {
+        self.grid()
+    }
     /// How a grid value is refined below the grid.
     fn refinement(&self) -> Refinement;
     /// The shapes that test it once accepted.

@@ -45,7 +45,13 @@ impl LinearEffect for OncePerRevolution {
         Family::AngleHarmonics
     }
     fn rivals(&self) -> &'static [Rival] {
-        &[Rival { with: "angle_harmonic", when: "arcs short of a full turn" }]
+        &[
+            Rival { with: "angle_harmonic", when: "arcs short of a full turn" },
+            Rival {
+                with: "periodic_bias",
+                when: "slow turns, each revolution about as long as the period",
+            },
+        ]
     }
     fn separated_by(&self) -> Procedure {
         Procedure::TurnsAtTwoRates

@@ -49,6 +49,12 @@ impl Effect for PeriodicBias {
     fn grid(&self) -> Grid {
         Grid::Periods { min_s: 120.0, min_cycles: 4.0, most: 300 }
     }
+    /// Under four cycles in the run a sinusoid is too free a shape to search for (it takes a
+    /// warm-up and a later step between them, and the search names what is left), but a slow
+    /// shape found is not named where such a sinusoid explains the residual as well.
+    fn rival_grid(&self) -> Grid {
+        Grid::Periods { min_s: 120.0, min_cycles: 1.5, most: 300 }
+    }
     fn refinement(&self) -> Refinement {
         Refinement::EvenInFrequency { each_side: 8 }
     }
@@ -56,7 +62,12 @@ impl Effect for PeriodicBias {
         Family::PeriodShape
     }
     fn rivals(&self) -> &'static [Rival] {
-        &[]
+        &[
+            Rival { with: "bias_step", when: "a few cycles in the run" },
+            Rival { with: "bias_drift", when: "a few cycles in the run" },
+            Rival { with: "warm_up", when: "a few cycles in the run" },
+            Rival { with: "temperature_quadratic", when: "a few cycles in the run" },
+        ]
     }
     fn separated_by(&self) -> Procedure {
         Procedure::LongerRun

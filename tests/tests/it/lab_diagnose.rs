@@ -698,3 +698,37 @@ fn an_effect_a_parameter_takes_over_is_not_named_and_the_parameter_is_held() {
         .expect("k_t");
     assert!(kt.held.is_some() && kt.fitted == kt.nominal, "{kt:?}");
 }
+
+/// Issue 26: a periodic bias of 1.5 cycles in the run (the randomised study's effect seed 32:
+/// 0.017 °/h at 2171 s in 0.9 h, one ramp and a long plateau, a 100 Hz gyro without its own
+/// sensor) is searched from four cycles only, and a bias step was named for it. A sinusoid
+/// that slow is now every slow shape's rival, fitted down to 1.5 cycles: beside it the step
+/// keeps Wald 1.7, and since a period under four cycles is never named (nor searched for
+/// again), neither is named — "not told apart", and nothing else named for what is left (a
+/// rate² and a scale-factor asymmetry were, when the step gave way to a periodic bias the
+/// search could not find).
+#[test]
+fn a_periodic_bias_of_one_and_a_half_cycles_is_not_named_a_bias_step() {
+    let legs = r#"[{"hold_s":671.7260370087192},{"to_c":-9.0,"rate_c_min":3.35},{"hold_s":2046}]"#;
+    let sets = [
+        ("procedure.legs", legs),
+        ("procedure.rates_deg_min", "[19.1,19.69]"),
+        ("procedure.rate_deg_min", "19.1"),
+        ("procedure.segment_s", "336"),
+        ("gyro.sample_rate_hz", "100.0"),
+        ("gyro.sensor", "false"),
+        ("gyro.thermal_time_constant", "555"),
+        ("effects.periodic_bias.enabled", "true"),
+        ("effects.periodic_bias.amplitude", "8.166734142144225e-08"),
+        ("effects.periodic_bias.period_s", "2171"),
+    ];
+    let (d, _) = diagnose_with("lab-clean", 129, &sets);
+    assert!(accepted(&d).is_empty(), "{:?}", d.findings);
+    let apart: Vec<_> = d
+        .unexplained
+        .iter()
+        .filter(|u| u.correlates_with.starts_with("not told apart: bias_step or periodic_bias"))
+        .collect();
+    assert_eq!(apart.len(), 1, "{:?}", d.unexplained);
+    assert!(apart[0].correlates_with.contains("a few cycles in the run"), "{:?}", apart[0]);
+}
