@@ -181,14 +181,18 @@ fn rival_columns(
     noise: &BinNoise,
 ) -> Option<(Vec<Vec<f64>>, bool)> {
     let wide = candidates::rival_grid(ctx.prep, r);
-    if wide.len() <= 1 {
-        return Some((candidate_columns(ctx.prep, r, f64::NAN, ctx.model), false));
+    match wide.len() {
+        0 => return None, // the run is too short for any of its values
+        1 => return Some((candidate_columns(ctx.prep, r, f64::NAN, ctx.model), false)),
+        _ => {}
     }
     let searched = grid(ctx.prep, r);
     if wide == searched {
         return refit_grid(ctx.prep, r, proj, y, noise, ctx.model, ctx.cache)
             .map(|f| (f.cols, false));
     }
+    // Computed once by rotation and kept in the run's memo: the next rivalry reads them there.
+    ctx.prep.prefill_sinusoids(&wide.iter().map(|&p| (r, p)).collect::<Vec<_>>());
     let cols: Vec<Vec<Vec<f64>>> = columns::par_map(ctx.prep.threads, &wide, |&p| {
         candidate_columns(ctx.prep, r, p, ctx.model)
     });
