@@ -156,15 +156,34 @@ pub(super) fn refit_grid_profile(
     if g.len() < 2 {
         return None;
     }
-    // A candidate whose grid the search never computed (a rival judged beside an accepted
-    // effect) has its columns computed here, through the run's memo.
+    let cached = cache.get(&id).map(Vec::as_slice);
+    let (mut fitted, mut profile) = best_on_grid(prep, id, &g, cached, proj, y, noise, model)?;
+    refine(prep, id, proj, y, noise, model, &mut fitted, &mut profile);
+    Some((fitted, profile))
+}
+
+/// Effect `id`'s best value among grid values `g` against `proj` (least squares), with the
+/// Wald profile over them; not refined. The columns are `cached` (the search's, in `g`'s
+/// order) where given; otherwise (a rival judged beside an accepted effect, or on a grid wider
+/// than its search's) computed here, through the run's memo.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn best_on_grid(
+    prep: &Prepared,
+    id: EffectId,
+    g: &[f64],
+    cached: Option<&[Vec<Vec<f64>>]>,
+    proj: &Projector,
+    y: &[f64],
+    noise: &BinNoise,
+    model: &GyroModel,
+) -> Option<(Fitted, Vec<(f64, f64)>)> {
     let computed: Vec<Vec<Vec<f64>>>;
-    let cached = match cache.get(&id) {
+    let cached = match cached {
         Some(c) => c,
         None => {
             prep.prefill_sinusoids(&g.iter().map(|&p| (id, p)).collect::<Vec<_>>());
             computed =
-                columns::par_map(prep.threads, &g, |&p| candidate_columns(prep, id, p, model));
+                columns::par_map(prep.threads, g, |&p| candidate_columns(prep, id, p, model));
             &computed
         }
     };
@@ -179,9 +198,7 @@ pub(super) fn refit_grid_profile(
             }
         }
     }
-    let mut fitted = top?;
-    refine(prep, id, proj, y, noise, model, &mut fitted, &mut profile);
-    Some((fitted, profile))
+    Some((top?, profile))
 }
 
 /// The 1σ of a continuous grid parameter (a warm-up's or a lag's time constant, a periodic

@@ -191,20 +191,11 @@ fn rival_columns(
         return refit_grid(ctx.prep, r, proj, y, noise, ctx.model, ctx.cache)
             .map(|f| (f.cols, false));
     }
-    // Computed once by rotation and kept in the run's memo: the next rivalry reads them there.
-    ctx.prep.prefill_sinusoids(&wide.iter().map(|&p| (r, p)).collect::<Vec<_>>());
-    let cols: Vec<Vec<Vec<f64>>> = columns::par_map(ctx.prep.threads, &wide, |&p| {
-        candidate_columns(ctx.prep, r, p, ctx.model)
-    });
-    let tests = columns::par_map(ctx.prep.threads, &cols, |c| proj.test(c, y, noise));
-    let (p, c, _) = wide
-        .iter()
-        .zip(cols)
-        .zip(tests)
-        .filter_map(|((&p, c), t)| t.map(|t| (p, c, t.delta_rss)))
-        .max_by(|a, b| a.2.total_cmp(&b.2))?;
+    // Its columns go through the run's memo (computed once by rotation): the next rivalry reads
+    // them there.
+    let (fitted, _) = best_on_grid(ctx.prep, r, &wide, None, proj, y, noise, ctx.model)?;
     let (lo, hi) = searched
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    Some((c, !(lo..=hi).contains(&p)))
+    Some((fitted.cols, !(lo..=hi).contains(&fitted.p)))
 }
