@@ -209,24 +209,42 @@ pub fn diagnose(
     let mut noise_spec = noise_model(&prep)?;
     // A gyro without its own sensor: the coil's lag refitted where the run determines it
     // ([`coil_lag`]), and everything after prepared with it.
-    let lag = coil_lag::profile(&prep, noise_spec, run, model, effects, opts.alpha)?
+    let nominal_lag_s = model.thermal_time_constant;
+    let mut lag = coil_lag::profile(&prep, noise_spec, model, opts.alpha, &[], nominal_lag_s)?
         .filter(|l| l.significant());
-    let lagged_model;
-    let model = match lag {
-        Some(l) => {
-            let mut m = model.clone();
-            m.thermal_time_constant = l.fitted_s;
-            lagged_model = m;
-            prep = prepare(run, &lagged_model, effects, opts)?;
+    let mut lagged = model.clone();
+    let mut passes = 0;
+    let (base, mut search) = loop {
+        let tau = lag.map_or(nominal_lag_s, |l| l.fitted_s);
+        if lagged.thermal_time_constant != tau {
+            lagged.thermal_time_constant = tau;
+            prep = prepare(run, &lagged, effects, opts)?;
             noise_spec = noise_model(&prep)?;
-            &lagged_model
         }
-        None => model,
+        let base = BaseFit::new(&prep, noise_spec, opts.alpha)?;
+        let mut search =
+            Search::new(&prep, &lagged, effects, run.latitude_deg.is_some(), opts, &base);
+        search.run()?;
+        // The lag again with what the search found beside it ([`coil_lag`]: a lag profiled
+        // without an effect the run holds takes part of it, and what the lag then leaves
+        // is named as slow shapes): when it moves, the search runs again at the new lag.
+        let beside = &search.design[ModelKey::CALIBRATED.len()..];
+        if passes < coil_lag::MAX_REPROFILES && !beside.is_empty() {
+            if let Some(l) =
+                coil_lag::profile(&prep, noise_spec, &lagged, opts.alpha, beside, nominal_lag_s)?
+            {
+                let again = l.significant().then_some(l);
+                let moved = again.map_or(nominal_lag_s, |l| l.fitted_s);
+                if (moved / tau - 1.0).abs() > 0.01 {
+                    passes += 1;
+                    lag = again;
+                    continue;
+                }
+            }
+        }
+        break (base, search);
     };
-    let base = BaseFit::new(&prep, noise_spec, opts.alpha)?;
     let location = locate(&prep, run, &base.r, &base.noise, &base.proj, &base.y);
-    let mut search = Search::new(&prep, model, effects, run.latitude_deg.is_some(), opts, &base);
-    search.run()?;
     let rejections = search.rejections();
     search.refine_time_constants()?;
     let mut fit = final_fit(&mut search, effects, &base.proj)?;

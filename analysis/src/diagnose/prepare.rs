@@ -38,6 +38,9 @@ pub(super) struct Prepared {
     pub(super) memo: columns::ColumnMemo,
     /// Threads for the parallel parts ([`DiagnoseOptions::threads`], at least 1).
     pub(super) threads: usize,
+    /// Whether the coil's lag is the diagnosis's to refit ([`coil_lag`]): a gyro without its
+    /// own temperature sensor whose nominal effects do not already lag the temperature.
+    pub(super) lag_free: bool,
     /// The time-constant regressors (warm-up, lag) computed so far, by effect and τ's bits: the
     /// refinement between grid values asks for the same ones at every refit.
     pub(super) decays: DecayMemo,
@@ -159,6 +162,7 @@ pub(super) fn prepare(
         reference_lines(&motion, &bins, &run.table_time_s, &run.table_angle_rad, &phases);
     let hysteresis = HysteresisStateSeries::new(HYST_C_S, &temp_rate).0;
     Ok(Prepared {
+        lag_free: run.gyro_temp_c.is_none() && !effects.has(EffectId::ThermalLag),
         native,
         bins,
         axis,

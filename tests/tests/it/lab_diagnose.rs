@@ -732,3 +732,44 @@ fn a_periodic_bias_of_one_and_a_half_cycles_is_not_named_a_bias_step() {
     assert_eq!(apart.len(), 1, "{:?}", d.unexplained);
     assert!(apart[0].correlates_with.contains("a few cycles in the run"), "{:?}", apart[0]);
 }
+
+/// Study seed 243 (`scripts/lab_diagnose_study.py random --classes effect --hours 0.75,1.5`,
+/// the lab writer's seed 973): a gyro without its own sensor whose coil lags the air by 1132 s
+/// (the lab's model says 300 s), one hold and two ramps in 1.3 h, a scale-factor asymmetry
+/// concealed. The coil never settles, and the lab's lag is not told from another: at 300 s a
+/// bias step passed (Wald 26.8) and was named; refitted without the step the lag moves to
+/// about 1470 s (its move's Wald 22.7 > 6.6) and the step keeps Wald 1.4. So neither is named:
+/// "not told apart: bias_step or the coil's thermal lag", beside the asymmetry's own rivalry
+/// with a rate² on turns at one |rate|.
+#[test]
+fn a_bias_step_the_coils_lag_explains_as_well_is_not_named() {
+    let legs = r#"[{"hold_s":552.5772745261374},{"to_c":-22.0,"rate_c_min":3.029},{"hold_s":2139},{"to_c":39.0,"rate_c_min":3.301}]"#;
+    let sets = [
+        ("procedure.legs", legs),
+        ("procedure.rates_deg_min", "[25.97,26.44,14.0]"),
+        ("procedure.rate_deg_min", "25.97"),
+        ("procedure.segment_s", "686"),
+        ("procedure.stop_s", "215"),
+        ("gyro.sensor", "false"),
+        ("gyro.thermal_time_constant", "1132"),
+        ("traits.chamber_rate_hz", "20.0"),
+        ("traits.chamber_cycling.enabled", "true"),
+        ("traits.chamber_cycling.amplitude_c", "0.0484"),
+        ("traits.chamber_cycling.period_s", "121"),
+        ("traits.chamber_cycling.duty", "0.633"),
+        ("traits.chamber_cycling.phase_s", "558.7"),
+        ("traits.table_rate_hz", "20.0"),
+        ("effects.sf_asymmetry.enabled", "true"),
+        ("effects.sf_asymmetry.coeff", "1.6074807995215954e-05"),
+    ];
+    let (d, _) = diagnose_with("lab-null", 973, &sets);
+    assert_eq!(accepted(&d), vec![EffectId::TimeOffset], "{:?}", d.findings);
+    let apart =
+        |start: &str| d.unexplained.iter().filter(|u| u.correlates_with.starts_with(start)).count();
+    assert_eq!(
+        apart("not told apart: bias_step or the coil's thermal lag"),
+        1,
+        "{:?}",
+        d.unexplained
+    );
+}
