@@ -103,18 +103,29 @@ impl<'a> Setup<'a> {
         self.prep.bins.len()
     }
 
-    /// The model temperature's and its rate's bin means through a lag of `tau`.
-    fn thermal(&self, tau: f64) -> Result<[Vec<f64>; 2], AnalysisError> {
+    /// The model temperature's and its rate's bin means through a lag of `tau` (through the
+    /// run's memo: the profiles and rivals read the same grid).
+    fn thermal(&self, tau: f64) -> Result<std::sync::Arc<[Vec<f64>; 2]>, AnalysisError> {
+        let memo = &self.prep.lag_thermal;
+        let key = tau.to_bits();
+        if let Some(hit) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+            return Ok(hit.clone());
+        }
         let (nat, bins, t0) = (&self.prep.native, &self.prep.bins, self.prep.t0);
         let (temp, rate) = series::coil_temperature(&nat.t, &nat.air_c, tau)?;
-        Ok([bin_mean(bins, &nat.dt, |k| temp[k] - t0), bin_mean(bins, &nat.dt, |k| rate[k])])
+        let cols = std::sync::Arc::new([
+            bin_mean(bins, &nat.dt, |k| temp[k] - t0),
+            bin_mean(bins, &nat.dt, |k| rate[k]),
+        ]);
+        memo.lock().unwrap_or_else(|e| e.into_inner()).insert(key, cols.clone());
+        Ok(cols)
     }
 
     /// The base design at lag `tau`, then `beside`.
     fn design(&self, tau: f64, beside: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, AnalysisError> {
-        let [tm, rm] = self.thermal(tau)?;
+        let th = self.thermal(tau)?;
         let base = &self.prep.base;
-        let mut d = vec![base[0].clone(), base[1].clone(), tm, rm];
+        let mut d = vec![base[0].clone(), base[1].clone(), th[0].clone(), th[1].clone()];
         d.extend(beside.iter().cloned());
         Ok(d)
     }
@@ -183,8 +194,8 @@ impl<'a> Setup<'a> {
         let n = self.n();
         let (kt, kdt) = self.thermal_coeffs(&self.projector(to, beside)?);
         let at_from = self.projector(from, beside)?;
-        let [t0m, r0m] = self.thermal(from)?;
-        let [t1m, r1m] = self.thermal(to)?;
+        let (th0, th1) = (self.thermal(from)?, self.thermal(to)?);
+        let ([t0m, r0m], [t1m, r1m]) = (&*th0, &*th1);
         let u: Vec<f64> =
             (0..n).map(|i| kt * (t1m[i] - t0m[i]) + kdt * (r1m[i] - r0m[i])).collect();
         let u = at_from.residual(&u, n);
@@ -219,8 +230,8 @@ pub(super) fn profile(
     let at = setup.projector(best, beside)?;
     let (kt, kdt) = setup.thermal_coeffs(&at);
     let h = 0.02 * best;
-    let [tp, rp] = setup.thermal(best + h)?;
-    let [tmn, rmn] = setup.thermal(best - h)?;
+    let (plus, minus) = (setup.thermal(best + h)?, setup.thermal(best - h)?);
+    let ([tp, rp], [tmn, rmn]) = (&*plus, &*minus);
     let d: Vec<f64> =
         (0..n).map(|i| (kt * (tp[i] - tmn[i]) + kdt * (rp[i] - rmn[i])) / (2.0 * h)).collect();
     let c = at.residual(&d, n);

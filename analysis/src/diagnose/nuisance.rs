@@ -280,6 +280,10 @@ fn lag_confounded(
     lag_threshold: f64,
     cache: &ColumnCache,
 ) -> Option<String> {
+    // A further lag on top of the coil's is the same physics: the lag's own update.
+    if id == EffectId::ThermalLag {
+        return None;
+    }
     let beside = others.get(ModelKey::CALIBRATED.len()..)?;
     let gridded = grid(prep, id).len() > 1;
     let test = |p: &Projector, y: &[f64]| {

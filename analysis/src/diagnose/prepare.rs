@@ -7,6 +7,11 @@ use crate::allan_sub::SubBlockSums;
 pub(super) type DecayMemo =
     std::sync::Mutex<std::collections::BTreeMap<(EffectId, u64), Vec<Vec<f64>>>>;
 
+/// The coil temperature's and its rate's bin means by lag τ's bits ([`coil_lag`]: the lag's
+/// profiles and rivals read the same grid again).
+pub(super) type LagMemo =
+    std::sync::Mutex<std::collections::BTreeMap<u64, std::sync::Arc<[Vec<f64>; 2]>>>;
+
 /// Everything computed once per run.
 pub(super) struct Prepared {
     pub(super) native: Native,
@@ -44,6 +49,7 @@ pub(super) struct Prepared {
     /// The time-constant regressors (warm-up, lag) computed so far, by effect and τ's bits: the
     /// refinement between grid values asks for the same ones at every refit.
     pub(super) decays: DecayMemo,
+    pub(super) lag_thermal: LagMemo,
 }
 
 impl Prepared {
@@ -182,6 +188,7 @@ pub(super) fn prepare(
         memo: columns::ColumnMemo::default(),
         threads: opts.threads.max(1),
         decays: std::sync::Mutex::default(),
+        lag_thermal: std::sync::Mutex::default(),
     })
 }
 
