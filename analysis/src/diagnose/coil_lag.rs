@@ -46,6 +46,12 @@ use super::*;
 /// time it moves the search runs again at the new lag.
 pub(super) const MAX_REPROFILES: usize = 2;
 
+/// The test the lag's move passes to be taken (and, as an effect's rival, to explain the
+/// residual): χ²₁(1 − α), as a term is judged.
+pub(super) fn threshold(alpha: f64) -> f64 {
+    chi2_quantile(1.0 - alpha, 1.0)
+}
+
 /// The lag the profile reports.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct CoilLag {
@@ -247,7 +253,7 @@ pub(super) fn profile(
         fitted_s: best,
         sigma_s: sigma,
         wald,
-        threshold: chi2_quantile(1.0 - alpha, 1.0),
+        threshold: threshold(alpha),
     }))
 }
 

@@ -70,8 +70,8 @@ pub(super) struct FamilyState<'a> {
     pub(super) candidates: &'a mut Vec<EffectId>,
     /// The search's candidate columns, for the rivals' grids.
     pub(super) cache: &'a ColumnCache,
-    /// The coil lag's test as a rival ([`lag_confounded`]): χ²₁ at the diagnosis's α, as the
-    /// lag's profile is judged ([`coil_lag`]).
+    /// The coil lag's test as a rival ([`lag_confounded`]): [`coil_lag::threshold`] at the
+    /// diagnosis's α, as the lag's profile is judged.
     pub(super) lag_threshold: f64,
 }
 

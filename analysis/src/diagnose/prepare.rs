@@ -49,6 +49,7 @@ pub(super) struct Prepared {
     /// The time-constant regressors (warm-up, lag) computed so far, by effect and τ's bits: the
     /// refinement between grid values asks for the same ones at every refit.
     pub(super) decays: DecayMemo,
+    /// The coil-lag profile's thermal columns computed so far ([`LagMemo`]).
     pub(super) lag_thermal: LagMemo,
 }
 

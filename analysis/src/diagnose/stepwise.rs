@@ -363,7 +363,7 @@ impl<'a> Search<'a> {
             tested: &self.tested,
             candidates: &mut self.candidates,
             cache: &self.column_cache,
-            lag_threshold: chi2_quantile(1.0 - self.ctx.opts.alpha, 1.0),
+            lag_threshold: coil_lag::threshold(self.ctx.opts.alpha),
         };
         let (y, noise, level) = (&self.y, &self.noise, self.level);
         if check_families(prep, model, &ids, &mut state, y, noise, level) {
