@@ -203,8 +203,8 @@ def one(args, seed):
 def table(rows, study):
     if any("compare" in r for r in rows):
         print("## --compare build (the same recordings)")
-        table([{**r, **r["compare"]} for r in rows if "compare" in r and "error" not in r
-               and "error" not in r["compare"]], study)
+        table([{**{k: v for k, v in r.items() if k != "compare"}, **r["compare"]} for r in rows
+               if "compare" in r and "error" not in r and "error" not in r["compare"]], study)
         print("\n## this build")
     ok = [r for r in rows if "error" not in r]
     print(f"{len(ok)} files ({len(rows) - len(ok)} failed to run)")

@@ -31,12 +31,17 @@
 //! per stretch, of σ one readout step over the stretch's duration or what the readings' scatter
 //! gives, whichever is larger) and `c` one offset per stretch (the first
 //! reading's error and a constant lag between the table's and the gyro's clocks), free. The
-//! temperature-rate term needs no derivative: it is the temperature's change. The temperature
-//! itself is smoothed by the same local linear regression the rate domain differentiates
-//! ([`crate::temperature_rate::local_linear_value`]): its quantisation steps (0.01 °C for a
-//! gyro's sensor), taken raw into the regressors, would be errors in the variables that the
-//! fit, weighting short-term increments under white noise, would take as most of the
-//! regressor's variation — biasing the temperature-rate coefficient towards zero.
+//! temperature-rate term needs no derivative: it is the temperature's change. A temperature
+//! *readout* (the gyro's sensor, the chamber's readings) is smoothed by the same local linear
+//! regression the rate domain differentiates ([`crate::temperature_rate::local_linear_value`]):
+//! its quantisation steps (0.01 °C for a gyro's sensor), taken raw into the regressors, would be
+//! errors in the variables that the fit, weighting short-term increments under white noise,
+//! would take as most of the regressor's variation — biasing the temperature-rate coefficient
+//! towards zero. A model temperature that is a thermal lag's output is taken as it is
+//! ([`AngleFitOptions::temp_window_s`] `None`): the lag has smoothed the readout already, and a
+//! second smoothing bends it wherever the coil's rate changes, an error of the temperature-rate
+//! column that the flicker's weighting (which leaves the stretches' slow parts to the noise)
+//! turns into a bias of k_t and k_dt along the lag's direction.
 //!
 //! # Estimator
 //!
@@ -116,8 +121,10 @@ pub struct AngleFitOptions {
     pub axis_up: bool,
     /// The gyro's noise (from the Allan deviation).
     pub noise: NoiseSpec,
-    /// Window of the temperature's smoothing, s (the rate domain's dT/dt window).
-    pub temp_window_s: f64,
+    /// Window of the temperature's smoothing, s (the rate domain's dT/dt window): `Some` for
+    /// a readout, `None` to take the windows' model temperature as it is (a thermal lag's
+    /// output, smooth already: module docs).
+    pub temp_window_s: Option<f64>,
     /// Coefficients held at a value (`ModelKey::CALIBRATED` order), as in the rate domain.
     pub held: [Option<f64>; 4],
     /// Fit the windows' nuisance regressor ([`AngleWindow::nuisance`]) beside the coefficients.
@@ -251,7 +258,12 @@ fn at(xs: &[f64], ys: &[f64], x: f64) -> f64 {
     crate::interp::interp(xs, ys, x)
 }
 
-fn stretch(aw: &AngleWindow<'_>, earth: f64, t0: f64, temp_window_s: f64) -> Option<Stretch> {
+fn stretch(
+    aw: &AngleWindow<'_>,
+    earth: f64,
+    t0: f64,
+    temp_window_s: Option<f64>,
+) -> Option<Stretch> {
     let w = aw.window;
     let (gt, gi, bridged) = gyro_integral(w);
     let (first, last) = (gt[0], gt[gt.len() - 1]);
@@ -262,9 +274,16 @@ fn stretch(aw: &AngleWindow<'_>, earth: f64, t0: f64, temp_window_s: f64) -> Opt
     if idx.len() < 3 {
         return None;
     }
-    // Model temperature (smoothed) and its integral at the gyro's times.
+    // Model temperature (a readout smoothed) and its integral at the gyro's times.
     let ts = w.time_s();
-    let temp = &w.smoothed_temperature_c(temp_window_s).ok()?;
+    let smoothed;
+    let temp = match temp_window_s {
+        Some(window_s) => {
+            smoothed = w.smoothed_temperature_c(window_s).ok()?;
+            &smoothed
+        }
+        None => w.temperature_c(),
+    };
     let mut temp_int = Vec::with_capacity(ts.len());
     let mut nu_int = Vec::with_capacity(ts.len());
     let (mut acc, mut acc_nu) = (0.0, 0.0);
@@ -626,6 +645,7 @@ fn assemble(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bench_physics::lag::FirstOrderLag;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, StandardNormal};
@@ -633,7 +653,10 @@ mod tests {
     const ARCSEC: f64 = 4.848_136_811_095_36e-6;
 
     /// Windows, table readings (times, angles) per window, the truth, the ARW.
-    type Run = (Vec<RecordWindow>, Vec<(Vec<f64>, Vec<f64>)>, [f64; 4], f64);
+    type Run = (Vec<RecordWindow>, Tables, [f64; 4], f64);
+
+    /// Per window, the table's reading times and angles.
+    type Tables = Vec<(Vec<f64>, Vec<f64>)>;
 
     /// Eight 10-minute stretches alternating CW/CCW at 10 °/min over a temperature profile
     /// that ramps at ±1 °C/min and holds; gyro at 20 Hz with white noise only (and every 500th
@@ -700,6 +723,106 @@ mod tests {
         (windows, tables, truth, arw)
     }
 
+    /// Eight 700 s stretches (CW/CCW at 10 °/min, 20 Hz) of a gyro without noise whose coil
+    /// follows the air through a first-order lag of 300 s, the air ramping at ±3 °C/min
+    /// with holds between (so the coil's rate bends inside the stretches); the table read
+    /// exactly at 10 Hz. The windows' model temperature is the coil's, as the calibration's
+    /// lag stage makes it. (windows, table readings, truth)
+    fn lagged_run() -> (Vec<RecordWindow>, Tables, [f64; 4]) {
+        let truth = [2e-7, 5e-5, 5e-9, 1.5e-5];
+        let (tau, dt, w) = (300.0, 0.05, 10f64.to_radians() / 60.0);
+        let air = |t: f64| {
+            let p = t % 2000.0;
+            if p < 500.0 {
+                20.0 + 0.05 * p
+            } else if p < 1000.0 {
+                45.0
+            } else if p < 1500.0 {
+                45.0 - 0.05 * (p - 1000.0)
+            } else {
+                20.0
+            }
+        };
+        // The coil on a 1 ms grid (exact for the piecewise-linear air), read at mid-sample.
+        let fine = 0.001;
+        let total = 8.0 * 700.0;
+        let mut lag = FirstOrderLag::new(tau, 20.0);
+        let coil: Vec<f64> = std::iter::once(20.0)
+            .chain((1..=(total / fine) as usize).map(|i| {
+                let t = i as f64 * fine;
+                lag.step_linear(air(t - fine), air(t), fine)
+            }))
+            .collect();
+        let coil_at = |t: f64| coil[(t / fine).round() as usize];
+        let (mut windows, mut tables) = (Vec::new(), Vec::new());
+        let mut angle_at_start = 0.0;
+        for k in 0..8 {
+            let omega = if k % 2 == 0 { -w } else { w };
+            let t_start = 700.0 * k as f64;
+            let (mut gt, mut gv, mut tc) = (vec![], vec![], vec![]);
+            for i in 1..=12_000 {
+                let t = t_start + i as f64 * dt;
+                let mid = coil_at(t - 0.5 * dt);
+                let rate = (air(t - 0.5 * dt) - mid) / tau;
+                gt.push(t);
+                gv.push(
+                    (1.0 + truth[1]) * omega + truth[0] + truth[2] * (mid - 20.0) + truth[3] * rate,
+                );
+                tc.push(coil_at(t));
+            }
+            let chamber: Vec<f64> = gt.iter().map(|&t| air(t)).collect();
+            let n = gt.len();
+            windows.push(
+                RecordWindow::new(format!("w{k}"), gt, gv, vec![omega; n], Some(tc), chamber)
+                    .expect("window"),
+            );
+            let tt: Vec<f64> = (0..6000).map(|j| t_start + 0.2 + j as f64 * 0.1).collect();
+            let ta = tt.iter().map(|&tau| angle_at_start + omega * (tau - t_start)).collect();
+            angle_at_start += omega * 700.0;
+            tables.push((tt, ta));
+        }
+        (windows, tables, truth)
+    }
+
+    #[test]
+    fn a_lagged_coil_temperature_is_taken_as_it_is_not_smoothed_again() {
+        let (windows, tables, truth) = lagged_run();
+        let aws: Vec<AngleWindow<'_>> = windows
+            .iter()
+            .zip(&tables)
+            .map(|(w, (t, a))| AngleWindow {
+                window: w,
+                table_time_s: t,
+                table_angle_rad: a,
+                reading_sigma_rad: 1e-9,
+                drift_sigma_rad_s: ARCSEC / 700.0,
+                nuisance: None,
+            })
+            .collect();
+        // The noise model of the lab writer's gyros: the flicker leaves each stretch's slow
+        // part to the noise, so the fit reads the temperature columns' shape within it.
+        let fit = |temp_window_s| {
+            let opts = AngleFitOptions {
+                reference_temperature_c: 20.0,
+                latitude_deg: None,
+                axis_up: true,
+                noise: NoiseSpec { arw: 3e-8, flicker_floor: 1e-8, rrw: 0.0 },
+                temp_window_s,
+                held: [None; 4],
+                nuisance: false,
+            };
+            let f = angle_fit(&aws, &opts).expect("fits");
+            let z: Vec<f64> =
+                f.estimates().iter().zip(truth).map(|(e, t)| (e.value - t) / e.bound).collect();
+            z
+        };
+        let as_is = fit(None);
+        assert!(as_is.iter().all(|z| z.abs() < 0.05), "as it is: z {as_is:?}");
+        // Smoothed again over 60 s the coil bends where its rate changes: k_dt moves (z 0.63).
+        let smoothed = fit(Some(60.0));
+        assert!(smoothed[3].abs() > 0.4, "smoothed: z {smoothed:?}");
+    }
+
     #[test]
     fn the_angle_misclosures_give_the_model_back_with_honest_errors() {
         let mut z2 = [0.0; 4];
@@ -724,7 +847,7 @@ mod tests {
                 latitude_deg: None,
                 axis_up: true,
                 noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
-                temp_window_s: 60.0,
+                temp_window_s: Some(60.0),
                 held: [None; 4],
                 nuisance: false,
             };

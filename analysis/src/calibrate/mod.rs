@@ -575,7 +575,12 @@ pub fn calibrate(
                 lag_sigma_with_held(&model_windows, &joint_opts, &held).unwrap_or(e.std_err);
         }
     }
-    let angle = angle_stage(readings, &model_windows, &allan, noise_model, &joint_opts, opts);
+    let lag_s = match &lag {
+        Some(Ok(l)) => l.used_s,
+        _ => 0.0,
+    };
+    let angle =
+        angle_stage(readings, &model_windows, &allan, noise_model, &joint_opts, lag_s, opts);
     if let Some(Err(e)) = &angle {
         missing.push(format!("angle-domain fit: {e}"));
     }
@@ -698,13 +703,17 @@ fn relinearised(
 }
 
 /// Stage 6: the angle-domain fit (when the table's readings were given), under the same noise
-/// model, with the same coefficients held and the lag's nuisance fitted.
+/// model, with the same coefficients held and the lag's nuisance fitted. The model temperature
+/// through a lag of `lag_s` is taken as it is when the lag is at least the dT/dt window (a
+/// readout step q becomes a ramp of slope q/τ, smoother than the window would make it), else
+/// smoothed over that window ([`AngleFitOptions::temp_window_s`]).
 fn angle_stage(
     readings: &[TableReadings],
     model_windows: &[RecordWindow],
     allan: &Result<AllanResult, AnalysisError>,
     noise_model: Option<NoiseSpec>,
     joint_opts: &JointFitOptions,
+    lag_s: f64,
     opts: &CalibrateOptions,
 ) -> Option<Result<AngleFit, AnalysisError>> {
     (readings.len() == model_windows.len() && !readings.is_empty()).then(|| {
@@ -728,7 +737,8 @@ fn angle_stage(
                 latitude_deg: opts.joint.latitude_deg,
                 axis_up: opts.joint.axis_up,
                 noise,
-                temp_window_s: opts.joint.rate_window_s,
+                temp_window_s: (lag_s < opts.joint.rate_window_s)
+                    .then_some(opts.joint.rate_window_s),
                 held: joint_opts.held.map(|h| h.map(|h| h.value)),
                 nuisance: joint_opts.nuisance.is_some(),
             },
