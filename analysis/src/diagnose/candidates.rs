@@ -80,6 +80,57 @@ pub(super) fn regressor_columns(
     }
 }
 
+/// Whether effect `id`'s regressors (at grid value `p`) read the coil's temperature or its
+/// hysteresis state: a per-sample effect probed at one sample with every input non-zero,
+/// then with the temperature and the state changed (a scale factor vs T, a quadratic in T,
+/// hysteresis do; a rate², a drift do not).
+pub(super) fn reads_temperature(id: EffectId, p: f64) -> bool {
+    if !matches!(id.effect().columns(), Columns::PerSample) {
+        return false;
+    }
+    let one = EffectSample {
+        t_s: 1000.0,
+        input_rad_s: 0.01,
+        table_rate_rad_s: 0.01,
+        temp_minus_ref_c: 5.0,
+        angle_mid_rad: 0.7,
+        hysteresis: 1.0,
+        earth_rad_s: 7e-5,
+    };
+    let other = EffectSample { temp_minus_ref_c: 7.0, hysteresis: -1.0, ..one };
+    let n = id.linear_count().min(2);
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    id.regressors(&one, p, &mut a[..n]);
+    id.regressors(&other, p, &mut b[..n]);
+    a != b
+}
+
+/// A per-sample effect's columns ([`regressor_columns`]) with the coil's temperature `temp_c`
+/// and hysteresis state `hysteresis` (native samples) in place of the prepared ones: the
+/// effect at another coil lag ([`coil_lag`]).
+pub(super) fn per_sample_columns_at(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    temp_c: &[f64],
+    hysteresis: &[f64],
+) -> Vec<Vec<f64>> {
+    (0..id.linear_count())
+        .map(|j| {
+            bin_mean(&prep.bins, &prep.native.dt, |k| {
+                let mut out = [0.0; 2];
+                let s = EffectSample {
+                    temp_minus_ref_c: temp_c[k] - prep.t0,
+                    hysteresis: hysteresis[k],
+                    ..prep.sample(k)
+                };
+                id.regressors(&s, p, &mut out);
+                out[j]
+            })
+        })
+        .collect()
+}
+
 /// The grid of a candidate's nonlinear parameter (a single NaN for none).
 pub(super) fn grid(prep: &Prepared, id: EffectId) -> Vec<f64> {
     grid_values(prep, id.effect().grid())
@@ -126,4 +177,23 @@ pub(super) fn period_grid(bins: &[Bin], min_s: f64, min_cycles: f64, most: usize
     let f_hi = (1.0 / p_min).min(f_lo + df * (most - 1) as f64);
     let n = ((f_hi - f_lo) / df).floor() as usize + 1;
     (0..n).map(|j| 1.0 / (f_lo + df * j as f64)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_effects_that_read_the_coils_temperature_are_found_by_probing() {
+        let reading: Vec<EffectId> =
+            EffectId::ALL.into_iter().filter(|&id| reads_temperature(id, 100.0)).collect();
+        assert_eq!(
+            reading,
+            vec![
+                EffectId::TemperatureQuadratic,
+                EffectId::ScaleFactorTemperature,
+                EffectId::ThermalHysteresis
+            ]
+        );
+    }
 }

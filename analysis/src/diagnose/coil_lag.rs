@@ -39,8 +39,53 @@
 //! refitted without the effect, its move passing the lag's own test while the effect at the
 //! moved lag keeps at most one test's quantile, is "not told apart: E or the coil's thermal
 //! lag".
+//!
+//! Beside the lag, an accepted effect whose regressor reads the coil's temperature (a scale
+//! factor vs T, a quadratic in T, hysteresis) is built again at every lag tried ([`Beside`]):
+//! held as it was built at the lag in use it stands for the wrong coil everywhere else, and the
+//! profile cannot move to the lag the data hold. The lab writer's study seed 205 (a scale
+//! factor vs T of 1.44 ppm/°C, 2.7e-7 rad/s at 23 °/min and 28 °C from T0, twice the k_t term;
+//! the coil 1038 s behind the air): with the column held, the profile stays at 251–327 s
+//! (± 74–131 s), the scale factor comes out at half its value and a periodic bias is named
+//! beside it.
 
 use super::*;
+
+/// What the lag's profile fits beside the thermal terms: columns that do not depend on the
+/// lag (nuisance terms, effects of time, table or angle), and the accepted effects whose
+/// regressors read the coil's temperature ([`candidates::reads_temperature`]), rebuilt at each
+/// lag tried.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Beside {
+    /// Columns the same at every lag (bin means).
+    pub(super) fixed: Vec<Vec<f64>>,
+    /// Effects (id, grid value) built at each lag.
+    pub(super) thermal: Vec<(EffectId, f64)>,
+}
+
+impl Beside {
+    /// A model past the calibrated parameters: the nuisance blocks of `base_design` and the
+    /// `accepted` effects but `skip`, those that read the coil's temperature to be rebuilt.
+    pub(super) fn of(base_design: &[Vec<f64>], accepted: &[Accepted], skip: Option<usize>) -> Self {
+        let mut out = Self {
+            fixed: base_design.get(ModelKey::CALIBRATED.len()..).unwrap_or_default().to_vec(),
+            thermal: Vec::new(),
+        };
+        for (_, a) in accepted.iter().enumerate().filter(|(j, _)| Some(*j) != skip) {
+            if candidates::reads_temperature(a.id, a.p) {
+                out.thermal.push((a.id, a.p));
+            } else {
+                out.fixed.extend(a.cols.iter().cloned());
+            }
+        }
+        out
+    }
+
+    /// Nothing beside.
+    pub(super) fn is_empty(&self) -> bool {
+        self.fixed.is_empty() && self.thermal.is_empty()
+    }
+}
 
 /// How many times the lag is profiled again beside what the search found (`diagnose`): each
 /// time it moves the search runs again at the new lag.
@@ -127,22 +172,52 @@ impl<'a> Setup<'a> {
         Ok(cols)
     }
 
-    /// The base design at lag `tau`, then `beside`.
-    fn design(&self, tau: f64, beside: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    /// The columns of a temperature-reading effect `id` at grid value `p` with the coil
+    /// `tau` behind the air (through the run's memo).
+    fn effect_at(
+        &self,
+        tau: f64,
+        id: EffectId,
+        p: f64,
+    ) -> Result<std::sync::Arc<Vec<Vec<f64>>>, AnalysisError> {
+        let memo = &self.prep.lag_effects;
+        let key = (tau.to_bits(), id, p.to_bits());
+        if let Some(hit) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+            return Ok(hit.clone());
+        }
+        let nat = &self.prep.native;
+        let (temp, rate) = series::coil_temperature(&nat.t, &nat.air_c, tau)?;
+        let hysteresis = bench_physics::effects::HysteresisState::series(HYST_C_S, &rate);
+        let cols = std::sync::Arc::new(candidates::per_sample_columns_at(
+            self.prep,
+            id,
+            p,
+            &temp,
+            &hysteresis,
+        ));
+        memo.lock().unwrap_or_else(|e| e.into_inner()).insert(key, cols.clone());
+        Ok(cols)
+    }
+
+    /// The base design at lag `tau`, then `beside` (its temperature-reading effects at `tau`).
+    fn design(&self, tau: f64, beside: &Beside) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let th = self.thermal(tau)?;
         let base = &self.prep.base;
         let mut d = vec![base[0].clone(), base[1].clone(), th[0].clone(), th[1].clone()];
-        d.extend(beside.iter().cloned());
+        d.extend(beside.fixed.iter().cloned());
+        for &(id, p) in &beside.thermal {
+            d.extend(self.effect_at(tau, id, p)?.iter().cloned());
+        }
         Ok(d)
     }
 
-    fn projector(&self, tau: f64, beside: &[Vec<f64>]) -> Result<Projector, AnalysisError> {
+    fn projector(&self, tau: f64, beside: &Beside) -> Result<Projector, AnalysisError> {
         Projector::new(&self.design(tau, beside)?, &self.rows)
     }
 
     /// The least-squares lag with `beside` fitted along: the minimum of the residual over a
     /// log grid (30..4000 s, ×1.25, and `nominal`), refined by a parabola in ln τ.
-    fn best(&self, beside: &[Vec<f64>], nominal: f64) -> Result<f64, AnalysisError> {
+    fn best(&self, beside: &Beside, nominal: f64) -> Result<f64, AnalysisError> {
         let n = self.n();
         let rss = |tau: f64| -> Result<f64, AnalysisError> {
             let r = self.projector(tau, beside)?.residual(&self.y, n);
@@ -191,7 +266,7 @@ impl<'a> Setup<'a> {
         &self,
         from: f64,
         to: f64,
-        beside: &[Vec<f64>],
+        beside: &Beside,
         noise: &BinNoise,
     ) -> Result<f64, AnalysisError> {
         if from <= 0.0 {
@@ -223,7 +298,7 @@ pub(super) fn profile(
     noise_spec: NoiseSpec,
     model: &GyroModel,
     alpha: f64,
-    beside: &[Vec<f64>],
+    beside: &Beside,
     from_s: f64,
 ) -> Result<Option<CoilLag>, AnalysisError> {
     let Some(setup) = Setup::new(prep, model) else {
@@ -272,15 +347,18 @@ pub(super) struct LagRival {
     pub effect_there: f64,
 }
 
-/// [`LagRival`] of an effect: `beside` the rest of the model past the calibrated parameters
-/// (bin means, prepared at `model`'s lag), `test(projector, y)` the effect's Wald statistic
-/// against a design for the profile's residual `y`. `None` where the lag is not profiled.
+/// [`LagRival`] of an effect `id` at grid value `p` with columns `cols` (bin means, prepared
+/// at `model`'s lag): `beside` the rest of the model past the calibrated parameters,
+/// `test(projector, y, cols)` the effect's Wald statistic with its columns `cols` against a
+/// design for the profile's residual `y` — at the refitted lag the columns of an effect that
+/// reads the coil's temperature are that lag's. `None` where the lag is not profiled.
 pub(super) fn rival(
     prep: &Prepared,
     model: &GyroModel,
-    beside: &[Vec<f64>],
+    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    beside: &Beside,
     noise: &BinNoise,
-    test: impl Fn(&Projector, &[f64]) -> f64,
+    test: impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
 ) -> Result<Option<LagRival>, AnalysisError> {
     let Some(setup) = Setup::new(prep, model) else {
         return Ok(None);
@@ -288,7 +366,12 @@ pub(super) fn rival(
     let from_s = model.thermal_time_constant;
     let tau_s = setup.best(beside, from_s)?;
     let lag = setup.change_wald(from_s, tau_s, beside, noise)?;
-    let effect_here = test(&setup.projector(from_s, beside)?, &setup.y);
-    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y);
+    let effect_here = test(&setup.projector(from_s, beside)?, &setup.y, cols);
+    let there = if candidates::reads_temperature(id, p) {
+        setup.effect_at(tau_s, id, p)?.to_vec()
+    } else {
+        cols.to_vec()
+    };
+    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, &there);
     Ok(Some(LagRival { from_s, tau_s, lag, effect_here, effect_there }))
 }

@@ -210,8 +210,15 @@ pub fn diagnose(
     // A gyro without its own sensor: the coil's lag refitted where the run determines it
     // ([`coil_lag`]), and everything after prepared with it.
     let nominal_lag_s = model.thermal_time_constant;
-    let mut lag = coil_lag::profile(&prep, noise_spec, model, opts.alpha, &[], nominal_lag_s)?
-        .filter(|l| l.significant());
+    let mut lag = coil_lag::profile(
+        &prep,
+        noise_spec,
+        model,
+        opts.alpha,
+        &coil_lag::Beside::default(),
+        nominal_lag_s,
+    )?
+    .filter(|l| l.significant());
     let mut lagged = model.clone();
     let mut passes = 0;
     let (base, mut search) = loop {
@@ -228,10 +235,10 @@ pub fn diagnose(
         // The lag again with what the search found beside it ([`coil_lag`]: a lag profiled
         // without an effect the run holds takes part of it, and what the lag then leaves
         // is named as slow shapes): when it moves, the search runs again at the new lag.
-        let beside = &search.design[ModelKey::CALIBRATED.len()..];
+        let beside = coil_lag::Beside::of(&search.base_design, &search.accepted, None);
         if passes < coil_lag::MAX_REPROFILES && !beside.is_empty() {
             if let Some(l) =
-                coil_lag::profile(&prep, noise_spec, &lagged, opts.alpha, beside, nominal_lag_s)?
+                coil_lag::profile(&prep, noise_spec, &lagged, opts.alpha, &beside, nominal_lag_s)?
             {
                 let again = l.significant().then_some(l);
                 let moved = again.map_or(nominal_lag_s, |l| l.fitted_s);

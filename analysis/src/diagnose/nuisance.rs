@@ -178,9 +178,8 @@ pub(super) fn check_families(
                 lag_confounded(
                     prep,
                     model,
-                    id,
-                    &cols,
-                    &others,
+                    (id, p, &cols),
+                    &coil_lag::Beside::of(st.base_design, st.accepted, Some(i)),
                     noise,
                     level,
                     st.lag_threshold,
@@ -272,9 +271,8 @@ pub(super) fn check_families(
 fn lag_confounded(
     prep: &Prepared,
     model: &GyroModel,
-    id: EffectId,
-    cols: &[Vec<f64>],
-    others: &[Vec<f64>],
+    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    beside: &coil_lag::Beside,
     noise: &BinNoise,
     level: f64,
     lag_threshold: f64,
@@ -284,16 +282,15 @@ fn lag_confounded(
     if id == EffectId::ThermalLag {
         return None;
     }
-    let beside = others.get(ModelKey::CALIBRATED.len()..)?;
     let gridded = grid(prep, id).len() > 1;
-    let test = |p: &Projector, y: &[f64]| {
+    let test = |at: &Projector, y: &[f64], cols: &[Vec<f64>]| {
         if gridded {
-            refit_grid(prep, id, p, y, noise, model, cache).map_or(0.0, |f| f.test.wald)
+            refit_grid(prep, id, at, y, noise, model, cache).map_or(0.0, |f| f.test.wald)
         } else {
-            p.test(cols, y, noise).map_or(0.0, |t| t.wald)
+            at.test(cols, y, noise).map_or(0.0, |t| t.wald)
         }
     };
-    let rv = coil_lag::rival(prep, model, beside, noise, test).ok()??;
+    let rv = coil_lag::rival(prep, model, (id, p, cols), beside, noise, test).ok()??;
     let thr_e = chi2_quantile(1.0 - level, cols.len() as f64);
     if !(rv.lag > lag_threshold && rv.effect_there <= thr_e && rv.effect_here > thr_e) {
         return None;

@@ -12,6 +12,12 @@ pub(super) type DecayMemo =
 pub(super) type LagMemo =
     std::sync::Mutex<std::collections::BTreeMap<u64, std::sync::Arc<[Vec<f64>; 2]>>>;
 
+/// The bin-mean columns of accepted effects that read the coil's temperature, at another coil
+/// lag, by (τ's bits, effect, grid value's bits) ([`coil_lag::Beside`]).
+pub(super) type LagEffectMemo = std::sync::Mutex<
+    std::collections::BTreeMap<(u64, EffectId, u64), std::sync::Arc<Vec<Vec<f64>>>>,
+>;
+
 /// Everything computed once per run.
 pub(super) struct Prepared {
     pub(super) native: Native,
@@ -51,6 +57,8 @@ pub(super) struct Prepared {
     pub(super) decays: DecayMemo,
     /// The coil-lag profile's thermal columns computed so far ([`LagMemo`]).
     pub(super) lag_thermal: LagMemo,
+    /// The temperature-reading effects' columns at the lags profiled ([`LagEffectMemo`]).
+    pub(super) lag_effects: LagEffectMemo,
 }
 
 impl Prepared {
@@ -190,6 +198,7 @@ pub(super) fn prepare(
         threads: opts.threads.max(1),
         decays: std::sync::Mutex::default(),
         lag_thermal: std::sync::Mutex::default(),
+        lag_effects: std::sync::Mutex::default(),
     })
 }
 
