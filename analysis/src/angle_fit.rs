@@ -723,6 +723,28 @@ mod tests {
         (windows, tables, truth, arw)
     }
 
+    /// The stretches of `windows` with their table readings, each reading's σ and the
+    /// reference rate's σ.
+    fn angle_windows<'a>(
+        windows: &'a [RecordWindow],
+        tables: &'a Tables,
+        reading_sigma_rad: f64,
+        drift_sigma_rad_s: f64,
+    ) -> Vec<AngleWindow<'a>> {
+        windows
+            .iter()
+            .zip(tables)
+            .map(|(w, (t, a))| AngleWindow {
+                window: w,
+                table_time_s: t,
+                table_angle_rad: a,
+                reading_sigma_rad,
+                drift_sigma_rad_s,
+                nuisance: None,
+            })
+            .collect()
+    }
+
     /// Eight 700 s stretches (CW/CCW at 10 °/min, 20 Hz) of a gyro without noise whose coil
     /// follows the air through a first-order lag of 300 s, the air ramping at ±3 °C/min
     /// with holds between (so the coil's rate bends inside the stretches); the table read
@@ -787,18 +809,7 @@ mod tests {
     #[test]
     fn a_lagged_coil_temperature_is_taken_as_it_is_not_smoothed_again() {
         let (windows, tables, truth) = lagged_run();
-        let aws: Vec<AngleWindow<'_>> = windows
-            .iter()
-            .zip(&tables)
-            .map(|(w, (t, a))| AngleWindow {
-                window: w,
-                table_time_s: t,
-                table_angle_rad: a,
-                reading_sigma_rad: 1e-9,
-                drift_sigma_rad_s: ARCSEC / 700.0,
-                nuisance: None,
-            })
-            .collect();
+        let aws = angle_windows(&windows, &tables, 1e-9, ARCSEC / 700.0);
         // The noise model of the lab writer's gyros: the flicker leaves each stretch's slow
         // part to the noise, so the fit reads the temperature columns' shape within it.
         let fit = |temp_window_s| {
@@ -829,19 +840,8 @@ mod tests {
         let seeds = 6;
         for seed in 0..seeds {
             let (windows, tables, truth, arw) = run(seed);
-            let aws: Vec<AngleWindow<'_>> = windows
-                .iter()
-                .zip(&tables)
-                .map(|(w, (t, a))| AngleWindow {
-                    window: w,
-                    table_time_s: t,
-                    table_angle_rad: a,
-                    reading_sigma_rad: (ARCSEC * ARCSEC / 12.0 + (2.909e-3 * 1e-3f64).powi(2))
-                        .sqrt(),
-                    drift_sigma_rad_s: ARCSEC / 600.0,
-                    nuisance: None,
-                })
-                .collect();
+            let reading_sigma_rad = (ARCSEC * ARCSEC / 12.0 + (2.909e-3 * 1e-3f64).powi(2)).sqrt();
+            let aws = angle_windows(&windows, &tables, reading_sigma_rad, ARCSEC / 600.0);
             let opts = AngleFitOptions {
                 reference_temperature_c: 20.0,
                 latitude_deg: None,
