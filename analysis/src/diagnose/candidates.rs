@@ -68,16 +68,27 @@ pub(super) fn regressor_columns(
                     .collect()
             })
             .collect(),
-        Columns::PerSample => (0..id.linear_count())
-            .map(|j| {
-                bin_mean(bins, dt, |k| {
-                    let mut out = [0.0; 2];
-                    id.regressors(&prep.sample(k), p, &mut out);
-                    out[j]
-                })
-            })
-            .collect(),
+        Columns::PerSample => per_sample(prep, id, p, |k| prep.sample(k)),
     }
+}
+
+/// A per-sample effect's columns: bin means of its regressors at each native sample as
+/// `sample(k)` describes it.
+fn per_sample(
+    prep: &Prepared,
+    id: EffectId,
+    p: f64,
+    sample: impl Fn(usize) -> EffectSample,
+) -> Vec<Vec<f64>> {
+    (0..id.linear_count())
+        .map(|j| {
+            bin_mean(&prep.bins, &prep.native.dt, |k| {
+                let mut out = [0.0; 2];
+                id.regressors(&sample(k), p, &mut out);
+                out[j]
+            })
+        })
+        .collect()
 }
 
 /// Whether effect `id`'s regressors (at grid value `p`) read the coil's temperature or its
@@ -115,20 +126,11 @@ pub(super) fn per_sample_columns_at(
     temp_c: &[f64],
     hysteresis: &[f64],
 ) -> Vec<Vec<f64>> {
-    (0..id.linear_count())
-        .map(|j| {
-            bin_mean(&prep.bins, &prep.native.dt, |k| {
-                let mut out = [0.0; 2];
-                let s = EffectSample {
-                    temp_minus_ref_c: temp_c[k] - prep.t0,
-                    hysteresis: hysteresis[k],
-                    ..prep.sample(k)
-                };
-                id.regressors(&s, p, &mut out);
-                out[j]
-            })
-        })
-        .collect()
+    per_sample(prep, id, p, |k| EffectSample {
+        temp_minus_ref_c: temp_c[k] - prep.t0,
+        hysteresis: hysteresis[k],
+        ..prep.sample(k)
+    })
 }
 
 /// The grid of a candidate's nonlinear parameter (a single NaN for none).

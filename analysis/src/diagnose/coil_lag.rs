@@ -56,26 +56,29 @@ use super::*;
 /// regressors read the coil's temperature ([`candidates::reads_temperature`]), rebuilt at each
 /// lag tried.
 #[derive(Debug, Clone, Default)]
-pub(super) struct Beside {
+pub(super) struct Beside<'a> {
     /// Columns the same at every lag (bin means).
-    pub(super) fixed: Vec<Vec<f64>>,
+    pub(super) fixed: Vec<&'a [f64]>,
     /// Effects (id, grid value) built at each lag.
     pub(super) thermal: Vec<(EffectId, f64)>,
 }
 
-impl Beside {
+impl<'a> Beside<'a> {
     /// A model past the calibrated parameters: the nuisance blocks of `base_design` and the
     /// `accepted` effects but `skip`, those that read the coil's temperature to be rebuilt.
-    pub(super) fn of(base_design: &[Vec<f64>], accepted: &[Accepted], skip: Option<usize>) -> Self {
-        let mut out = Self {
-            fixed: base_design.get(ModelKey::CALIBRATED.len()..).unwrap_or_default().to_vec(),
-            thermal: Vec::new(),
-        };
+    pub(super) fn of(
+        base_design: &'a [Vec<f64>],
+        accepted: &'a [Accepted],
+        skip: Option<usize>,
+    ) -> Self {
+        let nuisance = base_design.get(ModelKey::CALIBRATED.len()..).unwrap_or_default();
+        let mut out =
+            Self { fixed: nuisance.iter().map(Vec::as_slice).collect(), thermal: Vec::new() };
         for (_, a) in accepted.iter().enumerate().filter(|(j, _)| Some(*j) != skip) {
             if candidates::reads_temperature(a.id, a.p) {
                 out.thermal.push((a.id, a.p));
             } else {
-                out.fixed.extend(a.cols.iter().cloned());
+                out.fixed.extend(a.cols.iter().map(Vec::as_slice));
             }
         }
         out
@@ -157,57 +160,77 @@ impl<'a> Setup<'a> {
     /// The model temperature's and its rate's bin means through a lag of `tau` (through the
     /// run's memo: the profiles and rivals read the same grid).
     fn thermal(&self, tau: f64) -> Result<std::sync::Arc<[Vec<f64>; 2]>, AnalysisError> {
-        let memo = &self.prep.lag_thermal;
-        let key = tau.to_bits();
-        if let Some(hit) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-            return Ok(hit.clone());
+        Ok(self.at_lag(tau, &[])?.0)
+    }
+
+    /// The thermal bin means ([`Self::thermal`]) and the columns of the temperature-reading
+    /// `effects` (id, grid value) with the coil `tau` behind the air, through the run's memos:
+    /// the coil's temperature is computed once for whatever they lack.
+    #[allow(clippy::type_complexity)]
+    fn at_lag(
+        &self,
+        tau: f64,
+        effects: &[(EffectId, f64)],
+    ) -> Result<(std::sync::Arc<[Vec<f64>; 2]>, Vec<std::sync::Arc<Vec<Vec<f64>>>>), AnalysisError>
+    {
+        let thermal = self
+            .prep
+            .lag_thermal
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&tau.to_bits())
+            .cloned();
+        let mut cols: Vec<Option<std::sync::Arc<Vec<Vec<f64>>>>> = {
+            let memo = self.prep.lag_effects.lock().unwrap_or_else(|e| e.into_inner());
+            effects
+                .iter()
+                .map(|&(id, p)| memo.get(&(tau.to_bits(), id, p.to_bits())).cloned())
+                .collect()
+        };
+        if let (Some(th), true) = (&thermal, cols.iter().all(Option::is_some)) {
+            return Ok((th.clone(), cols.into_iter().flatten().collect()));
         }
         let (nat, bins, t0) = (&self.prep.native, &self.prep.bins, self.prep.t0);
         let (temp, rate) = series::coil_temperature(&nat.t, &nat.air_c, tau)?;
-        let cols = std::sync::Arc::new([
-            bin_mean(bins, &nat.dt, |k| temp[k] - t0),
-            bin_mean(bins, &nat.dt, |k| rate[k]),
-        ]);
-        memo.lock().unwrap_or_else(|e| e.into_inner()).insert(key, cols.clone());
-        Ok(cols)
-    }
-
-    /// The columns of a temperature-reading effect `id` at grid value `p` with the coil
-    /// `tau` behind the air (through the run's memo).
-    fn effect_at(
-        &self,
-        tau: f64,
-        id: EffectId,
-        p: f64,
-    ) -> Result<std::sync::Arc<Vec<Vec<f64>>>, AnalysisError> {
-        let memo = &self.prep.lag_effects;
-        let key = (tau.to_bits(), id, p.to_bits());
-        if let Some(hit) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-            return Ok(hit.clone());
+        let thermal = match thermal {
+            Some(th) => th,
+            None => {
+                let th = std::sync::Arc::new([
+                    bin_mean(bins, &nat.dt, |k| temp[k] - t0),
+                    bin_mean(bins, &nat.dt, |k| rate[k]),
+                ]);
+                let mut memo = self.prep.lag_thermal.lock().unwrap_or_else(|e| e.into_inner());
+                memo.insert(tau.to_bits(), th.clone());
+                th
+            }
+        };
+        if cols.iter().any(Option::is_none) {
+            let hysteresis = bench_physics::effects::HysteresisState::series(HYST_C_S, &rate);
+            let mut memo = self.prep.lag_effects.lock().unwrap_or_else(|e| e.into_inner());
+            for (slot, &(id, p)) in cols.iter_mut().zip(effects) {
+                if slot.is_none() {
+                    let c = std::sync::Arc::new(candidates::per_sample_columns_at(
+                        self.prep,
+                        id,
+                        p,
+                        &temp,
+                        &hysteresis,
+                    ));
+                    memo.insert((tau.to_bits(), id, p.to_bits()), c.clone());
+                    *slot = Some(c);
+                }
+            }
         }
-        let nat = &self.prep.native;
-        let (temp, rate) = series::coil_temperature(&nat.t, &nat.air_c, tau)?;
-        let hysteresis = bench_physics::effects::HysteresisState::series(HYST_C_S, &rate);
-        let cols = std::sync::Arc::new(candidates::per_sample_columns_at(
-            self.prep,
-            id,
-            p,
-            &temp,
-            &hysteresis,
-        ));
-        memo.lock().unwrap_or_else(|e| e.into_inner()).insert(key, cols.clone());
-        Ok(cols)
+        Ok((thermal, cols.into_iter().flatten().collect()))
     }
 
     /// The base design at lag `tau`, then `beside` (its temperature-reading effects at `tau`).
     fn design(&self, tau: f64, beside: &Beside) -> Result<Vec<Vec<f64>>, AnalysisError> {
-        let th = self.thermal(tau)?;
+        let (th, effects) = self.at_lag(tau, &beside.thermal)?;
         let base = &self.prep.base;
         let mut d = vec![base[0].clone(), base[1].clone(), th[0].clone(), th[1].clone()];
-        d.extend(beside.fixed.iter().cloned());
-        for &(id, p) in &beside.thermal {
-            d.extend(self.effect_at(tau, id, p)?.iter().cloned());
-        }
+        d.extend(beside.fixed.iter().map(|c| c.to_vec()));
+        d.extend(effects.iter().flat_map(|e| e.iter().cloned()));
         Ok(d)
     }
 
@@ -367,11 +390,13 @@ pub(super) fn rival(
     let tau_s = setup.best(beside, from_s)?;
     let lag = setup.change_wald(from_s, tau_s, beside, noise)?;
     let effect_here = test(&setup.projector(from_s, beside)?, &setup.y, cols);
+    let rebuilt;
     let there = if candidates::reads_temperature(id, p) {
-        setup.effect_at(tau_s, id, p)?.to_vec()
+        rebuilt = setup.at_lag(tau_s, &[(id, p)])?.1;
+        rebuilt[0].as_slice()
     } else {
-        cols.to_vec()
+        cols
     };
-    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, &there);
+    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, there);
     Ok(Some(LagRival { from_s, tau_s, lag, effect_here, effect_there }))
 }

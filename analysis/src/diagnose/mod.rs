@@ -235,8 +235,10 @@ pub fn diagnose(
         // The lag again with what the search found beside it ([`coil_lag`]: a lag profiled
         // without an effect the run holds takes part of it, and what the lag then leaves
         // is named as slow shapes): when it moves, the search runs again at the new lag.
-        let beside = coil_lag::Beside::of(&search.base_design, &search.accepted, None);
-        if passes < coil_lag::MAX_REPROFILES && !beside.is_empty() {
+        let beside = (passes < coil_lag::MAX_REPROFILES)
+            .then(|| coil_lag::Beside::of(&search.base_design, &search.accepted, None))
+            .filter(|b| !b.is_empty());
+        if let Some(beside) = beside {
             if let Some(l) =
                 coil_lag::profile(&prep, noise_spec, &lagged, opts.alpha, &beside, nominal_lag_s)?
             {
