@@ -400,3 +400,43 @@ pub(super) fn rival(
     let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, there);
     Ok(Some(LagRival { from_s, tau_s, lag, effect_here, effect_there }))
 }
+
+/// Effect `id` (grid value `p`, columns `cols` at the lag in use) judged beside a declared
+/// rival at the rival's own lag ([`super::rivals`]): the lag profiled with `beside` — the rest
+/// of the model past the calibrated parameters without the effect, with the rival — and, where
+/// that moves it from the lag in use by more than the lag's own test (`lag_threshold`), the
+/// effect's Wald statistic there (`test`, as in [`rival`]; an effect that reads the coil's
+/// temperature with that lag's columns). `None` where the lag is not profiled or the rival
+/// leaves it where it is.
+///
+/// A rival whose model holds another lag must be judged there: the lab writer's study seed 242
+/// (a rate² on a sensor-less gyro, turns at 28.3, 28.5 and 6.5 °/min, the coil 741 s behind
+/// the air): at the lag the search settled on (≈ 300 s) a scale-factor asymmetry fits the
+/// residual better than the rate² (ρ = 0.994 between them), is named, and a step and a lag are
+/// named beside it; the rate² with the coil's own lag fits better than all three.
+pub(super) fn effect_at_rivals_lag(
+    prep: &Prepared,
+    model: &GyroModel,
+    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    beside: &Beside,
+    noise: &BinNoise,
+    lag_threshold: f64,
+    test: impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
+) -> Result<Option<(f64, f64)>, AnalysisError> {
+    let Some(setup) = Setup::new(prep, model) else {
+        return Ok(None);
+    };
+    let from_s = model.thermal_time_constant;
+    let tau_s = setup.best(beside, from_s)?;
+    if setup.change_wald(from_s, tau_s, beside, noise)? <= lag_threshold {
+        return Ok(None);
+    }
+    let rebuilt;
+    let there = if candidates::reads_temperature(id, p) {
+        rebuilt = setup.at_lag(tau_s, &[(id, p)])?.1;
+        rebuilt[0].as_slice()
+    } else {
+        cols
+    };
+    Ok(Some((tau_s, test(&setup.projector(tau_s, beside)?, &setup.y, there))))
+}

@@ -128,6 +128,26 @@ pub(super) fn refine_step(
     keep_best(prep.threads, proj, y, noise, tries, fitted, profile);
 }
 
+/// Effect `id`'s Wald statistic, its columns `cols` tested against a design `at` for a residual
+/// `y` under `noise`: an effect with a grid is fitted again over it ([`refit_grid`]; its value
+/// was chosen without that design), judged as one test. 0 where nothing of it is left.
+pub(super) fn effect_wald<'a>(
+    prep: &'a Prepared,
+    id: EffectId,
+    model: &'a GyroModel,
+    cache: &'a ColumnCache,
+    noise: &'a BinNoise,
+) -> impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64 + 'a {
+    let gridded = grid(prep, id).len() > 1;
+    move |at: &Projector, y: &[f64], cols: &[Vec<f64>]| {
+        if gridded {
+            refit_grid(prep, id, at, y, noise, model, cache).map_or(0.0, |f| f.test.wald)
+        } else {
+            at.test(cols, y, noise).map_or(0.0, |t| t.wald)
+        }
+    }
+}
+
 /// A gridded effect's best grid value (least squares) against `proj`, refined below the grid
 /// ([`refine`]); `None` for an effect without a grid or not yet tried.
 pub(super) fn refit_grid(

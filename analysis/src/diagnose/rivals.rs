@@ -45,6 +45,9 @@ pub(super) struct NotToldApart {
     pub effect: WaldTest,
     /// The rival's test with the rest of the model (without the effect).
     pub alone: WaldTest,
+    /// The coil's lag, s, at which the effect was judged beside the rival, where the rival's
+    /// model holds another lag than the one in use (a gyro without its own sensor).
+    pub at_lag_s: Option<f64>,
 }
 
 impl NotToldApart {
@@ -55,10 +58,13 @@ impl NotToldApart {
         let when = id.rivalry_with(r.key()).unwrap_or("this procedure");
         let declared_by_id = id.effect().rivals().iter().any(|x| x.with == r.key());
         let run = if declared_by_id { id.effect() } else { r.effect() }.separated_by();
+        let at_lag = self.at_lag_s.map_or(String::new(), |t| {
+            format!(" with the coil's lag refitted beside it ({t:.0} s)")
+        });
         format!(
             "not told apart: {} or {} (alike on {when}: {} alone explains the residual, Wald \
-             {:.1} > {:.1}, and with it in the model {} keeps Wald {:.1} ≤ {:.1}); the run that \
-             separates them: {}",
+             {:.1} > {:.1}, and with it in the model{at_lag} {} keeps Wald {:.1} ≤ {:.1}); the \
+             run that separates them: {}",
             id.key(),
             r.key(),
             r.key(),
@@ -90,6 +96,11 @@ pub(super) struct RivalCtx<'a> {
     /// model), not one test's quantile — 52 angle harmonics' best passes χ²₂'s 14.7 one time in
     /// thirty on noise alone.
     pub thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
+    /// The rest of the model past the calibrated parameters without the effect, for the coil
+    /// lag's profile beside a rival (a gyro without its own sensor; [`coil_lag::Beside`]).
+    pub beside: &'a coil_lag::Beside<'a>,
+    /// The lag's own test ([`coil_lag::threshold`]).
+    pub lag_threshold: f64,
 }
 
 /// The declared rival of effect `id` (columns `cols`, the rest of the model `others`) that
@@ -98,7 +109,7 @@ pub(super) struct RivalCtx<'a> {
 /// rival (or none is declared).
 pub(super) fn judge_rivals(
     ctx: &RivalCtx<'_>,
-    id: EffectId,
+    (id, p): (EffectId, f64),
     cols: &[Vec<f64>],
     others: &[Vec<f64>],
     y: &[f64],
@@ -118,7 +129,7 @@ pub(super) fn judge_rivals(
         if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
             continue;
         }
-        let Some((r_cols, beyond_search)) = rival_columns(ctx, r, &proj_o, y, noise) else {
+        let Some((r_p, r_cols, beyond_search)) = rival_columns(ctx, r, &proj_o, y, noise) else {
             continue;
         };
         let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
@@ -140,6 +151,12 @@ pub(super) fn judge_rivals(
                 }
             })
             .map_or(0.0, |t| t.wald);
+        // The rival's model may hold another coil lag: the effect judged there too, and told
+        // apart only where it stays significant at both.
+        let (w_e, at_lag_s) = match at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise) {
+            Some((tau, w)) if w < w_e => (w, Some(tau)),
+            _ => (w_e, None),
+        };
         if w_e > thr_e || best.as_ref().is_some_and(|b| b.effect.value <= w_e) {
             continue;
         }
@@ -149,6 +166,7 @@ pub(super) fn judge_rivals(
             cols: r_cols,
             effect: WaldTest { value: w_e, threshold: thr_e },
             alone: WaldTest { value: t_r.wald, threshold: thr_r },
+            at_lag_s,
         });
     }
     let best = best?;
@@ -168,8 +186,41 @@ pub(super) fn judge_rivals(
     Some(RivalVerdict::NotToldApart(best))
 }
 
-/// Rival `r`'s columns at its best value against projector `proj`, and whether that value lies
-/// beyond the grid it is searched on: fitted on its rival grid
+/// Effect `id` (grid value `p`, columns `cols`) beside rival `r` (grid value `r_p`, columns
+/// `r_cols`) at the coil lag the rival's model holds ([`coil_lag::effect_at_rivals_lag`]):
+/// `(lag, Wald)`, or `None` where the lag is not profiled or stays.
+fn at_rivals_lag(
+    ctx: &RivalCtx<'_>,
+    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    (r, r_p, r_cols): (EffectId, f64, &[Vec<f64>]),
+    noise: &BinNoise,
+) -> Option<(f64, f64)> {
+    if !ctx.prep.lag_free {
+        return None;
+    }
+    let mut beside = ctx.beside.clone();
+    if candidates::reads_temperature(r, r_p) {
+        beside.thermal.push((r, r_p));
+    } else {
+        beside.fixed.extend(r_cols.iter().map(Vec::as_slice));
+    }
+    let test = effect_wald(ctx.prep, id, ctx.model, ctx.cache, noise);
+    coil_lag::effect_at_rivals_lag(
+        ctx.prep,
+        ctx.model,
+        (id, p, cols),
+        &beside,
+        noise,
+        ctx.lag_threshold,
+        test,
+    )
+    .ok()
+    .flatten()
+}
+
+/// Rival `r`'s grid value (NaN for none) and columns at its best value against projector
+/// `proj`, and whether that value lies beyond the grid it is searched on: fitted on its rival
+/// grid
 /// ([`bench_physics::effects::Effect::rival_grid`]), which is its search grid unless wider (a
 /// periodic bias down to 1.5 cycles in the run), by least squares over it; its only columns
 /// for a rival without a grid.
@@ -179,17 +230,17 @@ fn rival_columns(
     proj: &Projector,
     y: &[f64],
     noise: &BinNoise,
-) -> Option<(Vec<Vec<f64>>, bool)> {
+) -> Option<(f64, Vec<Vec<f64>>, bool)> {
     let wide = candidates::rival_grid(ctx.prep, r);
     match wide.len() {
         0 => return None, // the run is too short for any of its values
-        1 => return Some((candidate_columns(ctx.prep, r, f64::NAN, ctx.model), false)),
+        1 => return Some((f64::NAN, candidate_columns(ctx.prep, r, f64::NAN, ctx.model), false)),
         _ => {}
     }
     let searched = grid(ctx.prep, r);
     if wide == searched {
         return refit_grid(ctx.prep, r, proj, y, noise, ctx.model, ctx.cache)
-            .map(|f| (f.cols, false));
+            .map(|f| (f.p, f.cols, false));
     }
     // Its columns go through the run's memo (computed once by rotation): the next rivalry reads
     // them there.
@@ -197,5 +248,5 @@ fn rival_columns(
     let (lo, hi) = searched
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    Some((fitted.cols, !(lo..=hi).contains(&fitted.p)))
+    Some((fitted.p, fitted.cols, !(lo..=hi).contains(&fitted.p)))
 }
