@@ -299,6 +299,47 @@ def judge_random(d, truth, names, traits, sensor):
     return false_finding, false_unexplained, wrong, found, ok, bool(apart), named, unexpl
 
 
+# The writer's truth (`gyro_model` in its truth file) by the model file's keys.
+ORACLE_KEYS = {"bias": "bias_rad_s", "scale_factor_error": "scale_factor_error",
+               "reference_temperature": "reference_temperature_c",
+               "temp_coeff": "temp_coeff_rad_s_per_c",
+               "temp_rate_coeff": "temp_rate_coeff_rad_s_per_c_s",
+               "arw": "arw_rad_per_sqrt_s", "bias_instability": "bias_instability_rad_s",
+               "thermal_time_constant": "thermal_time_constant_s"}
+
+
+def oracle_model(path, truth, names):
+    """The model file of the oracle diagnosis: the writer's true gyro (its coefficients, noise,
+    coil lag and Earth's rate) without the concealed effects — what the lab's model would be
+    if everything but the concealed physics were known. A concealed Earth's rate stays out."""
+    g = truth["gyro_model"]
+    lines = ["[gyro_model]"]
+    for k, key in ORACLE_KEYS.items():
+        if g.get(k) is not None:
+            lines.append(f"{key} = {float(g[k])!r}")
+    earth = bool(g.get("earth_rate")) and "earth_rate" not in names
+    lines.append(f"earth_rate = {'true' if earth else 'false'}")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def oracle_found(args, d, mcap, truth, names, traits, sensor):
+    """Whether the procedure makes the concealed physics identifiable, judged by an oracle: the
+    same diagnosis run against the writer's true model less the concealed effects
+    ([`oracle_model`]) names every one of them. Found there, the design and the noise separate
+    the effect from its rivals and from the noise when nothing else is wrong; the lab's model
+    (its datasheet coefficients, its 300 s lag) is what the real diagnosis must see through.
+    None when that diagnosis failed."""
+    model = os.path.join(d, "oracle.toml")
+    oracle_model(model, truth, names)
+    out = os.path.join(d, "oracle.json")
+    subprocess.run([BENCH, "diagnose", mcap, "--model", model, "-q", "--no-report", "--force",
+                    "--json", out, "-o", os.path.join(d, "out-oracle")], capture_output=True)
+    if not os.path.exists(out):
+        return None
+    return judge_random(json.load(open(out)), truth, names, traits, sensor)[3]
+
+
 def one_random(args, cls, seed):
     preset, kind, cfg, names, traits = draw_random(seed, cls, args.hours)
     d = os.path.join(args.work, f"{cls}-{seed}")
@@ -319,26 +360,32 @@ def one_random(args, cls, seed):
                                                      f"{r.stderr.strip()[-300:]}"}
     truth = json.load(open(mcap[:-5] + ".truth.json"))
     res = json.load(open(out))
-    if not args.keep:
-        os.remove(mcap)
     sensor = cfg["gyro"]["sensor"]
     ff, fu, wrong, found, ok, apart, named, unexpl = judge_random(res, truth, names, traits,
                                                                   sensor)
+    identifiable = oracle_found(args, d, mcap, truth, names, traits, sensor) \
+        if args.oracle and cls in ("effect", "pair") else None
+    if not args.keep:
+        os.remove(mcap)
     return {"class": cls, "seed": seed, "writer_seed": pseed, "names": names, "kind": kind,
             "traits": traits, "sensor": sensor,
             "hz": cfg["gyro"]["sample_rate_hz"], "rates": cfg["procedure"]["rates_deg_min"],
             "stop_s": cfg["procedure"].get("stop_s", 0), "hours": truth["duration_s"] / 3600,
             "false_finding": ff, "false_unexplained": fu, "wrong": wrong, "found": found,
             "within": ok, "not_told_apart": apart, "named": named, "unexplained": unexpl,
+            "identifiable": identifiable,
             "secs": secs, "write_secs": write_secs}
 
 
 def random_table(rows):
     # A file run twice (a study resumed at its seed) counts once: its last run.
     rows = list({(r["class"], r["seed"]): r for r in rows if not r.get("written")}.values())
+    oracle = any(r.get("identifiable") is not None for r in rows)
     print("| class | files | false findings | false unexplained | wrong names | found "
-          "| not told apart | parameters within 3σ | median diagnose s |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          + ("| identifiable (oracle) | found where identifiable " if oracle else "")
+          + "| not told apart | parameters within 3σ | median diagnose s |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+          + (" --- | --- |" if oracle else ""))
     groups = {}
     for r in rows:
         if "error" in r or r.get("written"):
@@ -355,10 +402,20 @@ def random_table(rows):
         within = f"{sum(oks)}/{len(oks)}" if oks else "—"
         null = g[0]["class"] == "null"
         secs = sorted(r["secs"] for r in g)[n // 2]
+        ident = [r for r in g if r.get("identifiable")]
+        found_ident = sum(1 for r in ident if r["found"])
+        extra = "" if not oracle else (
+            "| — | — " if null or not ident and all(r.get("identifiable") is None for r in g)
+            else f"| {len(ident)} | {found_ident}/{len(ident)} ")
         print(f"| {key} | {n} | {pct('false_finding') if null else '—'} "
               f"| {pct('false_unexplained') if null else '—'} | {pct('wrong')} "
-              f"| {'—' if null else pct('found')} | {pct('not_told_apart')} | {within} "
+              f"| {'—' if null else pct('found')} {extra}| {pct('not_told_apart')} | {within} "
               f"| {secs:.1f} |")
+    if oracle:
+        ident = [r for r in rows if r.get("identifiable")]
+        told = [r for r in rows if r.get("identifiable") is not None]
+        print(f"\nIdentifiable (the oracle names the truth): {len(ident)} of {len(told)} files; "
+              f"found there: {sum(1 for r in ident if r['found'])} of {len(ident)}.")
 
 
 def main_random(argv):
@@ -371,6 +428,10 @@ def main_random(argv):
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--work", default=None)
     ap.add_argument("--keep", action="store_true")
+    ap.add_argument("--oracle", action="store_true",
+                    help="also diagnose each effect file against the writer's true model less "
+                         "the concealed physics: where that names the truth, the procedure "
+                         "makes it identifiable (the table's 'found where identifiable')")
     ap.add_argument("--hours", default=None, metavar="LO,HI",
                     help="procedure length drawn in LO..HI hours (the drawn chamber profile cut "
                          "there; default: calibrate_study's 2–5 h)")
