@@ -333,6 +333,8 @@ def oracle_found(args, d, mcap, truth, names, traits, sensor):
     model = os.path.join(d, "oracle.toml")
     oracle_model(model, truth, names)
     out = os.path.join(d, "oracle.json")
+    if os.path.exists(out):
+        os.remove(out)
     subprocess.run([BENCH, "diagnose", mcap, "--model", model, "-q", "--no-report", "--force",
                     "--json", out, "-o", os.path.join(d, "out-oracle")], capture_output=True)
     if not os.path.exists(out):
@@ -352,7 +354,9 @@ def one_random(args, cls, seed):
         return {"class": cls, "seed": seed, "written": True, "write_secs": write_secs}
     out = os.path.join(d, "result.json")
     t0 = time.time()
-    r = subprocess.run([BENCH, "diagnose", mcap, "-q", "--no-report", "--json", out,
+    if os.path.exists(out):
+        os.remove(out)  # a kept file diagnosed again: never the earlier run's result
+    r = subprocess.run([BENCH, "diagnose", mcap, "-q", "--no-report", "--force", "--json", out,
                         "-o", os.path.join(d, "out")], capture_output=True, text=True)
     secs = time.time() - t0
     if not os.path.exists(out):

@@ -296,12 +296,25 @@ impl<'a> Setup<'a> {
             return Ok(f64::INFINITY);
         }
         let n = self.n();
-        let (kt, kdt) = self.thermal_coeffs(&self.projector(to, beside)?);
+        let at_to = self.projector(to, beside)?;
+        let (kt, kdt) = self.thermal_coeffs(&at_to);
         let at_from = self.projector(from, beside)?;
-        let (th0, th1) = (self.thermal(from)?, self.thermal(to)?);
+        let ((th0, e0), (th1, e1)) =
+            (self.at_lag(from, &beside.thermal)?, self.at_lag(to, &beside.thermal)?);
         let ([t0m, r0m], [t1m, r1m]) = (&*th0, &*th1);
-        let u: Vec<f64> =
+        let mut u: Vec<f64> =
             (0..n).map(|i| kt * (t1m[i] - t0m[i]) + kdt * (r1m[i] - r0m[i])).collect();
+        // The temperature-reading effects beside move with the lag too: their columns' change
+        // at `to`'s coefficients.
+        let beta = at_to.beta(&self.y);
+        let first = 4 + beside.fixed.len();
+        let changes = e0.iter().zip(&e1).flat_map(|(c0, c1)| c0.iter().zip(c1.iter()));
+        for (j, (c0, c1)) in changes.enumerate() {
+            let Some(b) = at_to.kept.iter().position(|&c| c == first + j).map(|c| beta[c]) else {
+                continue;
+            };
+            u.iter_mut().zip(c0.iter().zip(c1)).for_each(|(x, (a, z))| *x += b * (z - a));
+        }
         let u = at_from.residual(&u, n);
         let r0 = at_from.residual(&self.y, n);
         let uu = noise.quad(&u, &u);
@@ -401,42 +414,64 @@ pub(super) fn rival(
     Ok(Some(LagRival { from_s, tau_s, lag, effect_here, effect_there }))
 }
 
-/// Effect `id` (grid value `p`, columns `cols` at the lag in use) judged beside a declared
-/// rival at the rival's own lag ([`super::rivals`]): the lag profiled with `beside` — the rest
-/// of the model past the calibrated parameters without the effect, with the rival — and, where
-/// that moves it from the lag in use by more than the lag's own test (`lag_threshold`), the
-/// effect's Wald statistic there (`test`, as in [`rival`]; an effect that reads the coil's
-/// temperature with that lag's columns). `None` where the lag is not profiled or the rival
-/// leaves it where it is.
+/// An effect and a declared rival judged at the coil lag the rival's model holds
+/// ([`effect_at_rivals_lag`]).
+pub(super) struct AtRivalsLag {
+    /// The lag profiled beside the rest of the model and the rival, s.
+    pub tau_s: f64,
+    /// The rival's Wald statistic there, without the effect.
+    pub rival: f64,
+    /// The effect's Wald statistic there, beside the rival.
+    pub effect: f64,
+}
+
+/// Effect `e` and its declared rival `r` (each: id, grid value, columns at the lag in use) at
+/// the rival's own lag ([`super::rivals`]): the lag profiled with `beside` — the rest of the
+/// model past the calibrated parameters, without either — and the rival; where that moves it
+/// from the lag in use by more than the lag's own test (`lag_threshold`), the rival's Wald
+/// statistic there without the effect and the effect's beside the rival (`test_e`, `test_r` as
+/// in [`rival`]; an effect that reads the coil's temperature with that lag's columns). `None`
+/// where the lag is not profiled or the rival leaves it where it is.
 ///
 /// A rival whose model holds another lag must be judged there: the lab writer's study seed 242
 /// (a rate² on a sensor-less gyro, turns at 28.3, 28.5 and 6.5 °/min, the coil 741 s behind
 /// the air): at the lag the search settled on (≈ 300 s) a scale-factor asymmetry fits the
 /// residual better than the rate² (ρ = 0.994 between them), is named, and a step and a lag are
 /// named beside it; the rate² with the coil's own lag fits better than all three.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn effect_at_rivals_lag(
     prep: &Prepared,
     model: &GyroModel,
-    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    e: (EffectId, f64, &[Vec<f64>]),
+    r: (EffectId, f64, &[Vec<f64>]),
     beside: &Beside,
     noise: &BinNoise,
     lag_threshold: f64,
-    test: impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
-) -> Result<Option<(f64, f64)>, AnalysisError> {
+    (test_e, test_r): (
+        impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
+        impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
+    ),
+) -> Result<Option<AtRivalsLag>, AnalysisError> {
     let Some(setup) = Setup::new(prep, model) else {
         return Ok(None);
     };
+    let mut with_r = beside.clone();
+    let reads = |(id, p, _): (EffectId, f64, &[Vec<f64>])| candidates::reads_temperature(id, p);
+    if reads(r) {
+        with_r.thermal.push((r.0, r.1));
+    } else {
+        with_r.fixed.extend(r.2.iter().map(Vec::as_slice));
+    }
     let from_s = model.thermal_time_constant;
-    let tau_s = setup.best(beside, from_s)?;
-    if setup.change_wald(from_s, tau_s, beside, noise)? <= lag_threshold {
+    let tau_s = setup.best(&with_r, from_s)?;
+    if setup.change_wald(from_s, tau_s, &with_r, noise)? <= lag_threshold {
         return Ok(None);
     }
-    let rebuilt;
-    let there = if candidates::reads_temperature(id, p) {
-        rebuilt = setup.at_lag(tau_s, &[(id, p)])?.1;
-        rebuilt[0].as_slice()
-    } else {
-        cols
+    // Each one's columns at that lag.
+    let at = |x: (EffectId, f64, &[Vec<f64>])| -> Result<Vec<Vec<f64>>, AnalysisError> {
+        Ok(if reads(x) { setup.at_lag(tau_s, &[(x.0, x.1)])?.1[0].to_vec() } else { x.2.to_vec() })
     };
-    Ok(Some((tau_s, test(&setup.projector(tau_s, beside)?, &setup.y, there))))
+    let rival = test_r(&setup.projector(tau_s, beside)?, &setup.y, &at(r)?);
+    let effect = test_e(&setup.projector(tau_s, &with_r)?, &setup.y, &at(e)?);
+    Ok(Some(AtRivalsLag { tau_s, rival, effect }))
 }

@@ -135,7 +135,12 @@ pub(super) fn judge_rivals(
         let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
         let single = threshold(r_cols.len());
         let thr_r = ctx.thresholds.get(&r).map_or(single, |t| t.max(single));
-        if t_r.wald <= thr_r {
+        // The rival's model may hold another coil lag: the rival and the effect judged there
+        // too — the rival explains the residual where it does at either lag, and the effect
+        // is told apart only where it stays significant beside it at both.
+        let there = at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise);
+        let alone = there.as_ref().map_or(t_r.wald, |a| a.rival.max(t_r.wald));
+        if alone <= thr_r {
             continue;
         }
         let mut with_r = others.to_vec();
@@ -153,8 +158,8 @@ pub(super) fn judge_rivals(
             .map_or(0.0, |t| t.wald);
         // The rival's model may hold another coil lag: the effect judged there too, and told
         // apart only where it stays significant at both.
-        let (w_e, at_lag_s) = match at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise) {
-            Some((tau, w)) if w < w_e => (w, Some(tau)),
+        let (w_e, at_lag_s) = match there {
+            Some(a) if a.effect < w_e => (a.effect, Some(a.tau_s)),
             _ => (w_e, None),
         };
         if w_e > thr_e || best.as_ref().is_some_and(|b| b.effect.value <= w_e) {
@@ -165,7 +170,7 @@ pub(super) fn judge_rivals(
             beyond_search,
             cols: r_cols,
             effect: WaldTest { value: w_e, threshold: thr_e },
-            alone: WaldTest { value: t_r.wald, threshold: thr_r },
+            alone: WaldTest { value: alone, threshold: thr_r },
             at_lag_s,
         });
     }
@@ -187,32 +192,30 @@ pub(super) fn judge_rivals(
 }
 
 /// Effect `id` (grid value `p`, columns `cols`) beside rival `r` (grid value `r_p`, columns
-/// `r_cols`) at the coil lag the rival's model holds ([`coil_lag::effect_at_rivals_lag`]):
-/// `(lag, Wald)`, or `None` where the lag is not profiled or stays.
+/// `r_cols`) at the coil lag the rival's model holds ([`coil_lag::effect_at_rivals_lag`]);
+/// `None` where the lag is not profiled or stays.
 fn at_rivals_lag(
     ctx: &RivalCtx<'_>,
-    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
-    (r, r_p, r_cols): (EffectId, f64, &[Vec<f64>]),
+    e: (EffectId, f64, &[Vec<f64>]),
+    r: (EffectId, f64, &[Vec<f64>]),
     noise: &BinNoise,
-) -> Option<(f64, f64)> {
+) -> Option<coil_lag::AtRivalsLag> {
     if !ctx.prep.lag_free {
         return None;
     }
-    let mut beside = ctx.beside.clone();
-    if candidates::reads_temperature(r, r_p) {
-        beside.thermal.push((r, r_p));
-    } else {
-        beside.fixed.extend(r_cols.iter().map(Vec::as_slice));
-    }
-    let test = effect_wald(ctx.prep, id, ctx.model, ctx.cache, noise);
+    let tests = (
+        effect_wald(ctx.prep, e.0, ctx.model, ctx.cache, noise),
+        effect_wald(ctx.prep, r.0, ctx.model, ctx.cache, noise),
+    );
     coil_lag::effect_at_rivals_lag(
         ctx.prep,
         ctx.model,
-        (id, p, cols),
-        &beside,
+        e,
+        r,
+        ctx.beside,
         noise,
         ctx.lag_threshold,
-        test,
+        tests,
     )
     .ok()
     .flatten()

@@ -873,3 +873,43 @@ fn a_rival_is_judged_at_the_coil_lag_its_own_model_holds() {
         lag.sigma
     );
 }
+
+/// Study seed 205 (`lab_diagnose_study.py random --classes effect --hours 0.75,1.5`): a scale
+/// factor vs T of 1.44 ppm/°C on a gyro without its own sensor whose coil lags the air by
+/// 1038 s (the lab's model: 300 s), turns at 12.8 and 23.2 °/min. The lag's move is tested by
+/// the change it makes to the model; beside a scale factor vs T that change is the thermal
+/// terms' and the scale factor's column's, rebuilt at the new lag. Counting only the thermal
+/// terms', the move away from 300 s without the periodic bias the search had named (to ≈ 860
+/// s) had Wald 1.0, so the lag could not be the periodic bias's rival, and the periodic bias
+/// (702 s) was named beside the scale factor; counted whole, the move has Wald 27.8, the
+/// periodic bias keeps Wald 5.2 at the moved lag, and only the scale factor is named.
+#[test]
+fn the_lags_move_counts_the_temperature_reading_effects_it_moves() {
+    let legs = r#"[{"hold_s":450.8037534812619},{"to_c":-1.0,"rate_c_min":2.349},{"hold_s":306},{"to_c":48.0,"rate_c_min":1.292},{"hold_s":307},{"to_c":29.0,"rate_c_min":1.548}]"#;
+    let sets = [
+        ("procedure.legs", legs),
+        ("procedure.rates_deg_min", "[12.8,23.21]"),
+        ("procedure.rate_deg_min", "12.8"),
+        ("procedure.segment_s", "440"),
+        ("gyro.sample_rate_hz", "10.0"),
+        ("gyro.sensor", "false"),
+        ("gyro.thermal_time_constant", "1038"),
+        ("effects.sf_temperature.enabled", "true"),
+        ("effects.sf_temperature.coeff_per_c", "1.4387724002609778e-06"),
+    ];
+    let (d, _) = diagnose_with("lab-clean", 821, &sets);
+    assert_eq!(
+        accepted(&d),
+        vec![EffectId::ScaleFactorTemperature],
+        "{:?} {:?}",
+        d.findings,
+        d.unexplained
+    );
+    assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
+    let lag = d
+        .parameter_updates
+        .iter()
+        .find(|u| u.key == bench_physics::ModelKey::ThermalTimeConstant)
+        .expect("the coil's lag refitted");
+    assert!(lag.held.is_none() && lag.fitted > 600.0, "{lag:?}");
+}
