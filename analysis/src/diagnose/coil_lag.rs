@@ -242,10 +242,18 @@ impl<'a> Setup<'a> {
     /// log grid (30..4000 s, ×1.25, and `nominal`), refined by a parabola in ln τ.
     fn best(&self, beside: &Beside, nominal: f64) -> Result<f64, AnalysisError> {
         let n = self.n();
-        let rss = |tau: f64| -> Result<f64, AnalysisError> {
+        self.best_by(nominal, |tau| {
             let r = self.projector(tau, beside)?.residual(&self.y, n);
             Ok(r.iter().map(|x| x * x).sum())
-        };
+        })
+    }
+
+    /// The lag that minimises `rss` ([`Self::best`]'s grid and refinement).
+    fn best_by(
+        &self,
+        nominal: f64,
+        rss: impl Fn(f64) -> Result<f64, AnalysisError>,
+    ) -> Result<f64, AnalysisError> {
         let mut grid: Vec<f64> = std::iter::successors(Some(30.0), |t| Some(t * 1.25))
             .take_while(|t| *t <= 4000.0)
             .collect();
@@ -430,8 +438,9 @@ pub(super) struct AtRivalsLag {
 /// model past the calibrated parameters, without either — and the rival; where that moves it
 /// from the lag in use by more than the lag's own test (`lag_threshold`), the rival's Wald
 /// statistic there without the effect and the effect's beside the rival (`test_e`, `test_r` as
-/// in [`rival`]; an effect that reads the coil's temperature with that lag's columns). `None`
-/// where the lag is not profiled or the rival leaves it where it is.
+/// in [`rival`]; an effect that reads the coil's temperature with that lag's columns); a rival
+/// with a grid (`refit_r`: its best columns against a design, `None` for none) fitted on it
+/// again at each lag. `None` where the lag is not profiled or the rival leaves it where it is.
 ///
 /// A rival whose model holds another lag must be judged there: the lab writer's study seed 242
 /// (a rate² on a sensor-less gyro, turns at 28.3, 28.5 and 6.5 °/min, the coil 741 s behind
@@ -451,18 +460,39 @@ pub(super) fn effect_at_rivals_lag(
         impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
         impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
     ),
+    refit_r: impl Fn(&Projector, &[f64]) -> Option<Vec<Vec<f64>>>,
 ) -> Result<Option<AtRivalsLag>, AnalysisError> {
     let Some(setup) = Setup::new(prep, model) else {
         return Ok(None);
     };
-    let mut with_r = beside.clone();
     let reads = |(id, p, _): (EffectId, f64, &[Vec<f64>])| candidates::reads_temperature(id, p);
+    let from_s = model.thermal_time_constant;
+    // A rival with a grid of its own (a step's time, a warm-up's τ, a period) is fitted on it
+    // again at every lag tried: its value and the lag are chosen together (a step's time chosen
+    // at a lag that has taken the step's transient is not the step's).
+    let n = setup.n();
+    let refit = |tau: f64| -> Result<Option<Vec<Vec<f64>>>, AnalysisError> {
+        Ok(refit_r(&setup.projector(tau, beside)?, &setup.y))
+    };
+    let r_cols: Vec<Vec<f64>> = if reads(r) || refit(from_s)?.is_none() {
+        r.2.to_vec()
+    } else {
+        let tau = setup.best_by(from_s, |tau| {
+            let Some(cols) = refit(tau)? else { return Ok(f64::INFINITY) };
+            let mut with = beside.clone();
+            with.fixed.extend(cols.iter().map(Vec::as_slice));
+            let res = setup.projector(tau, &with)?.residual(&setup.y, n);
+            Ok(res.iter().map(|x| x * x).sum())
+        })?;
+        refit(tau)?.unwrap_or_else(|| r.2.to_vec())
+    };
+    let r = (r.0, r.1, r_cols.as_slice());
+    let mut with_r = beside.clone();
     if reads(r) {
         with_r.thermal.push((r.0, r.1));
     } else {
         with_r.fixed.extend(r.2.iter().map(Vec::as_slice));
     }
-    let from_s = model.thermal_time_constant;
     let tau_s = setup.best(&with_r, from_s)?;
     if setup.change_wald(from_s, tau_s, &with_r, noise)? <= lag_threshold {
         return Ok(None);

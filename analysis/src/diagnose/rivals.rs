@@ -207,6 +207,16 @@ fn at_rivals_lag(
         effect_wald(ctx.prep, e.0, ctx.model, ctx.cache, noise),
         effect_wald(ctx.prep, r.0, ctx.model, ctx.cache, noise),
     );
+    // Its grid fitted again at each lag where the search grid is the one it was fitted on (a
+    // periodic bias judged as a rival below the search's cycles keeps its value).
+    let searched = grid(ctx.prep, r.0);
+    let gridded = searched.len() > 1 && candidates::rival_grid(ctx.prep, r.0) == searched;
+    let refit_r = |at: &Projector, y: &[f64]| {
+        gridded
+            .then(|| refit_grid(ctx.prep, r.0, at, y, noise, ctx.model, ctx.cache))
+            .flatten()
+            .map(|f| f.cols)
+    };
     coil_lag::effect_at_rivals_lag(
         ctx.prep,
         ctx.model,
@@ -216,6 +226,7 @@ fn at_rivals_lag(
         noise,
         ctx.lag_threshold,
         tests,
+        refit_r,
     )
     .ok()
     .flatten()
