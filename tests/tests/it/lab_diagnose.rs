@@ -152,11 +152,7 @@ fn a_coil_lag_other_than_the_models_is_a_parameter_not_a_bias_step() {
     let d = &out.diagnosis;
     assert_eq!(accepted(d), [EffectId::TimeOffset], "{:?}", d.findings);
     assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
-    let lag = d
-        .parameter_updates
-        .iter()
-        .find(|u| u.key == bench_physics::ModelKey::ThermalTimeConstant)
-        .expect("the coil's lag refitted");
+    let lag = coil_lag(d);
     assert_eq!(lag.nominal, 300.0);
     assert!((lag.fitted - 985.0).abs() < 3.0 * lag.sigma, "{lag:?}");
 }
@@ -219,6 +215,21 @@ fn diagnose_with(
 
 fn accepted(d: &bench_analysis::diagnose::Diagnosis) -> Vec<EffectId> {
     d.findings.iter().filter(|f| f.accepted).map(|f| f.effect).collect()
+}
+
+/// The effects `d` names, in key order, asserted to be `want` (in key order too).
+fn assert_named(d: &bench_analysis::diagnose::Diagnosis, want: &[EffectId]) {
+    let mut named = accepted(d);
+    named.sort_by_key(|id| id.key());
+    assert_eq!(named, want, "{:?} {:?}", d.findings, d.unexplained);
+}
+
+/// The coil's lag as `d` refitted it.
+fn coil_lag(d: &bench_analysis::diagnose::Diagnosis) -> &bench_analysis::diagnose::ParameterUpdate {
+    d.parameter_updates
+        .iter()
+        .find(|u| u.key == bench_physics::ModelKey::ThermalTimeConstant)
+        .expect("the coil's lag refitted")
 }
 
 fn param(f: &bench_analysis::diagnose::Finding, name: &str) -> (f64, f64) {
@@ -802,15 +813,7 @@ fn a_scale_factor_vs_temperature_is_judged_at_the_lag_it_is_rivalled_with() {
         ("effects.sf_temperature.coeff_per_c", "1.0934663301855697e-06"),
     ];
     let (d, _) = diagnose_with("lab-null", 769, &sets);
-    let mut named = accepted(&d);
-    named.sort_by_key(|id| id.key());
-    assert_eq!(
-        named,
-        vec![EffectId::ScaleFactorTemperature, EffectId::TimeOffset],
-        "{:?} {:?}",
-        d.findings,
-        d.unexplained
-    );
+    assert_named(&d, &[EffectId::ScaleFactorTemperature, EffectId::TimeOffset]);
     assert!(
         !d.unexplained.iter().any(|u| u.correlates_with.contains("scale_factor_temperature")),
         "{:?}",
@@ -848,24 +851,12 @@ fn a_rival_is_judged_at_the_coil_lag_its_own_model_holds() {
         ("effects.rate_squared.coeff", "-0.009750502264507499"),
     ];
     let (d, truth) = diagnose_with("lab-null", 969, &sets);
-    let mut named = accepted(&d);
-    named.sort_by_key(|id| id.key());
-    assert_eq!(
-        named,
-        vec![EffectId::RateSquared, EffectId::TimeOffset],
-        "{:?} {:?}",
-        d.findings,
-        d.unexplained
-    );
+    assert_named(&d, &[EffectId::RateSquared, EffectId::TimeOffset]);
     let f = d.findings.iter().find(|f| f.effect == EffectId::RateSquared).expect("rate²");
     let (v, s) = param(f, "coeff_s_per_rad");
     let want = truth["effects"]["rate_squared"]["coefficient"].as_f64().expect("truth");
     assert!((v - want).abs() <= 3.0 * s, "rate² {v} ± {s}, truth {want}");
-    let lag = d
-        .parameter_updates
-        .iter()
-        .find(|u| u.key == bench_physics::ModelKey::ThermalTimeConstant)
-        .expect("the coil's lag refitted");
+    let lag = coil_lag(&d);
     assert!(
         lag.held.is_none() && (lag.fitted - 741.0).abs() <= 3.0 * lag.sigma,
         "lag {} ± {} s, the writer's 741 s",
@@ -906,11 +897,7 @@ fn the_lags_move_counts_the_temperature_reading_effects_it_moves() {
         d.unexplained
     );
     assert!(d.unexplained.is_empty(), "{:?}", d.unexplained);
-    let lag = d
-        .parameter_updates
-        .iter()
-        .find(|u| u.key == bench_physics::ModelKey::ThermalTimeConstant)
-        .expect("the coil's lag refitted");
+    let lag = coil_lag(&d);
     assert!(lag.held.is_none() && lag.fitted > 600.0, "{lag:?}");
 }
 
