@@ -75,13 +75,19 @@ impl<'a> Beside<'a> {
         let mut out =
             Self { fixed: nuisance.iter().map(Vec::as_slice).collect(), thermal: Vec::new() };
         for (_, a) in accepted.iter().enumerate().filter(|(j, _)| Some(*j) != skip) {
-            if candidates::reads_temperature(a.id, a.p) {
-                out.thermal.push((a.id, a.p));
-            } else {
-                out.fixed.extend(a.cols.iter().map(Vec::as_slice));
-            }
+            out.push((a.id, a.p, &a.cols));
         }
         out
+    }
+
+    /// An effect (id, grid value, columns at the lag in use) beside: rebuilt at each lag where
+    /// it reads the coil's temperature, as it is otherwise.
+    pub(super) fn push(&mut self, (id, p, cols): (EffectId, f64, &'a [Vec<f64>])) {
+        if candidates::reads_temperature(id, p) {
+            self.thermal.push((id, p));
+        } else {
+            self.fixed.extend(cols.iter().map(Vec::as_slice));
+        }
     }
 
     /// Nothing beside.
@@ -222,6 +228,20 @@ impl<'a> Setup<'a> {
             }
         }
         Ok((thermal, cols.into_iter().flatten().collect()))
+    }
+
+    /// Effect `id`'s columns with the coil `tau` behind the air: rebuilt there where it reads
+    /// the coil's temperature, its columns at the lag in use (`cols`) otherwise.
+    fn effect_columns_at<'c>(
+        &self,
+        tau: f64,
+        (id, p, cols): (EffectId, f64, &'c [Vec<f64>]),
+    ) -> Result<std::borrow::Cow<'c, [Vec<f64>]>, AnalysisError> {
+        Ok(if candidates::reads_temperature(id, p) {
+            std::borrow::Cow::Owned(self.at_lag(tau, &[(id, p)])?.1[0].to_vec())
+        } else {
+            std::borrow::Cow::Borrowed(cols)
+        })
     }
 
     /// The base design at lag `tau`, then `beside` (its temperature-reading effects at `tau`).
@@ -411,14 +431,8 @@ pub(super) fn rival(
     let tau_s = setup.best(beside, from_s)?;
     let lag = setup.change_wald(from_s, tau_s, beside, noise)?;
     let effect_here = test(&setup.projector(from_s, beside)?, &setup.y, cols);
-    let rebuilt;
-    let there = if candidates::reads_temperature(id, p) {
-        rebuilt = setup.at_lag(tau_s, &[(id, p)])?.1;
-        rebuilt[0].as_slice()
-    } else {
-        cols
-    };
-    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, there);
+    let there = setup.effect_columns_at(tau_s, (id, p, cols))?;
+    let effect_there = test(&setup.projector(tau_s, beside)?, &setup.y, &there);
     Ok(Some(LagRival { from_s, tau_s, lag, effect_here, effect_there }))
 }
 
@@ -465,7 +479,6 @@ pub(super) fn effect_at_rivals_lag(
     let Some(setup) = Setup::new(prep, model) else {
         return Ok(None);
     };
-    let reads = |(id, p, _): (EffectId, f64, &[Vec<f64>])| candidates::reads_temperature(id, p);
     let from_s = model.thermal_time_constant;
     // A rival with a grid of its own (a step's time, a warm-up's τ, a period) is fitted on it
     // again at every lag tried: its value and the lag are chosen together (a step's time chosen
@@ -474,34 +487,30 @@ pub(super) fn effect_at_rivals_lag(
     let refit = |tau: f64| -> Result<Option<Vec<Vec<f64>>>, AnalysisError> {
         Ok(refit_r(&setup.projector(tau, beside)?, &setup.y))
     };
-    let r_cols: Vec<Vec<f64>> = if reads(r) || refit(from_s)?.is_none() {
-        r.2.to_vec()
-    } else {
-        let tau = setup.best_by(from_s, |tau| {
-            let Some(cols) = refit(tau)? else { return Ok(f64::INFINITY) };
-            let mut with = beside.clone();
-            with.fixed.extend(cols.iter().map(Vec::as_slice));
-            let res = setup.projector(tau, &with)?.residual(&setup.y, n);
-            Ok(res.iter().map(|x| x * x).sum())
-        })?;
-        refit(tau)?.unwrap_or_else(|| r.2.to_vec())
-    };
+    let r_cols: Vec<Vec<f64>> =
+        if candidates::reads_temperature(r.0, r.1) || refit(from_s)?.is_none() {
+            r.2.to_vec()
+        } else {
+            let tau = setup.best_by(from_s, |tau| {
+                let Some(cols) = refit(tau)? else { return Ok(f64::INFINITY) };
+                let mut with = beside.clone();
+                with.fixed.extend(cols.iter().map(Vec::as_slice));
+                let res = setup.projector(tau, &with)?.residual(&setup.y, n);
+                Ok(res.iter().map(|x| x * x).sum())
+            })?;
+            refit(tau)?.unwrap_or_else(|| r.2.to_vec())
+        };
     let r = (r.0, r.1, r_cols.as_slice());
     let mut with_r = beside.clone();
-    if reads(r) {
-        with_r.thermal.push((r.0, r.1));
-    } else {
-        with_r.fixed.extend(r.2.iter().map(Vec::as_slice));
-    }
+    with_r.push(r);
     let tau_s = setup.best(&with_r, from_s)?;
     if setup.change_wald(from_s, tau_s, &with_r, noise)? <= lag_threshold {
         return Ok(None);
     }
     // Each one's columns at that lag.
-    let at = |x: (EffectId, f64, &[Vec<f64>])| -> Result<Vec<Vec<f64>>, AnalysisError> {
-        Ok(if reads(x) { setup.at_lag(tau_s, &[(x.0, x.1)])?.1[0].to_vec() } else { x.2.to_vec() })
-    };
-    let rival = test_r(&setup.projector(tau_s, beside)?, &setup.y, &at(r)?);
-    let effect = test_e(&setup.projector(tau_s, &with_r)?, &setup.y, &at(e)?);
+    let rival =
+        test_r(&setup.projector(tau_s, beside)?, &setup.y, &setup.effect_columns_at(tau_s, r)?);
+    let effect =
+        test_e(&setup.projector(tau_s, &with_r)?, &setup.y, &setup.effect_columns_at(tau_s, e)?);
     Ok(Some(AtRivalsLag { tau_s, rival, effect }))
 }

@@ -128,9 +128,10 @@ pub(super) fn check_families(
         let Some(pos) = st.findings.iter().position(|f| f.effect == id) else { continue };
         st.findings[pos].family = Some(g.check.clone());
         st.findings[pos].rate_dependence = rd;
+        // The rest of the model past the calibrated parameters, for the coil lag's profiles.
+        let beside = coil_lag::Beside::of(st.base_design, st.accepted, Some(i));
         let rival = if g.check.passed {
             let accepted: Vec<EffectId> = st.accepted.iter().map(|a| a.id).collect();
-            let beside = coil_lag::Beside::of(st.base_design, st.accepted, Some(i));
             let ctx = rivals::RivalCtx {
                 prep,
                 model,
@@ -179,7 +180,7 @@ pub(super) fn check_families(
                 prep,
                 model,
                 (id, p, &cols),
-                &coil_lag::Beside::of(st.base_design, st.accepted, Some(i)),
+                &beside,
                 noise,
                 level,
                 st.lag_threshold,
