@@ -1,13 +1,48 @@
 #!/usr/bin/env bash
 # The README's test command: every test of the workspace. Installs the pinned Python packages
 # the tests use as independent peers and fixture writers (scripts/pyenv.sh, into target/pyenv)
-# and runs `cargo test` with BENCH_PYTHON pointing at that interpreter; installs the pinned
+# and runs the tests with BENCH_PYTHON pointing at that interpreter; installs the pinned
 # headless Chromium the report rendering test uses (scripts/browser.sh) and passes its path as
 # BENCH_CHROMIUM (empty, and that test skipping with the reason, when it cannot be installed).
+#
+# The two installs (network and disk, ~45 s on a clean machine) run while the tests compile.
+# With cargo-nextest installed the tests run in one pool over every test binary, longest first
+# (.config/nextest.toml), then the doc tests; otherwise `cargo test`, a binary at a time.
+# Arguments go to the test runner (e.g. `-p bench -- cli` for cargo test, `-p bench cli` for
+# nextest); BENCH_TEST_RUNNER=cargo forces cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BENCH_PYTHON="$(bash scripts/pyenv.sh)"
+got="$(mktemp -d)"
+trap 'rm -rf "$got"' EXIT
+bash scripts/pyenv.sh >"$got/python" &
+python_pid=$!
+bash scripts/browser.sh >"$got/chromium" &
+browser_pid=$!
+nextest=false
+if [ "${BENCH_TEST_RUNNER:-}" != cargo ] && cargo nextest --version >/dev/null 2>&1; then
+    nextest=true
+fi
+# The build's own arguments: those before `--` (the rest are the test binaries').
+build_args=()
+for a in "$@"; do
+    [ "$a" = "--" ] && break
+    build_args+=("$a")
+done
+if $nextest; then
+    cargo nextest run --workspace --locked --no-run "${build_args[@]}"
+else
+    cargo test --workspace --locked --no-run "${build_args[@]}"
+fi
+wait "$python_pid" || { echo "== python: installing the test environment failed" >&2; exit 1; }
+wait "$browser_pid" || true # never fails: prints nothing when chromium cannot be installed
+BENCH_PYTHON="$(cat "$got/python")"
 export BENCH_PYTHON
-BENCH_CHROMIUM="$(bash scripts/browser.sh)"
+BENCH_CHROMIUM="$(cat "$got/chromium")"
 export BENCH_CHROMIUM
+if $nextest; then
+    status=0
+    cargo nextest run --workspace --locked --no-fail-fast "$@" || status=$?
+    cargo test --workspace --locked --doc "${build_args[@]}" || status=$?
+    exit "$status"
+fi
 cargo test --workspace --locked --no-fail-fast "$@"
