@@ -132,7 +132,12 @@ struct Accepted {
 
 /// The model's design: the base columns, then each accepted effect's but `skip`'s, in order.
 fn model_design(base: &[Vec<f64>], accepted: &[Accepted], skip: Option<usize>) -> Vec<Vec<f64>> {
-    let kept = accepted.iter().enumerate().filter(|(j, _)| Some(*j) != skip);
+    model_design_but(base, accepted, skip.as_slice())
+}
+
+/// The model's design without the accepted effects at positions `skip`.
+fn model_design_but(base: &[Vec<f64>], accepted: &[Accepted], skip: &[usize]) -> Vec<Vec<f64>> {
+    let kept = accepted.iter().enumerate().filter(|(j, _)| !skip.contains(j));
     base.iter().chain(kept.flat_map(|(_, a)| &a.cols)).cloned().collect()
 }
 

@@ -131,12 +131,13 @@ pub(super) fn check_families(
         // The rest of the model past the calibrated parameters, for the coil lag's profiles.
         let beside = coil_lag::Beside::of(st.base_design, st.accepted, Some(i));
         let rival = if g.check.passed {
-            let accepted: Vec<EffectId> = st.accepted.iter().map(|a| a.id).collect();
             let ctx = rivals::RivalCtx {
                 prep,
                 model,
                 tested: st.tested,
-                accepted: &accepted,
+                accepted: st.accepted,
+                base_design: st.base_design,
+                index: i,
                 level,
                 cache: st.cache,
                 thresholds: st.thresholds,

@@ -19,7 +19,15 @@
 //! When neither stays significant beside the other, either explains what is there and the data
 //! cannot say which: the diagnosis reports "not told apart: E or R" with the run that
 //! separates them, and keeps both shapes in the design as nuisance terms so that nothing else
-//! is named for them.
+//! is named for them. A rival in the model already (the model holds one value of each effect)
+//! had its grid value fitted beside the effect by the search (each newcomer refits the others'
+//! values), except where its rival grid reaches past its search grid: a periodic bias under
+//! four cycles. There it is judged at its best value in place of its instance, and where that
+//! value lies past the search grid (never preferred, as any such rival): until 2026-11-30 it
+//! was skipped, and a periodic bias of 2.2 cycles named at a third of its period let a step, a
+//! scale factor vs T and a once-per-revolution term be named for the rest (the lab writer's
+//! study seed 84). Within the search grid the joint choice is made already: a warm-up judged
+//! again without the step beside it takes the step's place and loses the warm-up.
 
 use super::*;
 
@@ -85,8 +93,12 @@ pub(super) struct RivalCtx<'a> {
     /// The search's candidates (a rival outside them — already in the nominal model, or
     /// Earth's rate — is not judged).
     pub tested: &'a [EffectId],
-    /// The effects in the model.
-    pub accepted: &'a [EffectId],
+    /// The effects in the model, the judged one at `index`, past the base design's columns.
+    pub accepted: &'a [Accepted],
+    /// The design's columns before the accepted effects'.
+    pub base_design: &'a [Vec<f64>],
+    /// The judged effect's position in `accepted`.
+    pub index: usize,
     /// The family-wise level split over the candidates: each rivalry is one test at it.
     pub level: f64,
     /// The search's candidate columns (a rival's grid not among them is computed).
@@ -125,20 +137,36 @@ pub(super) fn judge_rivals(
     let gridded = grid(ctx.prep, id).len() > 1;
     let thr_e = threshold(cols.len());
     let mut best: Option<NotToldApart> = None;
+    // The design the best rival was judged beside, where it is in the model already.
+    let mut best_design: Option<Vec<Vec<f64>>> = None;
     for r in id.rival_effects() {
-        if is_earth(r) || !ctx.tested.contains(&r) || ctx.accepted.contains(&r) {
+        if is_earth(r) || !ctx.tested.contains(&r) {
             continue;
         }
-        let Some((r_p, r_cols, beyond_search)) = rival_columns(ctx, r, &proj_o, y, noise) else {
+        // A rival in the model already is judged at its best value without its own instance,
+        // where that value lies past its search grid (module docs).
+        let own = match without_held(ctx, r, &all) {
+            Held::No => None,
+            Held::Yes(o) => Some(o),
+            Held::Fixed => continue,
+        };
+        let (others, proj_o) = own.as_ref().map_or((others, &proj_o), |(o, p)| (o, p));
+        let held = own.is_some();
+        let Some((r_p, r_cols, beyond_search)) = rival_columns(ctx, r, proj_o, y, noise) else {
             continue;
         };
+        if held && !beyond_search {
+            continue;
+        }
         let Some(t_r) = proj_o.test(&r_cols, y, noise) else { continue };
         let single = threshold(r_cols.len());
         let thr_r = ctx.thresholds.get(&r).map_or(single, |t| t.max(single));
         // The rival's model may hold another coil lag: the rival and the effect judged there
         // too — the rival explains the residual where it does at either lag, and the effect
-        // is told apart only where it stays significant beside it at both.
-        let there = at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise);
+        // is told apart only where it stays significant beside it at both (not for a rival in
+        // the model: the lag's profile holds its instance).
+        let there =
+            if held { None } else { at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise) };
         let alone = there.as_ref().map_or(t_r.wald, |a| a.rival.max(t_r.wald));
         if alone <= thr_r {
             continue;
@@ -165,6 +193,7 @@ pub(super) fn judge_rivals(
         if w_e > thr_e || best.as_ref().is_some_and(|b| b.effect.value <= w_e) {
             continue;
         }
+        best_design = own.map(|(o, _)| o);
         best = Some(NotToldApart {
             rival: r,
             beyond_search,
@@ -176,7 +205,7 @@ pub(super) fn judge_rivals(
     }
     let best = best?;
     // The rival beside the effect: still significant, the data prefer it.
-    let mut with_e = others.to_vec();
+    let mut with_e = best_design.unwrap_or_else(|| others.to_vec());
     with_e.extend(cols.iter().cloned());
     let w_r = Projector::new(&with_e, &all)
         .ok()
@@ -189,6 +218,28 @@ pub(super) fn judge_rivals(
         return Some(RivalVerdict::Prefer(best.rival, best.effect, beside));
     }
     Some(RivalVerdict::NotToldApart(best))
+}
+
+/// A declared rival's place in the model.
+enum Held {
+    /// Not in the model.
+    No,
+    /// In the model, its rival grid wider than its search grid: the design without the judged
+    /// effect and without it, and that design's projector.
+    Yes((Vec<Vec<f64>>, Projector)),
+    /// In the model with no value past its search grid to take (or its design without it
+    /// singular).
+    Fixed,
+}
+
+/// Rival `r`'s place in the model of `ctx` ([`Held`]).
+fn without_held(ctx: &RivalCtx<'_>, r: EffectId, all: &[usize]) -> Held {
+    let Some(j) = ctx.accepted.iter().position(|a| a.id == r) else { return Held::No };
+    if candidates::rival_grid(ctx.prep, r) == grid(ctx.prep, r) {
+        return Held::Fixed;
+    }
+    let o = model_design_but(ctx.base_design, ctx.accepted, &[ctx.index, j]);
+    Projector::new(&o, all).map_or(Held::Fixed, |p| Held::Yes((o, p)))
 }
 
 /// Effect `id` (grid value `p`, columns `cols`) beside rival `r` (grid value `r_p`, columns
