@@ -22,12 +22,13 @@
 //! is named for them. A rival in the model already (the model holds one value of each effect)
 //! had its grid value fitted beside the effect by the search (each newcomer refits the others'
 //! values), except where its rival grid reaches past its search grid: a periodic bias under
-//! four cycles. There it is judged at its best value in place of its instance, and where that
-//! value lies past the search grid (never preferred, as any such rival): until 2026-11-30 it
-//! was skipped, and a periodic bias of 2.2 cycles named at a third of its period let a step, a
-//! scale factor vs T and a once-per-revolution term be named for the rest (the lab writer's
-//! study seed 84). Within the search grid the joint choice is made already: a warm-up judged
-//! again without the step beside it takes the step's place and loses the warm-up.
+//! four cycles. There it is fitted on its rival grid without its instance and judged, as any
+//! rival, where its best value lies past the search grid (never preferred: the search could
+//! not name it). Until 2026-11-30 it was skipped, and a periodic bias of 2.2 cycles named at a
+//! third of its period let a step, a scale factor vs T and a once-per-revolution term be named
+//! for the rest (the lab writer's study seed 84). Within the search grid the joint choice is
+//! made already: a warm-up fitted again without the step beside it takes the step's place and
+//! loses its own.
 
 use super::*;
 
