@@ -46,6 +46,19 @@ pub fn local_linear_value(
     Ok(local_linear(time_s, temp_c, window_s)?.into_iter().map(|(_, value)| value).collect())
 }
 
+/// [`local_linear_value`] and [`local_linear_rate`] from one pass: the smoothed temperature
+/// (°C) and its rate (°C/s) at every sample, the same numbers as the two calls give.
+pub fn local_linear_value_and_rate(
+    time_s: &[f64],
+    temp_c: &[f64],
+    window_s: f64,
+) -> Result<(Vec<f64>, Vec<f64>), AnalysisError> {
+    Ok(local_linear(time_s, temp_c, window_s)?
+        .into_iter()
+        .map(|(slope, value)| (value, slope))
+        .unzip())
+}
+
 /// (slope, value) of the centred local linear regression at every sample.
 fn local_linear(
     time_s: &[f64],
@@ -203,6 +216,18 @@ mod tests {
         // Naive differencing is useless on the same data: 0 or q/dt = 2 °C/s.
         let naive_max = temp.windows(2).map(|w| (w[1] - w[0]) / dt).fold(0.0, f64::max);
         assert!(naive_max > 100.0 * rate);
+    }
+
+    #[test]
+    fn one_pass_gives_the_value_and_the_rate_of_the_two_calls_bit_for_bit() {
+        let t: Vec<f64> =
+            (0..3000).map(|i| 1.0e4 + i as f64 * 0.05 + 1e-3 * (i % 7) as f64).collect();
+        let temp: Vec<f64> =
+            t.iter().map(|&t| quantise(20.0 + 5.0 * (t / 300.0).sin(), 0.01)).collect();
+        let (value, rate) = local_linear_value_and_rate(&t, &temp, 30.0).expect("valid");
+        assert_eq!(value, local_linear_value(&t, &temp, 30.0).expect("valid"));
+        assert_eq!(rate, local_linear_rate(&t, &temp, 30.0).expect("valid"));
+        assert!(rate.iter().any(|&r| r != 0.0) && value.iter().any(|&v| v != temp[0]));
     }
 
     #[test]

@@ -126,10 +126,7 @@ impl TemperatureSeries {
     /// The series smoothed and its rate (°C, °C/s), each by a centred local linear
     /// regression over `window_s` ([`crate::temperature_rate`]).
     pub fn smoothed(&self, window_s: f64) -> Result<(Vec<f64>, Vec<f64>), AnalysisError> {
-        Ok((
-            crate::temperature_rate::local_linear_value(&self.time_s, &self.temp_c, window_s)?,
-            local_linear_rate(&self.time_s, &self.temp_c, window_s)?,
-        ))
+        crate::temperature_rate::local_linear_value_and_rate(&self.time_s, &self.temp_c, window_s)
     }
 
     /// Linear interpolation at times `at` (held at the ends; [`crate::interp`]).
