@@ -8,8 +8,8 @@
 # The two installs (network and disk, ~45 s on a clean machine) run while the tests compile.
 # With cargo-nextest installed the tests run in one pool over every test binary, longest first
 # (.config/nextest.toml), then the doc tests; otherwise `cargo test`, a binary at a time.
-# Arguments go to the test runner (e.g. `-p bench -- cli` for cargo test, `-p bench cli` for
-# nextest); BENCH_TEST_RUNNER=cargo forces cargo test.
+# Arguments go to the test runner: `-- NAME` runs the tests whose names hold NAME under either
+# (the doc tests, a few seconds, always run whole); BENCH_TEST_RUNNER=cargo forces cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 got="$(mktemp -d)"
@@ -42,7 +42,7 @@ export BENCH_CHROMIUM
 if $nextest; then
     status=0
     cargo nextest run --workspace --locked --no-fail-fast "$@" || status=$?
-    cargo test --workspace --locked --doc "${build_args[@]}" || status=$?
+    cargo test --workspace --locked --doc || status=$?
     exit "$status"
 fi
 cargo test --workspace --locked --no-fail-fast "$@"

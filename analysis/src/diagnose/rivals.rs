@@ -148,7 +148,7 @@ pub(super) fn judge_rivals(
         // where that value lies past its search grid (module docs).
         let own = match without_held(ctx, r, &all) {
             Held::No => None,
-            Held::Yes(o) => Some(o),
+            Held::Yes(o, p) => Some((o, p)),
             Held::Fixed => continue,
         };
         let (others, proj_o) = own.as_ref().map_or((others, &proj_o), |(o, p)| (o, p));
@@ -227,7 +227,7 @@ enum Held {
     No,
     /// In the model, its rival grid wider than its search grid: the design without the judged
     /// effect and without it, and that design's projector.
-    Yes((Vec<Vec<f64>>, Projector)),
+    Yes(Vec<Vec<f64>>, Projector),
     /// In the model with no value past its search grid to take (or its design without it
     /// singular).
     Fixed,
@@ -240,7 +240,7 @@ fn without_held(ctx: &RivalCtx<'_>, r: EffectId, all: &[usize]) -> Held {
         return Held::Fixed;
     }
     let o = model_design_but(ctx.base_design, ctx.accepted, &[ctx.index, j]);
-    Projector::new(&o, all).map_or(Held::Fixed, |p| Held::Yes((o, p)))
+    Projector::new(&o, all).map_or(Held::Fixed, |p| Held::Yes(o, p))
 }
 
 /// Effect `id` (grid value `p`, columns `cols`) beside rival `r` (grid value `r_p`, columns
