@@ -6,8 +6,12 @@
 //!
 //! # Model
 //!
-//! For a stretch starting at the table reading `j0`, at every later reading `j` (time `τ_j`,
-//! angle `θ_j`):
+//! The misclosures are taken at the gyro's sample boundaries nearest the table's readings
+//! (each boundary once; the angle there read off the readings): between two boundaries the
+//! gyro's integral holds whole samples, whose noise is the model's, while between two instants
+//! inside one sample it is a straight piece carrying a fraction of it — a table read faster
+//! than the gyro samples, or in bursts after a host's stall, would whiten below 1. For a
+//! stretch starting at the boundary `j0`, at every later one `j` (time `τ_j`, angle `θ_j`):
 //!
 //! The table's angle `θ` is its readout through the steady motion ([`crate::steady`]: the
 //! readings' straight line over the stretch, plus the ripple harmonics the readings resolve).
@@ -52,7 +56,9 @@
 //! Cramér–Rao bound under the model), and the whitened residual's RMS (≈ 1 when the noise
 //! model fits) scales σ up when above 1, as in the rate domain ([`crate::joint_fit`]).
 //! Lost gyro samples inside a stretch are bridged with their neighbours' mean (their error is
-//! the integrated noise over the gap, which `W` already carries).
+//! the integrated noise over the gap, which `W` already carries). Samples the rate domain left
+//! out for a glitch of the table's readings are integrated ([`AngleWindow::left_out`]): the
+//! table is back on its line after the glitch, whatever it was.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -74,6 +80,11 @@ pub struct TableReadings {
     pub sigma_rad: f64,
     /// σ of the reference's rate error over the window, rad/s.
     pub drift_sigma_rad_s: f64,
+    /// Gyro samples (time s, rate rad/s) inside the window's span that its rate-domain
+    /// window left out for a glitch of the table's readings: the angle domain integrates them
+    /// (see [`AngleWindow::left_out`]). The readings inside the glitches are not in
+    /// `time_s`.
+    pub left_out: Vec<(f64, f64)>,
 }
 
 impl TableReadings {
@@ -86,6 +97,7 @@ impl TableReadings {
             reading_sigma_rad: self.sigma_rad,
             drift_sigma_rad_s: self.drift_sigma_rad_s,
             nuisance: None,
+            left_out: &self.left_out,
         }
     }
 }
@@ -108,6 +120,13 @@ pub struct AngleWindow<'a> {
     /// ([`crate::joint_fit::Nuisance`]), when one is fitted: its integral over the stretch is
     /// fitted beside the coefficients ([`AngleFitOptions::nuisance`]).
     pub nuisance: Option<&'a [f64]>,
+    /// Gyro samples (time s, rate rad/s) the window left out for a glitch of the table's
+    /// readings (late host stamps, a readout error, a jolt), sorted by time. The rate domain
+    /// cannot use them (the table's rate is unknown there); the angle domain can, and does:
+    /// the table is back on its line after the glitch, so the gyro's integral across it is
+    /// compared with the line's angle whatever the glitch was, and leaving the samples out
+    /// would put a bridged stretch without noise in their place.
+    pub left_out: &'a [(f64, f64)],
 }
 
 /// Settings of [`angle_fit`].
@@ -175,11 +194,13 @@ pub struct AngleFit {
     pub covariance: [[f64; 4]; 4],
     /// RMS of the whitened residual (≈ 1 when the noise model fits).
     pub whitened_residual_rms: f64,
-    /// Angle readings used (after each stretch's first).
+    /// Misclosures used (the gyro sample boundaries nearest the readings, after each
+    /// stretch's first).
     pub readings: usize,
     /// Stretches used.
     pub stretches: usize,
-    /// Gyro samples bridged inside stretches (lost or left out).
+    /// Gyro samples bridged inside stretches (lost; those left out for a table glitch are
+    /// integrated, [`AngleWindow::left_out`]).
     pub bridged_samples: usize,
     /// Per stretch, the misclosure before and after calibration.
     pub misclosure: Vec<Misclosure>,
@@ -222,11 +243,22 @@ struct Stretch {
     bridged: usize,
 }
 
-/// Cumulative integral of a window's gyro samples at their boundaries: (boundary times,
-/// integrals), a lost sample bridged by its neighbours' mean; and how many were bridged.
-fn gyro_integral(w: &RecordWindow) -> (Vec<f64>, Vec<f64>, usize) {
-    let t = w.time_s();
-    let v = w.gyro_rate_rad_s();
+/// Cumulative integral of a window's gyro samples (with the `left_out` ones put back) at
+/// their boundaries: (boundary times, integrals), a lost sample bridged by its neighbours'
+/// mean; and how many samples were bridged.
+fn gyro_integral(w: &RecordWindow, left_out: &[(f64, f64)]) -> (Vec<f64>, Vec<f64>, usize) {
+    let (merged_t, merged_v): (Vec<f64>, Vec<f64>);
+    let (t, v) = if left_out.is_empty() {
+        (w.time_s(), w.gyro_rate_rad_s())
+    } else {
+        let mut all: Vec<(f64, f64)> =
+            w.time_s().iter().copied().zip(w.gyro_rate_rad_s().iter().copied()).collect();
+        all.extend_from_slice(left_out);
+        all.sort_by(|a, b| a.0.total_cmp(&b.0));
+        all.dedup_by(|a, b| a.0 == b.0);
+        (merged_t, merged_v) = all.into_iter().unzip();
+        (&merged_t[..], &merged_v[..])
+    };
     let mut d: Vec<f64> = t.windows(2).map(|p| p[1] - p[0]).collect();
     d.sort_by(f64::total_cmp);
     let dt = d.get(d.len() / 2).copied().unwrap_or(0.05);
@@ -265,15 +297,38 @@ fn stretch(
     temp_window_s: Option<f64>,
 ) -> Option<Stretch> {
     let w = aw.window;
-    let (gt, gi, bridged) = gyro_integral(w);
+    let (gt, gi, bridged) = gyro_integral(w, aw.left_out);
     let (first, last) = (gt[0], gt[gt.len() - 1]);
     // Readings inside the gyro's span.
-    let idx: Vec<usize> = (0..aw.table_time_s.len().min(aw.table_angle_rad.len()))
-        .filter(|&j| aw.table_time_s[j] >= first && aw.table_time_s[j] <= last)
+    let readings: Vec<f64> = (0..aw.table_time_s.len().min(aw.table_angle_rad.len()))
+        .map(|j| aw.table_time_s[j])
+        .filter(|&tau| tau >= first && tau <= last)
         .collect();
-    if idx.len() < 3 {
+    let (&r_first, &r_last) = (readings.first()?, readings.last()?);
+    // The misclosures are taken at the gyro's sample boundaries nearest the readings (each
+    // boundary once), the table's angle there read off its readings (the steady motion's
+    // angle, so interpolating between them is the motion). Between two boundaries the
+    // integral holds whole samples, whose noise is what the model says; between two instants
+    // inside one sample it is that sample's rate times their distance — a fraction of the
+    // noise the model gives it, so a table read faster than the gyro samples (or in bursts,
+    // after a host's stall) would whiten to less than 1 and look like a fit that does not fit.
+    let (lo_b, hi_b) = (gt.partition_point(|&t| t < r_first), gt.partition_point(|&t| t <= r_last));
+    if hi_b < lo_b + 3 {
         return None;
     }
+    let mut bounds: Vec<usize> = Vec::with_capacity(readings.len());
+    for &tau in &readings {
+        let k = gt.partition_point(|&t| t < tau);
+        let k = if k > 0 && (k == gt.len() || tau - gt[k - 1] < gt[k] - tau) { k - 1 } else { k };
+        let k = k.clamp(lo_b, hi_b - 1);
+        if bounds.last() != Some(&k) {
+            bounds.push(k);
+        }
+    }
+    if bounds.len() < 3 {
+        return None;
+    }
+    let angle_at = |tau: f64| at(aw.table_time_s, aw.table_angle_rad, tau);
     // Model temperature (a readout smoothed) and its integral at the gyro's times.
     let ts = w.time_s();
     let smoothed;
@@ -297,27 +352,26 @@ fn stretch(
         temp_int.push(acc);
         nu_int.push(acc_nu);
     }
-    let j0 = idx[0];
-    let (tau0, theta0) = (aw.table_time_s[j0], aw.table_angle_rad[j0]);
-    let (i0, temp0, int0) = (at(&gt, &gi, tau0), at(ts, temp, tau0), at(ts, &temp_int, tau0));
+    let (tau0, theta0) = (gt[bounds[0]], angle_at(gt[bounds[0]]));
+    let (i0, temp0, int0) = (gi[bounds[0]], at(ts, temp, tau0), at(ts, &temp_int, tau0));
     let nu0 = at(ts, &nu_int, tau0);
     let mut s = Stretch {
         label: w.label().to_owned(),
         ref_s: tau0,
-        time_s: Vec::with_capacity(idx.len()),
-        y: Vec::with_capacity(idx.len()),
-        x: Vec::with_capacity(idx.len()),
+        time_s: Vec::with_capacity(bounds.len()),
+        y: Vec::with_capacity(bounds.len()),
+        x: Vec::with_capacity(bounds.len()),
         reading_var: aw.reading_sigma_rad * aw.reading_sigma_rad,
         drift_var: aw.drift_sigma_rad_s * aw.drift_sigma_rad_s,
         bridged,
     };
-    for &j in &idx[1..] {
-        let tau = aw.table_time_s[j];
+    for &b in &bounds[1..] {
+        let tau = gt[b];
         let dtau = tau - tau0;
-        let dtheta = aw.table_angle_rad[j] - theta0;
+        let dtheta = angle_at(tau) - theta0;
         let input = dtheta + earth * dtau;
         s.time_s.push(tau);
-        s.y.push(at(&gt, &gi, tau) - i0 - input);
+        s.y.push(gi[b] - i0 - input);
         s.x.push([
             dtau,
             input,
@@ -741,6 +795,7 @@ mod tests {
                 reading_sigma_rad,
                 drift_sigma_rad_s,
                 nuisance: None,
+                left_out: &[],
             })
             .collect()
     }
@@ -873,5 +928,50 @@ mod tests {
         // The stated σ is the scatter: mean z² near 1 (6 seeds × 4 coefficients).
         let mean = z2.iter().sum::<f64>() / (4 * seeds) as f64;
         assert!((0.3..2.0).contains(&mean), "mean z² {mean}");
+    }
+
+    /// A table read faster than the gyro samples (50 Hz readings of a 20 Hz gyro, here exactly
+    /// on the line): the misclosures are taken at the gyro's sample boundaries, so the noise
+    /// whitens to 1 and the errors stay honest. Taken at every reading instead, each sample's
+    /// integral would be cut into straight pieces carrying a fraction of the noise the model
+    /// gives them (whitened RMS ≈ 0.6), and a sound fit would be called poor.
+    #[test]
+    fn a_table_read_faster_than_the_gyro_samples_whitens_to_one() {
+        let w = 10f64.to_radians() / 60.0;
+        let mut rms = Vec::new();
+        for seed in 0..3 {
+            let (windows, _, truth, arw) = run(seed);
+            let tables: Tables = windows
+                .iter()
+                .enumerate()
+                .map(|(k, win)| {
+                    let omega = if k % 2 == 0 { -w } else { w };
+                    let (a, b) = (win.time_s()[0], win.time_s()[win.len() - 1]);
+                    let t: Vec<f64> =
+                        (0..).map(|j| a + 0.013 + j as f64 * 0.02).take_while(|&t| t < b).collect();
+                    let angle = t.iter().map(|&t| omega * t).collect();
+                    (t, angle)
+                })
+                .collect();
+            let aws = angle_windows(&windows, &tables, 1e-9, ARCSEC / 600.0);
+            let opts = AngleFitOptions {
+                reference_temperature_c: 20.0,
+                latitude_deg: None,
+                axis_up: true,
+                noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
+                temp_window_s: Some(60.0),
+                held: [None; 4],
+                nuisance: false,
+            };
+            let f = angle_fit(&aws, &opts).expect("fits");
+            // One misclosure per gyro sample boundary, not per reading.
+            assert!(f.readings < 8 * 12_000, "{}", f.readings);
+            for (j, e) in f.estimates().iter().enumerate() {
+                let z = (e.value - truth[j]) / e.bound;
+                assert!(z.abs() < 4.0, "seed {seed} coefficient {j}: {e:?} vs {}", truth[j]);
+            }
+            rms.push(f.whitened_residual_rms);
+        }
+        assert!(rms.iter().all(|r| (r - 1.0).abs() < 0.05), "{rms:?}");
     }
 }

@@ -315,13 +315,26 @@ fn part_window(
     // (`rate_sigma_rad_s`: the readings' scatter, white or in blocks). A whole readout step
     // over the part (`quantum/T`, the bound used before) stated k_sf's angle-domain σ 2.4×
     // its scatter over 32 lab files.
-    let time_s: Vec<f64> = s.table_time_s[ta..tb].to_vec();
+    // A glitch's readings are off the line (whatever the table did there), so the line's
+    // angle is compared with the gyro's integral only outside the glitches; across them the
+    // gyro's samples the rate domain left out are integrated all the same.
+    let in_glitch = |t: f64| glitches.iter().any(|&(g0, g1)| t >= g0 && t <= g1);
+    let time_s: Vec<f64> =
+        s.table_time_s[ta..tb].iter().copied().filter(|&t| !in_glitch(t)).collect();
     let angle_rad: Vec<f64> = time_s.iter().map(|&t| motion.angle(t).unwrap_or(f64::NAN)).collect();
+    let mut left_out = Vec::new();
+    let mut kept = keep.iter().peekable();
+    for k in lo..hi {
+        if kept.next_if_eq(&&k).is_none() {
+            left_out.push((s.gyro_time_s[k], inp.gyro_rate[k]));
+        }
+    }
     out.readings.push(TableReadings {
         time_s,
         angle_rad,
         sigma_rad: 1e-9,
         drift_sigma_rad_s: motion.segments[seg].rate_sigma_rad_s,
+        left_out,
     });
     out.windows.push(w);
     out.spans.push(span);
