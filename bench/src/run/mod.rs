@@ -378,6 +378,21 @@ fn period(hz: f64) -> Duration {
     Duration::from_secs_f64(1.0 / hz)
 }
 
+/// A polled reading and the bench time it was taken at: the midpoint of the request's round
+/// trip. A polled device (the table's angle, the chamber's process value) does not stamp its
+/// answer; it samples somewhere between the request and the reply, and the midpoint is off by
+/// at most half the round trip whichever side is slow. The reply's arrival alone would carry
+/// the whole round trip, and every delay of the host in reading it, as a late stamp.
+async fn read_stamped<R>(
+    clock: &dyn Clock,
+    read: impl std::future::Future<Output = DeviceResult<R>>,
+) -> DeviceResult<(Duration, R)> {
+    let sent = clock.now();
+    let r = read.await?;
+    let received = clock.now();
+    Ok((sent + received.saturating_sub(sent) / 2, r))
+}
+
 /// One poll of the table or the chamber: the device's housekeeping, then a reading, noted in
 /// the live values; the event to record and its bench time.
 async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)> {
@@ -385,8 +400,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
         Stream::Table => {
             let mut table = ctx.table.lock().await;
             table.service().await?;
-            let r = table.read().await?;
-            let t = ctx.clock.now();
+            let (t, r) = read_stamped(&*ctx.clock, table.read()).await?;
             ctx.live.set_table(r.rate_rad_s, r.rate_command_rad_s);
             ctx.check(|m, lim| m.table(lim, t, &r));
             Ok((t, Event::Table(t, r)))
@@ -394,8 +408,7 @@ async fn poll_once(ctx: &Ctx, stream: Stream) -> DeviceResult<(Duration, Event)>
         Stream::Chamber => {
             let mut chamber = ctx.chamber.lock().await;
             chamber.service().await?;
-            let r = chamber.read().await?;
-            let t = ctx.clock.now();
+            let (t, r) = read_stamped(&*ctx.clock, chamber.read()).await?;
             ctx.live.set_chamber(r.temperature_c, r.setpoint_c, r.target_c);
             ctx.check(|m, lim| m.chamber(lim, t, &r));
             Ok((t, Event::Chamber(t, r)))
@@ -641,4 +654,30 @@ pub fn table_msg(r: &TableReading) -> TableMsg {
 /// A chamber reading as recorded (`/chamber/state`).
 pub fn chamber_msg(r: &ChamberReading) -> ChamberMsg {
     ChamberMsg { temperature_c: r.temperature_c, setpoint_c: r.setpoint_c, status: r.status }
+}
+
+#[cfg(test)]
+mod stamp_tests {
+    use super::*;
+    use bench_drivers::clock::run_virtual;
+    use bench_drivers::VirtualClock;
+
+    /// A polled reading is stamped at its round trip's midpoint: a reply 0.4 s after a request
+    /// sent at 2 s is stamped 2.2 s (its arrival, 2.4 s, is off by the whole trip).
+    #[test]
+    fn a_polled_reading_is_stamped_at_the_middle_of_its_round_trip() {
+        let clock = VirtualClock::new();
+        let c = clock.clone();
+        let (t, r) = run_virtual(&clock, move |_| async move {
+            c.sleep(Duration::from_secs(2)).await;
+            let slow = async {
+                c.sleep(Duration::from_millis(400)).await;
+                Ok::<_, DeviceError>(7)
+            };
+            read_stamped(&c, slow).await
+        })
+        .expect("no deadlock")
+        .expect("read");
+        assert_eq!((t, r), (Duration::from_millis(2200), 7));
+    }
 }

@@ -196,6 +196,14 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     let mut table = String::new();
     for key in bench_physics::ModelKey::CALIBRATED {
         let (ea, eb) = (ja.estimate(key).expect("a"), jb.estimate(key).expect("b"));
+        assert!(!ea.held, "{}: the in-process run determines every coefficient", key.key());
+        if eb.held {
+            // A loaded host's late stamps can cost the wired run whole windows (glitches of
+            // the table's readings, steady parts cut short), and with them the information on
+            // a coefficient: it is then held, and so said, not measured — nothing to compare.
+            table += &format!("{:<20} {:+.4e} ± {:.1e}  held\n", key.key(), ea.value, ea.std_err);
+            continue;
+        }
         let z = (ea.value - eb.value) / ea.std_err.max(eb.std_err);
         table += &format!(
             "{:<20} {:+.4e} ± {:.1e}  {:+.4e} ± {:.1e}  ({z:+.2}σ)\n",
@@ -210,9 +218,11 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     println!("in-process vs wired calibration:\n{table}");
     assert!(!ka.quality.poor(), "{:?}", ka.quality.lines());
     // At 60× a millisecond of the host's scheduling is 60 ms of bench time on the table's host
-    // stamps (the Actidyn protocol has no time stamp): 36″ of angle at 10 °/min, so the
-    // steady rule splits some windows and the fit check may call the wired run poor. It must
-    // then say where: next to what it left out.
+    // stamps (the Actidyn protocol has no time stamp; a reading is stamped at its round trip's
+    // midpoint, which halves what a late read adds): 36″ of angle at 10 °/min, so the steady
+    // rule splits some windows and the fit check may call the wired run poor. It must then say
+    // where: next to what it left out. (Stamped on the reply's arrival, a loaded host put the
+    // wired bias 9.5σ off the in-process one: CI, stop 45.)
     println!("wired fit: {} {:?}", kb.quality.verdict, kb.quality.lines());
     assert!((0.8..1.25).contains(&jb.whitened_residual_rms), "{}", jb.whitened_residual_rms);
     for x in &kb.quality.excursions {
