@@ -35,7 +35,6 @@ mod lag;
 pub mod noise;
 
 use bench_physics::allan::AdevPoint;
-use bench_physics::lag::FirstOrderLag;
 use bench_physics::GyroModel;
 
 use crate::allan_fit::{allan_fit, AllanFit};
@@ -110,17 +109,8 @@ pub struct TemperatureSeries {
 impl TemperatureSeries {
     /// The series through a first-order lag of `tau_s`, started at its first value.
     pub fn lagged(&self, tau_s: f64) -> TemperatureSeries {
-        let Some(&first) = self.temp_c.first() else {
-            return self.clone();
-        };
-        let mut lag = FirstOrderLag::new(tau_s, first);
-        let mut out = Vec::with_capacity(self.temp_c.len());
-        out.push(first);
-        for i in 1..self.temp_c.len() {
-            let dt = self.time_s[i] - self.time_s[i - 1];
-            out.push(lag.step_linear(self.temp_c[i - 1], self.temp_c[i], dt));
-        }
-        TemperatureSeries { time_s: self.time_s.clone(), temp_c: out }
+        let temp_c = bench_physics::effects::lag_temperature(&self.time_s, &self.temp_c, tau_s);
+        TemperatureSeries { time_s: self.time_s.clone(), temp_c }
     }
 
     /// The series smoothed and its rate (°C, °C/s), each by a centred local linear

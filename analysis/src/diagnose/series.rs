@@ -142,16 +142,49 @@ impl Native {
     }
 }
 
+/// Spacing of the points the coil temperature's rate is regressed on, s ([`coil_temperature`]).
+pub const COIL_RATE_GRID_S: f64 = 0.5;
+
 /// A gyro without its own sensor: its coil's temperature at times `t` (s), behind the chamber
 /// air `air_c` (°C) through a first-order lag of `lag_s`, and that temperature's rate (°C/s,
 /// local linear regression over [`TEMP_RATE_WINDOW_S`]) — what the model is driven by.
+///
+/// The lag's output is smooth (no readout steps: the lag has spread them), so away from the
+/// run's ends its rate is regressed on its samples every [`COIL_RATE_GRID_S`] (120 per window)
+/// and interpolated back: the same regression to well within the error the chamber's readout
+/// steps leave in it, for a fraction of its cost (the diagnosis computes it at every lag it
+/// tries, on every gyro sample).
 pub fn coil_temperature(
     t: &[f64],
     air_c: &[f64],
     lag_s: f64,
 ) -> Result<(Vec<f64>, Vec<f64>), AnalysisError> {
     let temp_c = lag_temperature(t, air_c, lag_s);
-    let rate_c_s = local_linear_rate(t, &temp_c, TEMP_RATE_WINDOW_S)?;
+    let n = t.len();
+    let span = if n > 1 { t[n - 1] - t[0] } else { 0.0 };
+    let stride = if span > 0.0 {
+        ((COIL_RATE_GRID_S * (n - 1) as f64 / span).floor() as usize).max(1)
+    } else {
+        1
+    };
+    // Within a window of either end the regression is one-sided and sensitive to the lag's
+    // start-up curvature: there it runs on every sample (over the samples its windows reach).
+    let (w, half) = (TEMP_RATE_WINDOW_S, TEMP_RATE_WINDOW_S / 2.0);
+    if stride == 1 || span <= 4.0 * w {
+        return Ok((temp_c.clone(), local_linear_rate(t, &temp_c, w)?));
+    }
+    let tg: Vec<f64> = t.iter().step_by(stride).copied().collect();
+    let yg: Vec<f64> = temp_c.iter().step_by(stride).copied().collect();
+    let rg = local_linear_rate(&tg, &yg, w)?;
+    let mut rate_c_s = crate::interp::interp_at(&tg, &rg, t);
+    let head = t.partition_point(|&x| x < t[0] + w);
+    let head_reach = t.partition_point(|&x| x <= t[head.saturating_sub(1)] + half);
+    let exact = local_linear_rate(&t[..head_reach], &temp_c[..head_reach], w)?;
+    rate_c_s[..head].copy_from_slice(&exact[..head]);
+    let tail = t.partition_point(|&x| x <= t[n - 1] - w);
+    let tail_reach = t.partition_point(|&x| x < t[tail] - half);
+    let exact = local_linear_rate(&t[tail_reach..], &temp_c[tail_reach..], w)?;
+    rate_c_s[tail..].copy_from_slice(&exact[tail - tail_reach..]);
     Ok((temp_c, rate_c_s))
 }
 
@@ -293,6 +326,50 @@ pub(crate) fn test_bins(n: usize) -> Vec<Bin> {
 mod tests {
     use super::*;
     use crate::steady::TableSegment;
+
+    /// The coil's rate regressed on its samples every half second is the full-rate regression
+    /// to a thousandth of what a 0.01 °C readout step alone moves it by (and the temperature
+    /// is the lag's, untouched): a 20 Hz gyro for 3 h behind air read at 1 Hz in 0.1 °C steps,
+    /// ramping at ±2 °C/min between holds, at the shortest and a long lag the search tries.
+    #[test]
+    fn the_coils_rate_on_a_half_second_grid_is_the_full_rate_regression() {
+        let t: Vec<f64> = (1..=20 * 3 * 3600).map(|k| k as f64 * 0.05).collect();
+        let profile = |x: f64| {
+            let p = x % 3600.0;
+            let ramp = 2.0 / 60.0;
+            if p < 900.0 {
+                20.0 + ramp * p
+            } else if p < 1800.0 {
+                50.0
+            } else if p < 2700.0 {
+                50.0 - ramp * (p - 1800.0)
+            } else {
+                20.0
+            }
+        };
+        // The chamber's 1 Hz readings in 0.1 °C steps, interpolated at the gyro's samples (as
+        // `Native::build` does).
+        let (rt, rv): (Vec<f64>, Vec<f64>) =
+            (0..=3 * 3600).map(|k| (k as f64, (profile(k as f64) * 10.0).round() / 10.0)).unzip();
+        let air = crate::interp::interp_at(&rt, &rv, &t);
+        // What the chamber's 0.1 °C readout steps alone may move a regressed rate by.
+        let bound = crate::temperature_rate::quantisation_rate_bound(0.1, TEMP_RATE_WINDOW_S);
+        for lag_s in [30.0, 100.0, 400.0] {
+            let (temp, rate) = coil_temperature(&t, &air, lag_s).expect("computes");
+            assert_eq!(temp, lag_temperature(&t, &air, lag_s));
+            let full = local_linear_rate(&t, &temp, TEMP_RATE_WINDOW_S).expect("computes");
+            let mut diff: Vec<f64> = rate.iter().zip(&full).map(|(a, b)| (a - b).abs()).collect();
+            // Within a window (60 s, 1199 samples) of either end, the full regression's own
+            // (the tail's to rounding: its sums are refreshed at other samples).
+            let m = diff.len();
+            assert!(diff[..1199].iter().all(|&d| d == 0.0), "head");
+            assert!(diff[m - 1199..].iter().all(|&d| d < 1e-15), "tail");
+            diff.sort_by(f64::total_cmp);
+            let (median, worst) = (diff[diff.len() / 2], diff[diff.len() - 1]);
+            assert!(worst < 0.05 * bound, "lag {lag_s} s: worst {worst:e} °C/s, bound {bound:e}");
+            assert!(median < 1e-4 * bound, "lag {lag_s} s: median {median:e} °C/s");
+        }
+    }
 
     const W: f64 = 2.908_882_086_657_216e-3; // 10 °/min, rad/s
 

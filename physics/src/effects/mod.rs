@@ -328,8 +328,10 @@ pub fn lag_temperature(time_s: &[f64], temp_c: &[f64], tau_s: f64) -> Vec<f64> {
     let mut lag = FirstOrderLag::new(tau_s, first);
     let mut out = Vec::with_capacity(temp_c.len());
     out.push(first);
+    let mut memo = (f64::NAN, 0.0);
     for k in 1..temp_c.len() {
-        out.push(lag.step_linear(temp_c[k - 1], temp_c[k], time_s[k] - time_s[k - 1]));
+        let dt = time_s[k] - time_s[k - 1];
+        out.push(lag.step_linear_memo(temp_c[k - 1], temp_c[k], dt, &mut memo));
     }
     out
 }
