@@ -777,6 +777,20 @@ mod tests {
         (windows, tables, truth, arw)
     }
 
+    /// The fit's settings for [`run`]'s data: T0 20 °C, no Earth rate, white noise of `arw`,
+    /// the readout smoothed over 60 s.
+    fn white_noise_options(arw: f64) -> AngleFitOptions {
+        AngleFitOptions {
+            reference_temperature_c: 20.0,
+            latitude_deg: None,
+            axis_up: true,
+            noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
+            temp_window_s: Some(60.0),
+            held: [None; 4],
+            nuisance: false,
+        }
+    }
+
     /// The stretches of `windows` with their table readings, each reading's σ and the
     /// reference rate's σ.
     fn angle_windows<'a>(
@@ -897,16 +911,7 @@ mod tests {
             let (windows, tables, truth, arw) = run(seed);
             let reading_sigma_rad = (ARCSEC * ARCSEC / 12.0 + (2.909e-3 * 1e-3f64).powi(2)).sqrt();
             let aws = angle_windows(&windows, &tables, reading_sigma_rad, ARCSEC / 600.0);
-            let opts = AngleFitOptions {
-                reference_temperature_c: 20.0,
-                latitude_deg: None,
-                axis_up: true,
-                noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
-                temp_window_s: Some(60.0),
-                held: [None; 4],
-                nuisance: false,
-            };
-            let f = angle_fit(&aws, &opts).expect("fits");
+            let f = angle_fit(&aws, &white_noise_options(arw)).expect("fits");
             assert_eq!(f.stretches, 8);
             assert_eq!(f.bridged_samples, 8 * 23, "{}", f.bridged_samples);
             assert!((f.whitened_residual_rms - 1.0).abs() < 0.05, "{}", f.whitened_residual_rms);
@@ -954,16 +959,7 @@ mod tests {
                 })
                 .collect();
             let aws = angle_windows(&windows, &tables, 1e-9, ARCSEC / 600.0);
-            let opts = AngleFitOptions {
-                reference_temperature_c: 20.0,
-                latitude_deg: None,
-                axis_up: true,
-                noise: NoiseSpec { arw, flicker_floor: 0.0, rrw: 0.0 },
-                temp_window_s: Some(60.0),
-                held: [None; 4],
-                nuisance: false,
-            };
-            let f = angle_fit(&aws, &opts).expect("fits");
+            let f = angle_fit(&aws, &white_noise_options(arw)).expect("fits");
             // One misclosure per gyro sample boundary, not per reading.
             assert!(f.readings < 8 * 12_000, "{}", f.readings);
             for (j, e) in f.estimates().iter().enumerate() {
