@@ -171,7 +171,8 @@ pub fn coil_temperature(
     // start-up curvature: there it runs on every sample (over the samples its windows reach).
     let (w, half) = (TEMP_RATE_WINDOW_S, TEMP_RATE_WINDOW_S / 2.0);
     if stride == 1 || span <= 4.0 * w {
-        return Ok((temp_c.clone(), local_linear_rate(t, &temp_c, w)?));
+        let rate_c_s = local_linear_rate(t, &temp_c, w)?;
+        return Ok((temp_c, rate_c_s));
     }
     let tg: Vec<f64> = t.iter().step_by(stride).copied().collect();
     let yg: Vec<f64> = temp_c.iter().step_by(stride).copied().collect();
@@ -328,9 +329,10 @@ mod tests {
     use crate::steady::TableSegment;
 
     /// The coil's rate regressed on its samples every half second is the full-rate regression
-    /// to a thousandth of what a 0.01 °C readout step alone moves it by (and the temperature
-    /// is the lag's, untouched): a 20 Hz gyro for 3 h behind air read at 1 Hz in 0.1 °C steps,
-    /// ramping at ±2 °C/min between holds, at the shortest and a long lag the search tries.
+    /// to 5 % of what the chamber's 0.1 °C readout steps alone may move it by (median 1e-4 of
+    /// it), and the full regression's own within a window of either end (the temperature is
+    /// the lag's, untouched): a 20 Hz gyro for 3 h behind air read at 1 Hz in 0.1 °C steps,
+    /// ramping at ±2 °C/min between holds, at the shortest lag the search tries and two longer.
     #[test]
     fn the_coils_rate_on_a_half_second_grid_is_the_full_rate_regression() {
         let t: Vec<f64> = (1..=20 * 3 * 3600).map(|k| k as f64 * 0.05).collect();
