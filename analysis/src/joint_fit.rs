@@ -392,7 +392,14 @@ struct Ols {
     rss: f64,
 }
 
-fn ols(d: &Design) -> Result<Ols, AnalysisError> {
+/// Singular values below this share of the largest are a direction the design does not
+/// determine.
+const RANK_TOLERANCE: f64 = 1e-9;
+
+/// [`Design`]'s least-squares solution; an error when a direction of it is not determined,
+/// unless `any_rank` (then the minimum-norm solution, whose residual, the data's projection
+/// off the columns' span, is the same for every solution).
+fn ols(d: &Design, any_rank: bool) -> Result<Ols, AnalysisError> {
     let (n, p) = (d.x.nrows(), d.x.ncols());
     if n < 8 || n <= p {
         return Err(AnalysisError::TooFewSamples { what: "joint fit".into(), got: n, min: 8 });
@@ -400,7 +407,16 @@ fn ols(d: &Design) -> Result<Ols, AnalysisError> {
     let svd = d.x.clone().svd(true, true);
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
-    if smin.is_nan() || smin <= 1e-9 * smax {
+    if any_rank && smax.is_finite() && smax > 0.0 {
+        let pinv = svd
+            .pseudo_inverse(RANK_TOLERANCE * smax)
+            .map_err(|e| AnalysisError::Insufficient(format!("joint fit: {e}")))?;
+        let beta = &pinv * &d.y;
+        let resid = &d.y - &d.x * &beta;
+        let rss = resid.norm_squared();
+        return Ok(Ols { pinv, beta, resid, rss });
+    }
+    if smin.is_nan() || smin <= RANK_TOLERANCE * smax {
         return Err(AnalysisError::Insufficient(format!(
             "joint fit: the windows cannot separate bias, scale factor, temperature and \
              temperature-rate terms (condition number {:.3e})",
@@ -427,10 +443,14 @@ pub struct OlsFit {
 
 /// The OLS fit of the model over `windows` (held coefficients and the nuisance as in `opts`;
 /// no bootstrap, no noise model): the residual the noise model is measured on, and starting
-/// values ([`crate::calibrate`]).
+/// values ([`crate::calibrate`]). It runs before the run's identifiability is known, so a
+/// design that cannot separate some coefficients (one turning direction: bias and scale
+/// factor are one column) is solved by its minimum-norm solution: the residual is the one every
+/// solution leaves, and the coefficients along the undetermined direction are that split, not
+/// measurements.
 pub fn ols_fit(windows: &[RecordWindow], opts: &JointFitOptions) -> Result<OlsFit, AnalysisError> {
     let d = design(windows, opts)?;
-    let o = ols(&d)?;
+    let o = ols(&d, true)?;
     let mut coefficients: [f64; 4] = std::array::from_fn(|j| opts.held[j].map_or(0.0, |h| h.value));
     for (c, &j) in d.cols.iter().enumerate().filter(|(_, &j)| j < 4) {
         coefficients[j] = o.beta[c] / d.scale[c];
@@ -499,7 +519,7 @@ pub fn joint_fit(
         });
     }
     let d = design(windows, opts)?;
-    let o = ols(&d)?;
+    let o = ols(&d, false)?;
     let ns = noise_stage(windows, &d, &o, opts)?;
     let (n, p) = (d.x.nrows(), d.x.ncols());
     // The bootstrap resamples the residual that should be closest to white: whitened for GLS.
@@ -1053,6 +1073,40 @@ mod tests {
         // One plateau only: T − T0 is zero everywhere too.
         let e = joint_fit(&ws[..2], &JointFitOptions::default());
         assert!(matches!(e, Err(AnalysisError::Insufficient(_))));
+    }
+
+    #[test]
+    fn one_turning_direction_leaves_the_ols_residual_the_noise_model_is_measured_on() {
+        // CW windows only: bias and scale factor are one column. The joint fit refuses; the
+        // OLS fit the noise stage runs first still leaves the residual, the same as with the
+        // scale factor held (the bias then takes both).
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let ws: Vec<RecordWindow> =
+            windows(0.0, 0.0, || 1e-7 * rng.sample::<f64, _>(StandardNormal))
+                .into_iter()
+                .filter(|w| w.label().contains(" cw"))
+                .collect();
+        assert_eq!(ws.len(), 3);
+        assert!(matches!(
+            joint_fit(&ws, &JointFitOptions::default()),
+            Err(AnalysisError::Insufficient(_))
+        ));
+        let free = ols_fit(&ws, &JointFitOptions::default()).expect("any rank");
+        let mut held = [None; 4];
+        held[1] = Some(Held { value: 0.0, sigma: 0.0 });
+        let fixed = ols_fit(&ws, &JointFitOptions { held, ..Default::default() }).expect("ols");
+        assert_eq!(free.residual.len(), fixed.residual.len());
+        let rms = (fixed.residual.iter().map(|r| r * r).sum::<f64>() / ws.len() as f64).sqrt();
+        assert!(rms > 1e-8, "{rms}");
+        for (a, b) in free.residual.iter().zip(&fixed.residual) {
+            assert!((a - b).abs() < 1e-6 * rms, "{a} vs {b}");
+        }
+        // The determined coefficients agree too; the split of the undetermined direction is
+        // the minimum-norm one, not a measurement.
+        for j in [2, 3] {
+            let (a, b) = (free.coefficients[j], fixed.coefficients[j]);
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "{j}: {a} vs {b}");
+        }
     }
 
     #[test]
