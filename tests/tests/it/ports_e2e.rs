@@ -71,6 +71,19 @@ fn air_range(rec: &Recording, (t0, t1): (u64, u64)) -> (f64, f64) {
         .fold((f64::MAX, f64::MIN), |(lo, hi), t| (lo.min(t), hi.max(t)))
 }
 
+/// With `BENCH_E2E_KEEP=<dir>` the two recordings are written there (`inproc.mcap`,
+/// `wired.mcap`): what a failure on a loaded machine recorded can then be calibrated again.
+fn keep(name: &str, bytes: &[u8]) {
+    if let Some(dir) = std::env::var_os("BENCH_E2E_KEEP") {
+        let path = PathBuf::from(dir).join(name);
+        let written = std::fs::create_dir_all(path.parent().unwrap_or(&path))
+            .and_then(|()| std::fs::write(&path, bytes));
+        if let Err(e) = written {
+            println!("BENCH_E2E_KEEP: {}: {e}", path.display());
+        }
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
     // Server-side problems are logged, not returned: show them (RUST_LOG=debug for more).
@@ -91,6 +104,7 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
             .expect("in-process run");
     assert_eq!(virt.outcome, bench_recording::Outcome::Completed);
     let a = Recording::from_bytes(cur.get_ref()).expect("readable");
+    keep("inproc.mcap", cur.get_ref());
 
     // The simulators on virtual ports, and the bench config that reaches them.
     let sim_clock: Arc<dyn Clock> = Arc::new(SystemClock::new(SCALE));
@@ -116,6 +130,7 @@ async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
             .expect("wired run");
     drop(served);
     assert_eq!(real.outcome, bench_recording::Outcome::Completed);
+    keep("wired.mcap", cur.get_ref());
     let b = Recording::from_bytes(cur.get_ref()).expect("readable");
 
     let (wa, wb) = (windows(&a), windows(&b));
