@@ -111,6 +111,26 @@ fn what_is_missing_is_said_and_what_remains_is_estimated() {
     assert_eq!(seed.plateaus.len(), 2);
     assert_eq!(seed.temp_rate_coeff, None);
 
+    // One turning direction (the CW steps): bias and scale factor are one column. The scale
+    // factor is held and said so; the noise model is still measured (the thermal model's
+    // residual is the same whichever split of that column is taken) and the rest is fitted
+    // under it. (Before: no noise model, an OLS fit and a NaN whitened RMS.)
+    let mut cw = rec.clone();
+    cw.steps.retain(|s| !s.msg.label.contains("ccw"));
+    let out = calibrate_recording(&cw, &settings()).expect("one direction");
+    let cal = &out.calibration;
+    assert_eq!(cal.windows.len(), 3);
+    assert!(cal.held[1].is_some() && cal.held.iter().filter(|h| h.is_some()).count() == 1);
+    assert!(cal.noise_model.is_some(), "{:?}", cal.missing);
+    let j = cal.joint.as_ref().expect("joint fit of the rest");
+    assert_eq!(j.estimator, bench_analysis::joint_fit::Estimator::Gls);
+    assert!((0.8..1.25).contains(&j.whitened_residual_rms), "{}", j.whitened_residual_rms);
+    let truth = out.truth.as_ref().expect("simulated").model.clone();
+    for (e, t) in [(j.temp_coeff, truth.temp_coeff), (j.temp_rate_coeff, truth.temp_rate_coeff)] {
+        assert!((e.value - t).abs() <= 4.0 * e.std_err, "{e:?} vs {t}");
+    }
+    assert_eq!(out.quality.verdict, "incomplete");
+
     // No record steps at all.
     let mut none = rec.clone();
     none.steps.retain(|s| !s.msg.label.starts_with("record"));
