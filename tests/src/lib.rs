@@ -53,9 +53,9 @@ pub fn first_flagged<T>(
 /// beside it ([`lab_truth`]).
 ///
 /// Files are cached under `target/lab-fixtures/`, keyed by a hash of the writer, its presets,
-/// the preset, the seed and the overrides: tests that ask for the same file share it. The writer
-/// runs in a private temporary directory and its files are renamed into place (truth first, the
-/// `.mcap` last), so parallel tests asking for the same file are safe.
+/// the preset, the seed and the overrides: tests that ask for the same file share it, and one
+/// writes it while the others wait (a lock file beside it). The writer runs in a private
+/// temporary directory and its files are renamed into place (truth first, the `.mcap` last).
 ///
 /// # Panics
 /// When the writer fails (with its output), or the pinned Python is missing ([`python`]).
@@ -84,6 +84,21 @@ pub fn lab_fixture(preset: &str, seed: u64, overrides: &[(&str, &str)]) -> PathB
     let cache = root.join("target/lab-fixtures");
     let stem = format!("{preset}-s{seed}-{:016x}", key.0);
     let out = cache.join(format!("{stem}.mcap"));
+    if out.exists() {
+        return out;
+    }
+    // One writer per file: a test asking for a file another test is writing waits for it
+    // (nextest runs tests as processes; the lock goes with the process that holds it).
+    std::fs::create_dir_all(&cache)
+        .unwrap_or_else(|e| panic!("cannot create {}: {e}", cache.display()));
+    let lock_path = cache.join(format!(".{stem}.lock"));
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .unwrap_or_else(|e| panic!("cannot open {}: {e}", lock_path.display()));
+    lock.lock().unwrap_or_else(|e| panic!("cannot lock {}: {e}", lock_path.display()));
     if out.exists() {
         return out;
     }
