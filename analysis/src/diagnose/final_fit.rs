@@ -59,11 +59,14 @@ pub(super) fn held_parameters(with: &[f64], without: &[f64]) -> Vec<Option<Strin
 
 /// Parameters and effects' coefficients fitted together on the search's final model; each
 /// accepted effect's finding gets its final parameters. `refit` is the parameter refit's
-/// projector (the nominal design alone), against which a parameter is held.
+/// projector (the nominal design alone), against which a parameter is held. `lag`: the coil's
+/// lag profile (fitted, or held at the lab's where the run does not determine it): what its
+/// uncertainty costs each coefficient is in their covariance ([`coil_lag::lag_shift`]).
 pub(super) fn final_fit(
     search: &mut Search<'_>,
     effects: &Effects,
     refit: &Projector,
+    lag: Option<&coil_lag::CoilLag>,
 ) -> Result<FinalFit, AnalysisError> {
     let model = search.ctx.model;
     let n = search.y.len();
@@ -90,7 +93,18 @@ pub(super) fn final_fit(
         proj = Projector::new(&design, &all)?;
     }
     let beta = proj.beta(&search.y);
-    let cov = proj.covariance(&search.noise);
+    let mut cov = proj.covariance(&search.noise);
+    if let Some(lag) = lag {
+        let zeroed: Vec<bool> = held.iter().map(Option::is_some).collect();
+        let (prep, base, accepted) = (search.ctx.prep, &search.base_design, &search.accepted);
+        if let Some(shift) = coil_lag::lag_shift(prep, model, lag, base, &zeroed, accepted)? {
+            let s = nalgebra::DVector::from_iterator(
+                proj.kept.len(),
+                proj.kept.iter().map(|&c| shift.get(c).copied().unwrap_or(0.0)),
+            );
+            cov += &s * s.transpose();
+        }
+    }
     let coef = |j: usize| -> (f64, f64) {
         proj.kept
             .iter()

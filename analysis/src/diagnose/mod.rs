@@ -215,15 +215,16 @@ pub fn diagnose(
     // A gyro without its own sensor: the coil's lag refitted where the run determines it
     // ([`coil_lag`]), and everything after prepared with it.
     let nominal_lag_s = model.thermal_time_constant;
-    let mut lag = coil_lag::profile(
+    // The last profile taken: where it does not move the lag, the lag is held at the lab's.
+    let mut profiled = coil_lag::profile(
         &prep,
         noise_spec,
         model,
         opts.alpha,
         &coil_lag::Beside::default(),
         nominal_lag_s,
-    )?
-    .filter(|l| l.significant());
+    )?;
+    let mut lag = profiled.filter(|l| l.significant());
     let mut lagged = model.clone();
     let mut passes = 0;
     let (base, mut search) = loop {
@@ -247,6 +248,7 @@ pub fn diagnose(
             if let Some(l) =
                 coil_lag::profile(&prep, noise_spec, &lagged, opts.alpha, &beside, nominal_lag_s)?
             {
+                profiled = Some(l);
                 let again = l.significant().then_some(l);
                 let moved = again.map_or(nominal_lag_s, |l| l.fitted_s);
                 if (moved / tau - 1.0).abs() > 0.01 {
@@ -261,7 +263,8 @@ pub fn diagnose(
     let location = locate(&prep, run, &base.r, &base.noise, &base.proj, &base.y);
     let rejections = search.rejections();
     search.refine_time_constants()?;
-    let mut fit = final_fit(&mut search, effects, &base.proj)?;
+    let held_lag = profiled.filter(|l| lag.is_none() && !l.significant());
+    let mut fit = final_fit(&mut search, effects, &base.proj, lag.or(held_lag).as_ref())?;
     if let Some(l) = lag {
         fit.parameter_updates.push(ParameterUpdate {
             key: ModelKey::ThermalTimeConstant,
@@ -269,6 +272,19 @@ pub fn diagnose(
             fitted: l.fitted_s,
             sigma: l.sigma_s,
             held: None,
+        });
+    } else if let Some(l) = held_lag {
+        fit.parameter_updates.push(ParameterUpdate {
+            key: ModelKey::ThermalTimeConstant,
+            nominal: l.nominal_s,
+            fitted: l.nominal_s,
+            sigma: l.sigma_s,
+            held: Some(format!(
+                "held at the nominal value: the run does not determine the coil's lag (its \
+                 profile's minimum {:.0} ± {:.0} s moves the model by Wald {:.1} ≤ {:.1}); every \
+                 σ of this diagnosis includes a 1σ move of it",
+                l.fitted_s, l.sigma_s, l.wald, l.threshold
+            )),
         });
     }
     let collinearity = identifiability(&search);
