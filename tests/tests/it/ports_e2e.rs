@@ -84,8 +84,37 @@ fn keep(name: &str, bytes: &[u8]) {
     }
 }
 
+/// The wired run paces the bench clock at 60× real time: a millisecond the host is late is
+/// 60 ms of bench time on a command, a soak's end or a table reading. The test asks the kernel
+/// to schedule its threads first (nice −10 on every thread of the process; threads started
+/// later inherit it), as a lab's bench controller would run. Beside 3 and 4 busy loops on 2
+/// cores the run then matched the in-process one as it does alone (fit sound, coefficients
+/// within 0.8σ); at the default priority beside 3 loops the record windows' gyro means were
+/// 6e-9 rad/s apart (the tolerance is 5e-9: the chamber's history shifted by seconds) and its
+/// table readings glitched over 31 % of a stretch. Where the kernel refuses it says so and the
+/// test runs at the default priority.
+fn schedule_first() {
+    let tids: Vec<String> = std::fs::read_dir("/proc/self/task")
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned())))
+        .map(Iterator::collect)
+        .unwrap_or_default();
+    let raised = !tids.is_empty()
+        && std::process::Command::new("renice")
+            .args(["--priority", "-10", "-p"])
+            .args(&tids)
+            .output()
+            .is_ok_and(|o| o.status.success());
+    if !raised {
+        println!(
+            "could not raise this test's scheduling priority (renice --priority -10): it runs \
+             at the default one, where a loaded host moves the wired run's timing"
+        );
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn seed_scenario_through_the_wire_matches_the_in_process_run() {
+    schedule_first();
     // Server-side problems are logged, not returned: show them (RUST_LOG=debug for more).
     let _ = tracing_subscriber::fmt()
         .with_env_filter(
