@@ -281,8 +281,8 @@ pub fn diagnose(
             sigma: l.sigma_s,
             held: Some(format!(
                 "held at the nominal value: the run does not determine the coil's lag (its \
-                 profile's minimum {:.0} ± {:.0} s moves the model by Wald {:.1} ≤ {:.1}); every \
-                 σ of this diagnosis includes a 1σ move of it",
+                 profile's minimum {:.0} ± {:.0} s moves the model by Wald {:.1} ≤ {:.1}); the \
+                 fitted parameters' and effects' σ include a 1σ move of it",
                 l.fitted_s, l.sigma_s, l.wald, l.threshold
             )),
         });
