@@ -407,16 +407,8 @@ fn ols(d: &Design, any_rank: bool) -> Result<Ols, AnalysisError> {
     let svd = d.x.clone().svd(true, true);
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
-    if any_rank && smax.is_finite() && smax > 0.0 {
-        let pinv = svd
-            .pseudo_inverse(RANK_TOLERANCE * smax)
-            .map_err(|e| AnalysisError::Insufficient(format!("joint fit: {e}")))?;
-        let beta = &pinv * &d.y;
-        let resid = &d.y - &d.x * &beta;
-        let rss = resid.norm_squared();
-        return Ok(Ols { pinv, beta, resid, rss });
-    }
-    if smin.is_nan() || smin <= RANK_TOLERANCE * smax {
+    let degenerate = !(smax.is_finite() && smax > 0.0);
+    if degenerate || (!any_rank && (smin.is_nan() || smin <= RANK_TOLERANCE * smax)) {
         return Err(AnalysisError::Insufficient(format!(
             "joint fit: the windows cannot separate bias, scale factor, temperature and \
              temperature-rate terms (condition number {:.3e})",
@@ -424,7 +416,9 @@ fn ols(d: &Design, any_rank: bool) -> Result<Ols, AnalysisError> {
         )));
     }
     let pinv = svd
-        .pseudo_inverse(1e-12 * smax)
+        // A design that passed the check above has no singular value this small: its
+        // inverse is whole; one that may lack rank (`any_rank`) drops what it does not hold.
+        .pseudo_inverse(RANK_TOLERANCE * smax)
         .map_err(|e| AnalysisError::Insufficient(format!("joint fit: {e}")))?;
     let beta = &pinv * &d.y;
     let resid = &d.y - &d.x * &beta;
