@@ -426,15 +426,9 @@ pub(super) fn lag_shift(
     if !(rel.is_finite() && rel > 0.0 && center > 0.0 && base_design.len() >= 4) {
         return Ok(None);
     }
-    let n = setup.n();
-    let all: Vec<usize> = (0..n).collect();
-    let thermal: Vec<(EffectId, f64)> = accepted
-        .iter()
-        .filter(|a| candidates::reads_temperature(a.id, a.p))
-        .map(|a| (a.id, a.p))
-        .collect();
+    let all: Vec<usize> = (0..setup.n()).collect();
     let beta_at = |tau: f64| -> Result<Vec<f64>, AnalysisError> {
-        let (th, rebuilt) = setup.at_lag(tau, &thermal)?;
+        let th = setup.thermal(tau)?;
         let mut d = base_design.to_vec();
         d[2].clone_from(&th[0]);
         d[3].clone_from(&th[1]);
@@ -443,12 +437,8 @@ pub(super) fn lag_shift(
                 col.iter_mut().for_each(|x| *x = 0.0);
             }
         }
-        let mut rebuilt = rebuilt.iter();
         for a in accepted {
-            match candidates::reads_temperature(a.id, a.p).then(|| rebuilt.next()).flatten() {
-                Some(cols) => d.extend(cols.iter().cloned()),
-                None => d.extend(a.cols.iter().cloned()),
-            }
+            d.extend(setup.effect_columns_at(tau, (a.id, a.p, &a.cols))?.iter().cloned());
         }
         let at = Projector::new(&d, &all)?;
         let b = at.beta(&setup.y);
