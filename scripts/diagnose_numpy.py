@@ -112,6 +112,13 @@ def noise_matrix(inp):
         d = np.empty(2 * m)
         d[0::2], d[1::2] = a["ref_var_angle"], a["ref_var_rate"]
         sigma += (jac * d) @ jac.T
+        if "ref_var_group" in a and len(a["ref_var_group"]) > 0:
+            # Rests on one reading share a rounding error: J's angle columns summed by group.
+            group = a["ref_group"].astype(np.int64)
+            jg = np.zeros((len(span), len(a["ref_var_group"])))
+            for j in np.nonzero(group >= 0)[0]:
+                jg[:, group[j]] += jac[:, 2 * j]
+            sigma += (jg * a["ref_var_group"]) @ jg.T
     return sigma
 
 

@@ -167,12 +167,23 @@ fn diagnose_shows_every_number_with_its_unit() {
 }
 
 /// `scripts/diagnose_numpy.py` (the residual scan written again in NumPy, docs/diagnose.md
-/// "Speed") agrees with `bench diagnose --scan-only` on the lab writer's short null recording:
-/// every effect's best grid value, its Wald statistic and ΔRSS within a relative 1e-6, and the
-/// gyro samples it reads with the `mcap` package equal to the scan's. Agreement only: no timing.
+/// "Speed") agrees with `bench diagnose --scan-only` on the lab writer's short null recording,
+/// turning at 8.87 °/min (its 1″ readout's rounding is each line's own) and stopping a minute
+/// at each reversal (rests on one reading share their rounding, both sides build that term):
+/// every effect's best grid value, its Wald statistic and ΔRSS within a
+/// relative 1e-6, and the gyro samples it reads with the `mcap` package equal to the scan's.
+/// Agreement only: no timing.
 #[test]
 fn the_numpy_residual_scan_agrees_with_the_rust_one() {
-    let path = bench_tests::lab_fixture("lab-null", 7, &[("procedure.length", "short")]);
+    let path = bench_tests::lab_fixture(
+        "lab-null",
+        7,
+        &[
+            ("procedure.length", "short"),
+            ("procedure.stop_s", "60"),
+            ("procedure.rate_deg_min", "8.87"),
+        ],
+    );
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = path.to_str().expect("utf-8 path");
     let out = bench(
@@ -182,6 +193,10 @@ fn the_numpy_residual_scan_agrees_with_the_rust_one() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let scan = json(&dir.path().join("scan.json"));
     let best = scan["best"].as_array().expect("best");
+    // The rests share their rounding by reading: at least one group in the inputs.
+    let groups = std::fs::read(dir.path().join("inputs/ref_var_group.npy")).expect("groups");
+    let header = String::from_utf8_lossy(&groups[..groups.len().min(128)]).into_owned();
+    assert!(!header.contains("'shape': (0,)"), "no rests on one reading: {header}");
     // Every candidate of the search but Earth's rate and the thermal lag, with a grid where it
     // has one.
     assert!(best.len() >= 10, "{best:?}");
