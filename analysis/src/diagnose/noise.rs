@@ -64,7 +64,7 @@ pub struct ReferenceLines {
     /// Per bin, the two ends: (segment, ∂reference/∂angle error, ∂reference/∂rate error).
     rows: Vec<[(usize, f64, f64); 2]>,
     /// Per segment, the group of resting segments whose angle error it shares
-    /// ([`Self::with_rounding`]): empty, or one entry per segment.
+    /// ([`Self::with_rounding`]).
     group: Vec<Option<usize>>,
     /// Variance of each group's shared angle error, rad².
     group_var: Vec<f64>,
@@ -104,7 +104,8 @@ impl ReferenceLines {
                 _ => [(0, 0.0, 0.0); 2],
             })
             .collect();
-        Self { var, rows, group: Vec::new(), group_var: Vec::new() }
+        let group = vec![None; motion.segments.len()];
+        Self { var, rows, group, group_var: Vec::new() }
     }
 
     /// The same with each segment's angle error from the readout's rounding added where it does
@@ -123,9 +124,10 @@ impl ReferenceLines {
     /// between, are covered by an error shared by the rests on one reading (variance `q²/12`)
     /// beside each rest's own: the sum of rests on one reading, and the difference of two, are
     /// then never given less variance than they can have. Left out, a 5 h stop-start run's
-    /// 26 rests on two readings put a systematic of up to q/√6 over a 10 s bin into every
-    /// start against every stop (the rival "dΩ/dt while speeding up only") that the noise model
-    /// called 1/√13 of its size.
+    /// 26 rests on two readings (13 each) put one error `e/S` (σ = q/√12 over the bin's span)
+    /// into 13 stops and `−e/S` into 13 starts, which the noise model took for 13 independent
+    /// draws: the starts against the stops (the rival "dΩ/dt while speeding up only") were
+    /// given √13 too small a σ.
     ///
     /// Not for a readout that rounds coherently with the motion (every turning segment keeps
     /// one phase: [`super::prepare::reference_lines`] leaves the term out): every line's
@@ -173,7 +175,6 @@ impl ReferenceLines {
             }
         }
         for members in rests.into_values().filter(|m| m.len() > 1) {
-            self.group.resize(motion.segments.len(), None);
             for j in members {
                 self.group[j] = Some(self.group_var.len());
             }
@@ -199,12 +200,7 @@ impl ReferenceLines {
             ("ref_rate1", col(1, &|r| r.2)),
             ("ref_var_angle", self.var.iter().map(|v| v[0]).collect()),
             ("ref_var_rate", self.var.iter().map(|v| v[1]).collect()),
-            (
-                "ref_group",
-                (0..self.var.len())
-                    .map(|j| self.group.get(j).copied().flatten().map_or(-1.0, |g| g as f64))
-                    .collect(),
-            ),
+            ("ref_group", self.group.iter().map(|g| g.map_or(-1.0, |g| g as f64)).collect()),
             ("ref_var_group", self.group_var.clone()),
         ]
     }
@@ -231,8 +227,8 @@ impl ReferenceLines {
         for (x, v) in ug.iter_mut().zip(&self.group_var) {
             *x *= v;
         }
-        for (j, (us, v)) in u.iter_mut().zip(&self.var).enumerate() {
-            us[0] = us[0] * v[0] + self.group.get(j).copied().flatten().map_or(0.0, |g| ug[g]);
+        for ((us, v), g) in u.iter_mut().zip(&self.var).zip(&self.group) {
+            us[0] = us[0] * v[0] + g.map_or(0.0, |g| ug[g]);
             us[1] *= v[1];
         }
         for (row, o) in self.rows.iter().zip(out.iter_mut()) {

@@ -170,9 +170,8 @@ fn diagnose_shows_every_number_with_its_unit() {
 /// "Speed") agrees with `bench diagnose --scan-only` on the lab writer's short null recording,
 /// turning at 8.87 °/min (its 1″ readout's rounding is each line's own) and stopping a minute
 /// at each reversal (rests on one reading share their rounding, both sides build that term):
-/// every effect's best grid value, its Wald statistic and ΔRSS within a
-/// relative 1e-6, and the gyro samples it reads with the `mcap` package equal to the scan's.
-/// Agreement only: no timing.
+/// every effect's best grid value, its Wald statistic and ΔRSS within a relative 1e-6, and the
+/// gyro samples it reads with the `mcap` package equal to the scan's. Agreement only: no timing.
 #[test]
 fn the_numpy_residual_scan_agrees_with_the_rust_one() {
     let path = bench_tests::lab_fixture(
