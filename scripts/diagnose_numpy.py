@@ -113,7 +113,8 @@ def noise_matrix(inp):
         d[0::2], d[1::2] = a["ref_var_angle"], a["ref_var_rate"]
         sigma += (jac * d) @ jac.T
         if "ref_var_group" in a and len(a["ref_var_group"]) > 0:
-            # Rests on one reading share a rounding error: J's angle columns summed by group.
+            # Rests on one reading, and turning lines of one rate and direction, share a
+            # rounding error: J's angle columns summed by group.
             group = a["ref_group"].astype(np.int64)
             jg = np.zeros((len(span), len(a["ref_var_group"])))
             for j in np.nonzero(group >= 0)[0]:

@@ -370,6 +370,12 @@ fn angle_quantum(y: &[f64]) -> f64 {
             q = d;
         } else if d <= 1e4 * q {
             q = gcd(d, q);
+            // Each remainder carries the error of the ones before it times its quotient: read
+            // the divisor again off this difference (the largest so far, exact to its last
+            // digit), a whole number of it.
+            if q > TOL {
+                q = d / (d / q).round();
+            }
         }
     }
     if q < 1e-8 {
@@ -827,6 +833,26 @@ mod tests {
             c.push(if command_follows { target } else { w });
         }
         (t, a, c)
+    }
+
+    #[test]
+    fn a_readout_step_is_found_whatever_the_advances_between_readings() {
+        // A lab's 1″ table at 0.25 rad read turning at 27.77 and 17.68 °/min (833.1″ and
+        // 530.4″ a reading at 2 Hz) and through its reversals: the smallest steps share only
+        // the whole readout step, and Euclid's remainders from 294″ and 352″ carried the angles'
+        // last-digit error into a divisor 1.2e-6 off, so that 833″ left a remainder 0.001″
+        // short of a step and the grid read as 0.001″ — then not a grid at all (seed 256 of
+        // the random null study: no rounding in its noise model).
+        let steps = [352.0, 294.0, 539.0, 833.0, 834.0, 835.0, 840.0, 530.0, 531.0];
+        let mut k = (0.25 / ARCSEC).round();
+        let y: Vec<f64> = (0..4000)
+            .map(|i| {
+                k += steps[i % steps.len()] * if (i / 400) % 2 == 0 { 1.0 } else { -1.0 };
+                k * ARCSEC
+            })
+            .collect();
+        let q = angle_quantum(&y);
+        assert!((q / ARCSEC - 1.0).abs() < 1e-9, "{q:e}");
     }
 
     #[test]
