@@ -46,6 +46,11 @@ impl LinearEffect for BiasDrift {
             Rival { with: "warm_up", when: "a decay much slower than the run" },
             Rival { with: "bias_step", when: "a short run, or a step near its middle" },
             Rival { with: "temp_coeff", when: "one monotonic temperature ramp" },
+            Rival {
+                with: "temperature_quadratic",
+                when: "each temperature visited once, in one pass (a trend in time is then a \
+                       curve in temperature)",
+            },
         ]
     }
     fn separated_by(&self) -> Procedure {
