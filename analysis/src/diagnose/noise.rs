@@ -696,20 +696,7 @@ mod tests {
             .filter(|&j| motion.segments[j].command_rad_s == 0.0)
             .collect();
         assert_eq!(rests.len(), 3, "{:?}", motion.segments);
-        let bins: Vec<Bin> = motion
-            .segments
-            .windows(2)
-            .enumerate()
-            .map(|(i, p)| Bin {
-                first: i,
-                end: i + 1,
-                start_s: p[0].end_s - 5.0,
-                end_s: p[1].start_s + 5.0,
-                table_rate_rad_s: 0.0,
-                table_accel_rad_s2: 0.0,
-                transition: true,
-            })
-            .collect();
+        let bins = bins_across_changes(&motion);
         let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
         // The first and last rests read one value: one group; the middle one is alone.
         let (a, b, c) = (rests[0], rests[1], rests[2]);
@@ -767,20 +754,7 @@ mod tests {
         let e: Vec<f64> = lines.iter().map(|&j| mean_rounding(j)).collect();
         assert!((e[0] - e[2]).abs() < 0.05 * (e[0] - e[1]).abs(), "{e:?}");
         assert!((e[1] - e[3]).abs() < 0.05 * (e[0] - e[1]).abs(), "{e:?}");
-        let bins: Vec<Bin> = motion
-            .segments
-            .windows(2)
-            .enumerate()
-            .map(|(i, p)| Bin {
-                first: i,
-                end: i + 1,
-                start_s: p[0].end_s - 5.0,
-                end_s: p[1].start_s + 5.0,
-                table_rate_rad_s: 0.0,
-                table_accel_rad_s2: 0.0,
-                transition: true,
-            })
-            .collect();
+        let bins = bins_across_changes(&motion);
         let r = ReferenceLines::new(&motion, &bins).with_rounding(&motion, &time, &angle);
         let (cw, ccw) = (r.group[lines[0]], r.group[lines[1]]);
         assert!(cw.is_some() && ccw.is_some() && cw != ccw, "{:?}", r.group);
@@ -798,6 +772,25 @@ mod tests {
         let want = (gv[0] + gv[1]) / (bins[0].span_s() * bins[2].span_s());
         let got = m.quad(&unit(0), &unit(2));
         assert!((got / want - 1.0).abs() < 1e-9, "{got:e} vs {want:e}");
+    }
+
+    /// A bin across each change between `motion`'s lines, from 5 s before the one's end to 5 s
+    /// after the next one's start.
+    fn bins_across_changes(motion: &TableMotion) -> Vec<Bin> {
+        motion
+            .segments
+            .windows(2)
+            .enumerate()
+            .map(|(i, p)| Bin {
+                first: i,
+                end: i + 1,
+                start_s: p[0].end_s - 5.0,
+                end_s: p[1].start_s + 5.0,
+                table_rate_rad_s: 0.0,
+                table_accel_rad_s2: 0.0,
+                transition: true,
+            })
+            .collect()
     }
 
     /// A table at rest until 100 s, then turning at `w` from 101 s, read at 2 Hz on a grid of
