@@ -93,10 +93,13 @@ fn sigterm_aborts_to_the_safe_state_like_a_first_ctrl_c() {
     assert!(outcome.ends_with("interrupted by the operator (SIGTERM)"), "{outcome}");
     let last = rec.steps.last().expect("steps");
     assert_eq!((last.msg.label.as_str(), last.msg.event.as_str()), ("record cw", "abort"));
-    // Safe state: the table was commanded to rest, and the recording went on for its tail.
+    // Safe state: the table was commanded to rest, and the recording went on for its 1 s tail.
+    // At 20× real time a stall of the gyro's poller on a loaded host costs 20× its length in
+    // bench time at the tail's end (CI, 2026-11-30: 0.88 s, the last sample 0.12 s short):
+    // half the tail shows it was recorded, a missing tail is ~0.
     assert_eq!(rec.table.last().map(|t| t.msg.rate_command_rad_s), Some(0.0));
     let tail_ns = rec.gyro.last().map_or(0, |g| g.log_time_ns) - last.log_time_ns;
-    assert!(tail_ns >= 900_000_000, "tail of {tail_ns} ns after the abort");
+    assert!(tail_ns >= 500_000_000, "tail of {tail_ns} ns after the abort");
 }
 
 #[test]
