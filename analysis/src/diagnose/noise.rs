@@ -63,8 +63,8 @@ pub struct ReferenceLines {
     var: Vec<[f64; 2]>,
     /// Per bin, the two ends: (segment, ∂reference/∂angle error, ∂reference/∂rate error).
     rows: Vec<[(usize, f64, f64); 2]>,
-    /// Per segment, the group of resting segments whose angle error it shares
-    /// ([`Self::with_rounding`]).
+    /// Per segment, the group whose angle error it shares ([`Self::with_rounding`]: rests on one
+    /// reading, turning lines of one rate and direction).
     group: Vec<Option<usize>>,
     /// Variance of each group's shared angle error, rad².
     group_var: Vec<f64>,
@@ -192,22 +192,24 @@ impl ReferenceLines {
             }
         }
         for members in rests.into_values().filter(|m| m.len() > 1) {
-            for j in members {
-                self.group[j] = Some(self.group_var.len());
-            }
-            self.group_var.push(q * q / 12.0);
+            self.share(members, q * q / 12.0);
         }
         // Turning lines by their signed advance a reading: within a thousandth of a step, the
         // same rate read at the same interval in the same direction.
         turning.sort_by(|x, y| x.0.total_cmp(&y.0));
         for members in turning.chunk_by(|x, y| y.0 - x.0 < 1e-3).filter(|m| m.len() > 1) {
             let least = members.iter().map(|m| m.1).fold(f64::INFINITY, f64::min);
-            for m in members {
-                self.group[m.2] = Some(self.group_var.len());
-            }
-            self.group_var.push(2.0 * q * q * least);
+            self.share(members.iter().map(|m| m.2), 2.0 * q * q * least);
         }
         self
+    }
+
+    /// One more group: `members` (segments) share an angle error of variance `var`, rad².
+    fn share(&mut self, members: impl IntoIterator<Item = usize>, var: f64) {
+        for j in members {
+            self.group[j] = Some(self.group_var.len());
+        }
+        self.group_var.push(var);
     }
 
     /// The term as arrays, for another implementation to rebuild `J·D·Jᵀ` (the residual
