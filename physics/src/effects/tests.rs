@@ -94,6 +94,9 @@ fn a_rivalry_is_declared_once_and_holds_both_ways() {
         EffectId::BiasStep.rivalry_with("thermal_hysteresis"),
         Some("one switch between heating and cooling")
     );
+    // A lagged term's settling after the run's first ramp is a warm-up's decay: declared by
+    // the lag (the lab writer's study, pair seed 5: a warm-up named `thermal_lag`).
+    assert!(EffectId::WarmUp.rival_effects().contains(&EffectId::ThermalLag));
 }
 
 #[test]

@@ -51,6 +51,13 @@ impl Effect for ThermalLag {
         &[
             Rival { with: "thermal_hysteresis", when: "every ramp at one |dT/dt|" },
             Rival { with: "temp_rate_coeff", when: "every ramp at one |dT/dt|" },
+            // The lagged term settles after a ramp starts as a warm-up decays after power-on:
+            // one exponential each, alike where the run's first ramp comes early.
+            Rival {
+                with: "warm_up",
+                when: "one settling after the first ramp, early in the run (a lag's response \
+                       to it decays as a warm-up does)",
+            },
         ]
     }
     fn separated_by(&self) -> Procedure {
