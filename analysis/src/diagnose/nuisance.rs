@@ -68,6 +68,8 @@ pub(super) struct FamilyState<'a> {
     pub(super) tested: &'a [EffectId],
     /// The candidates still to test: a rival the data prefer goes back to them.
     pub(super) candidates: &'a mut Vec<EffectId>,
+    /// The rivals preferred: searched first in the next round.
+    pub(super) preferred: &'a mut Vec<EffectId>,
     /// The search's candidate columns, for the rivals' grids.
     pub(super) cache: &'a ColumnCache,
     /// The coil lag's test as a rival ([`lag_confounded`]): [`coil_lag::threshold`] at the
@@ -171,6 +173,7 @@ pub(super) fn check_families(
                 if !st.candidates.contains(&r) {
                     st.candidates.push(r);
                 }
+                st.preferred.push(r);
                 continue;
             }
             Some(rivals::RivalVerdict::NotToldApart(n)) => Some(n),

@@ -43,6 +43,9 @@ pub(super) struct Search<'a> {
     pub(super) downgraded: Vec<Downgraded>,
     /// The family-wise level split over the candidates.
     level: f64,
+    /// Rivals the data preferred to an accepted effect ([`check_families`]): searched first,
+    /// alone, in the next round.
+    preferred: Vec<EffectId>,
 }
 
 impl<'a> Search<'a> {
@@ -86,6 +89,7 @@ impl<'a> Search<'a> {
             thresholds: std::collections::BTreeMap::new(),
             downgraded: Vec::new(),
             level: opts.alpha / m_candidates,
+            preferred: Vec::new(),
         }
     }
 
@@ -122,16 +126,37 @@ impl<'a> Search<'a> {
     /// effects' grid values are refitted), judged on the held-out blocks, alone or with a
     /// partner. Returns whether the search goes on.
     fn round(&mut self) -> Result<bool, AnalysisError> {
-        let (mut best, tried) = search(
-            &self.ctx,
-            &self.candidates,
-            &self.proj,
-            &self.y,
-            &self.r,
-            &self.noise,
-            &mut self.column_cache,
-            &mut self.thresholds,
-        );
+        // A rival the data preferred to an accepted effect takes that effect's turn: searched
+        // first, alone (among every candidate, another shape that fits part of the same
+        // signal could take it, and the effect's place would go to neither).
+        let preferred = std::mem::take(&mut self.preferred);
+        let mut first = (None, Vec::new());
+        if !preferred.is_empty() {
+            first = search(
+                &self.ctx,
+                &preferred,
+                &self.proj,
+                &self.y,
+                &self.r,
+                &self.noise,
+                &mut self.column_cache,
+                &mut self.thresholds,
+            );
+        }
+        let (mut best, tried) = if first.0.is_some() {
+            first
+        } else {
+            search(
+                &self.ctx,
+                &self.candidates,
+                &self.proj,
+                &self.y,
+                &self.r,
+                &self.noise,
+                &mut self.column_cache,
+                &mut self.thresholds,
+            )
+        };
         if best.is_none() {
             best = self.regrid_search()?;
         }
@@ -362,6 +387,7 @@ impl<'a> Search<'a> {
             thresholds: &self.thresholds,
             tested: &self.tested,
             candidates: &mut self.candidates,
+            preferred: &mut self.preferred,
             cache: &self.column_cache,
             lag_threshold: coil_lag::threshold(self.ctx.opts.alpha),
         };
