@@ -130,11 +130,11 @@ impl<'a> Search<'a> {
         // first, alone (among every candidate, another shape that fits part of the same
         // signal could take it, and the effect's place would go to neither).
         let preferred = std::mem::take(&mut self.preferred);
-        let mut first = (None, Vec::new());
-        if !preferred.is_empty() {
-            first = search(
+        let (mut best, mut tried) = (None, Vec::new());
+        for pool in [&preferred[..], &self.candidates[..]] {
+            (best, tried) = search(
                 &self.ctx,
-                &preferred,
+                pool,
                 &self.proj,
                 &self.y,
                 &self.r,
@@ -142,21 +142,10 @@ impl<'a> Search<'a> {
                 &mut self.column_cache,
                 &mut self.thresholds,
             );
+            if best.is_some() {
+                break;
+            }
         }
-        let (mut best, tried) = if first.0.is_some() {
-            first
-        } else {
-            search(
-                &self.ctx,
-                &self.candidates,
-                &self.proj,
-                &self.y,
-                &self.r,
-                &self.noise,
-                &mut self.column_cache,
-                &mut self.thresholds,
-            )
-        };
         if best.is_none() {
             best = self.regrid_search()?;
         }
@@ -392,7 +381,12 @@ impl<'a> Search<'a> {
             lag_threshold: coil_lag::threshold(self.ctx.opts.alpha),
         };
         let (y, noise, level) = (&self.y, &self.noise, self.level);
-        if check_families(prep, model, &ids, &mut state, y, noise, level) {
+        let changed = check_families(prep, model, &ids, &mut state, y, noise, level);
+        // A preferred rival is a candidate again (`check_families` put it back): off hold, so
+        // the two lists stay apart and no pool holds it twice.
+        let preferred = &self.preferred;
+        self.on_hold.retain(|c| !preferred.contains(c));
+        if changed {
             return true;
         }
         recheck_downgraded(
