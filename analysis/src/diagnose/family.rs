@@ -458,20 +458,20 @@ pub(super) fn gate(
     // another grid value (a lag's τ/2) or shapes one run may not separate by design (rate² and
     // |rate| at one speed), which identifiability states instead.
     // A kink in k_t is outside the library: a temperature effect must be told from it too,
-    // unless the kink is significant beside the effect (then that is what is reported).
+    // unless the kink is significant beside the effect (then that is what is reported). As for
+    // a harmonic, an effect that keeps nothing beside a knot that alone explains the data is
+    // not told from it: which of the two explains more (each over its own threshold) is a
+    // guess where neither holds beside the other, and named a kink near a range's end a
+    // quadratic.
     let harmonic = matches!(id.effect().columns(), Columns::Angle(_));
     let beside_significant = |j: usize| tested.iter().any(|(i, t)| *i == j && t.wald > t.threshold);
     let rivalling = |(j, x): &(usize, &Member)| {
         (harmonic && x.angle_harmonic) || (x.kink && !beside_significant(*j))
     };
-    // A kink rivals the effect only where it explains the data better than the effect does,
-    // each judged against its own threshold (the kink's carries its look-elsewhere over the
-    // knots): a true quadratic's best hinge takes ρ² ≈ 0.94 of its Wald, plus the knots' luck.
-    let effect_excess = p_o.test(cols, y, noise).map_or(f64::INFINITY, |t| t.wald) - thr_effect;
     for (j, mem) in members.iter().enumerate().filter(rivalling) {
         let thr_j = thr_of(mem);
         let Some(alone) = p_o.test(&mem.cols, y, noise) else { continue };
-        if alone.wald <= thr_j || (mem.kink && alone.wald - thr_j <= effect_excess) {
+        if alone.wald <= thr_j {
             continue;
         }
         let mut with_j = others.to_vec();

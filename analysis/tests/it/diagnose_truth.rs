@@ -284,12 +284,27 @@ fn single(effects: Effects, seed: u64, id: EffectId, name: &str, truth: f64) {
     assert!(d.bic.after < d.bic.before, "{}", check(&d));
 }
 
+/// Over 20..50 °C with T0 = 20 °C, 1.2e-9 rad/s/°C² departs from the best line by up to
+/// 1.35e-7 rad/s: beside the kink in k_t that explains it best (a hinge at a knot on the
+/// recording's temperatures) the quadratic keeps its Wald, so it is named.
 #[test]
 fn temperature_quadratic_is_found() {
-    // Over 20..50 °C with T0 = 20 °C, 4e-10 rad/s/°C² departs from the best line by up to
-    // 4.5e-8 rad/s: five times the flicker floor.
-    let e = on(&[(EffectId::TemperatureQuadratic, &[4e-10])]);
-    single(e, 7, EffectId::TemperatureQuadratic, "coeff_rad_s_per_c2", 4e-10);
+    let e = on(&[(EffectId::TemperatureQuadratic, &[1.2e-9])]);
+    single(e, 7, EffectId::TemperatureQuadratic, "coeff_rad_s_per_c2", 1.2e-9);
+}
+
+/// A third of that (4e-10 rad/s/°C², five times the flicker floor) on the same 30 °C: the
+/// best hinge alone explains more of it than the quadratic does, and beside the hinge the
+/// quadratic keeps nothing. The data cannot say which it is: not named, the structure
+/// reported unexplained as the kink beside a quadratic-like term.
+#[test]
+fn a_weak_temperature_quadratic_is_not_told_from_a_kink_in_k_t() {
+    let d = run_with(on(&[(EffectId::TemperatureQuadratic, &[4e-10])]), 7);
+    assert!(accepted(&d).is_empty(), "{}", check(&d));
+    let kink = d.unexplained.iter().find(|u| u.correlates_with.starts_with("k_t changes near"));
+    let why = kink.map(|u| u.correlates_with.as_str()).unwrap_or_default();
+    assert!(why.contains("not told apart") && why.contains("temperature_quadratic"), "{}", check(&d));
+    assert!(d.rms.after < d.rms.before, "{}", check(&d));
 }
 
 #[test]
