@@ -303,7 +303,11 @@ fn a_weak_temperature_quadratic_is_not_told_from_a_kink_in_k_t() {
     assert!(accepted(&d).is_empty(), "{}", check(&d));
     let kink = d.unexplained.iter().find(|u| u.correlates_with.starts_with("k_t changes near"));
     let why = kink.map(|u| u.correlates_with.as_str()).unwrap_or_default();
-    assert!(why.contains("not told apart") && why.contains("temperature_quadratic"), "{}", check(&d));
+    assert!(
+        why.contains("not told apart") && why.contains("temperature_quadratic"),
+        "{}",
+        check(&d)
+    );
     assert!(d.rms.after < d.rms.before, "{}", check(&d));
 }
 
