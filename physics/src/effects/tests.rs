@@ -97,6 +97,11 @@ fn a_rivalry_is_declared_once_and_holds_both_ways() {
     // A lagged term's settling after the run's first ramp is a warm-up's decay: declared by
     // the lag (the lab writer's study, pair seed 5: a warm-up named `thermal_lag`).
     assert!(EffectId::WarmUp.rival_effects().contains(&EffectId::ThermalLag));
+    // Table rates held in blocks of the run: a warm-up moves one |rate|'s level against the
+    // others as an asymmetry does (the lab writer's study, pair seed 15: a warm-up and a rate²
+    // named a scale-factor asymmetry and the rate²). Declared by the warm-up: its longer run
+    // separates them.
+    assert!(EffectId::ScaleFactorAsymmetry.rival_effects().contains(&EffectId::WarmUp));
 }
 
 #[test]

@@ -50,7 +50,14 @@ impl Effect for WarmUp {
         Family::Decay
     }
     fn rivals(&self) -> &'static [Rival] {
-        &[Rival { with: "bias_step", when: "a step early in the run" }]
+        &[
+            Rival { with: "bias_step", when: "a step early in the run" },
+            Rival {
+                with: "scale_factor_asymmetry",
+                when: "each table rate in its own part of the run (a decay in time moves one \
+                       |rate|'s level against the others)",
+            },
+        ]
     }
     fn separated_by(&self) -> Procedure {
         Procedure::LongerRun
