@@ -66,9 +66,8 @@ pub(super) struct FamilyState<'a> {
     pub(super) thresholds: &'a std::collections::BTreeMap<EffectId, f64>,
     /// The search's candidates ([`rivals`]).
     pub(super) tested: &'a [EffectId],
-    /// The candidates still to test: a rival the data prefer goes back to them.
-    pub(super) candidates: &'a mut Vec<EffectId>,
-    /// The rivals preferred: searched first in the next round.
+    /// The rivals preferred: the search makes each a candidate again and searches it first in
+    /// the next round.
     pub(super) preferred: &'a mut Vec<EffectId>,
     /// The search's candidate columns, for the rivals' grids.
     pub(super) cache: &'a ColumnCache,
@@ -170,9 +169,6 @@ pub(super) fn check_families(
                     r_beside.threshold
                 ));
                 st.rejected.push(f);
-                if !st.candidates.contains(&r) {
-                    st.candidates.push(r);
-                }
                 st.preferred.push(r);
                 continue;
             }

@@ -375,17 +375,20 @@ impl<'a> Search<'a> {
             downgraded: &mut self.downgraded,
             thresholds: &self.thresholds,
             tested: &self.tested,
-            candidates: &mut self.candidates,
             preferred: &mut self.preferred,
             cache: &self.column_cache,
             lag_threshold: coil_lag::threshold(self.ctx.opts.alpha),
         };
         let (y, noise, level) = (&self.y, &self.noise, self.level);
         let changed = check_families(prep, model, &ids, &mut state, y, noise, level);
-        // A preferred rival is a candidate again (`check_families` put it back): off hold, so
-        // the two lists stay apart and no pool holds it twice.
-        let preferred = &self.preferred;
-        self.on_hold.retain(|c| !preferred.contains(c));
+        // A preferred rival's next turn: a candidate again, off hold (the two lists stay apart,
+        // so no pool holds it twice), and searched first ([`Search::round`]).
+        for &r in &self.preferred {
+            self.on_hold.retain(|&c| c != r);
+            if !self.candidates.contains(&r) {
+                self.candidates.push(r);
+            }
+        }
         if changed {
             return true;
         }
