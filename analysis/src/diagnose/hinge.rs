@@ -11,13 +11,19 @@
 //! temperature effect in the model:
 //! - a hinge significant beside it: the effect is not named, and the structure is reported
 //!   unexplained, "k_t changes near T_k";
-//! - a hinge that explains the data alone better than the effect does, each by its Wald over
-//!   its own threshold (the hinge's carries the knots' look-elsewhere), while the effect beside
-//!   it does not stay significant: the two are not told apart, and the effect is not named;
-//! - otherwise the effect is named: a true quadratic leaves no hinge in its residual, and its
-//!   best hinge takes only ρ² ≈ 0.94 of its Wald (plus the knots' luck, which the threshold
-//!   pays for). A weak kink (its hinge's Wald near its threshold) is therefore still taken for
-//!   a quadratic: the rule gives the library's term the benefit where the two explain alike.
+//! - a hinge that explains the data alone (its Wald over its threshold, which carries the
+//!   knots' look-elsewhere) while the effect beside it does not stay significant: the two are
+//!   not told apart, and the effect is not named (which of the two explains more is a guess
+//!   where neither holds beside the other);
+//! - otherwise the effect is named: a true quadratic leaves no hinge in its residual, and keeps
+//!   its significance beside its best hinge where it is strong enough to be told from one.
+//!
+//! On a gyro without its own sensor the hinges above are built at the lag in use. A coil that
+//! lags far more than the lab's model says moves the kink's passage in time, and at the lag in
+//! use it reads as an effect of time (a bias step). So every accepted effect is also judged
+//! against the kink with the coil's lag refitted beside it ([`super::coil_lag::kink_rival`],
+//! in [`super::nuisance`]): where the kink explains the residual there and the effect keeps
+//! nothing beside it, the effect is not named and the kink is reported.
 
 use super::family::Member;
 use super::series::bin_mean;

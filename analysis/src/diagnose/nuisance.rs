@@ -197,7 +197,9 @@ pub(super) fn check_families(
         } else if let Some(r) = &rival {
             r.at_lag_s.and_then(|_| lag())
         } else {
-            parameter_confounded(id, &cols, &others, &all, y, noise).or_else(lag)
+            parameter_confounded(id, &cols, &others, &all, y, noise).or_else(lag).or_else(|| {
+                kink_confounded(prep, model, (id, p, &cols), &beside, noise, level, st.cache)
+            })
         };
         // The rival's columns stay beside the effect's as nuisance terms either way.
         let rival_cols = rival.as_ref().map(|r| r.cols.clone());
@@ -315,6 +317,55 @@ fn lag_confounded(
         lag_threshold,
         id.key(),
         rv.effect_there,
+        thr_e
+    ))
+}
+
+/// Whether a kink in k_t ([`super::hinge`]) with the coil's lag refitted beside it
+/// ([`coil_lag::kink_rival`]) explains what effect `id` holds, on a gyro without its own
+/// sensor: the kink's Wald there passes its test (one test at the effect's `level` over the
+/// knots, the look-elsewhere its family check gives it), and beside it the effect keeps at
+/// most one test's quantile of its degrees of freedom (an effect with a grid fitted again),
+/// while at the lag in use it passed it on the same bins. A kink is outside the library: the
+/// effect is not named and the structure is reported with the knot ("k_t changes near …").
+/// Every effect but a further lag (the lag's own update) is judged: the hinge members of a
+/// temperature effect's family are built at the lag in use only. Returns the words.
+fn kink_confounded(
+    prep: &Prepared,
+    model: &GyroModel,
+    (id, p, cols): (EffectId, f64, &[Vec<f64>]),
+    beside: &coil_lag::Beside,
+    noise: &BinNoise,
+    level: f64,
+    cache: &ColumnCache,
+) -> Option<String> {
+    if id == EffectId::ThermalLag || !prep.lag_free {
+        return None;
+    }
+    let knots = hinge::knots(prep);
+    let test = refine::effect_wald(prep, id, model, cache, noise);
+    let thr_e = chi2_quantile(1.0 - level, cols.len() as f64);
+    let kr = coil_lag::kink_rival(prep, model, (id, p, cols), beside, noise, &knots, test, thr_e)
+        .ok()??;
+    let thr_k = chi2_quantile(1.0 - level / knots.len().max(1) as f64, 1.0);
+    if !(kr.kink > thr_k && kr.effect_there <= thr_e) {
+        return None;
+    }
+    let tk = kr.knot_c;
+    Some(format!(
+        "not told apart: {} or k_t changes near {tk:.1} °C (a kink max(0, T − {tk:.1} °C), \
+         outside the library) with the coil's thermal lag refitted beside it, {:.0} s for the \
+         {:.0} s in use (alike on a gyro without its own temperature sensor whose coil lags the \
+         air: the kink there explains the residual, Wald {:.1} > {:.1}, and beside it {} keeps \
+         Wald {:.1} ≤ {:.1}); the run that separates them: a gyro with its own temperature \
+         sensor, or holds at several temperatures on each side of {tk:.1} °C",
+        id.key(),
+        kr.tau_s,
+        kr.from_s,
+        kr.kink,
+        thr_k,
+        id.key(),
+        kr.effect_there,
         thr_e
     ))
 }
