@@ -563,18 +563,60 @@ pub(super) fn effect_at_rivals_lag(
             refit(tau)?.unwrap_or_else(|| r.2.to_vec())
         };
     let r = (r.0, r.1, r_cols.as_slice());
+    let test_r = |_: usize, at: &Projector, y: &[f64], c: &[Vec<f64>]| test_r(at, y, c);
+    let found = effect_beside_rivals_at_their_lag(
+        prep,
+        model,
+        e,
+        &[r],
+        beside,
+        noise,
+        lag_threshold,
+        test_e,
+        test_r,
+    )?;
+    Ok(found.map(|(tau_s, rivals, effect)| AtRivalsLag { tau_s, rival: rivals[0], effect }))
+}
+
+/// Effect `e` and declared rivals `rs` that explain it only together (each: id, grid value,
+/// columns at the lag in use; [`super::rivals`]) at the lag their model holds: the lag profiled
+/// with `beside` and all of `rs` at their grid values; where that moves it from the lag in use
+/// by more than the lag's own test, each rival's Wald statistic there beside the others
+/// (`test_r(index, …)`) and the effect's beside them all. `None` where the lag is not profiled
+/// or stays.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn effect_beside_rivals_at_their_lag(
+    prep: &Prepared,
+    model: &GyroModel,
+    e: (EffectId, f64, &[Vec<f64>]),
+    rs: &[(EffectId, f64, &[Vec<f64>])],
+    beside: &Beside,
+    noise: &BinNoise,
+    lag_threshold: f64,
+    test_e: impl Fn(&Projector, &[f64], &[Vec<f64>]) -> f64,
+    test_r: impl Fn(usize, &Projector, &[f64], &[Vec<f64>]) -> f64,
+) -> Result<Option<(f64, Vec<f64>, f64)>, AnalysisError> {
+    let Some(setup) = Setup::new(prep, model) else {
+        return Ok(None);
+    };
+    let from_s = model.thermal_time_constant;
     let mut with_r = beside.clone();
-    with_r.push(r);
+    rs.iter().for_each(|&r| with_r.push(r));
     let tau_s = setup.best(&with_r, from_s)?;
     if setup.change_wald(from_s, tau_s, &with_r, noise)? <= lag_threshold {
         return Ok(None);
     }
-    // Each one's columns at that lag.
-    let rival =
-        test_r(&setup.projector(tau_s, beside)?, &setup.y, &setup.effect_columns_at(tau_s, r)?);
+    // Each one's columns at that lag, each rival beside the others.
+    let mut rivals = Vec::with_capacity(rs.len());
+    for (j, &r) in rs.iter().enumerate() {
+        let mut others = beside.clone();
+        rs.iter().enumerate().filter(|(k, _)| *k != j).for_each(|(_, &o)| others.push(o));
+        let at = setup.projector(tau_s, &others)?;
+        rivals.push(test_r(j, &at, &setup.y, &setup.effect_columns_at(tau_s, r)?));
+    }
     let effect =
         test_e(&setup.projector(tau_s, &with_r)?, &setup.y, &setup.effect_columns_at(tau_s, e)?);
-    Ok(Some(AtRivalsLag { tau_s, rival, effect }))
+    Ok(Some((tau_s, rivals, effect)))
 }
 
 /// A kink in k_t with the coil's lag refitted beside it, as the rival of an accepted effect
