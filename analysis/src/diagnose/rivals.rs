@@ -276,12 +276,14 @@ struct Single {
 /// single one): each pair of the `pool` fitted in turn (the second at its best value beside
 /// the first, then the first again beside the second), each then significant beside the other
 /// (its search test), and the effect beside both keeping at most `thr_e` (an effect with a
-/// grid fitted again there). On a gyro without its own sensor the pair is judged at the coil lag its
-/// model holds too ([`coil_lag::effect_beside_rivals_at_their_lag`]), as a single rival is: it
-/// explains where it does at either lag, and the effect is told apart only where it stays
-/// significant beside it at both. Of the pairs that explain it, the one that leaves the effect
-/// the least. A pair is never preferred to the effect (the search names what it finds): the
-/// two are "not told apart".
+/// grid fitted again there). On a gyro without its own sensor the pair is judged at the coil
+/// lag its model holds too ([`coil_lag::effect_beside_rivals_at_their_lag`]), as a single
+/// rival is: it explains where it does at either lag, and the effect is told apart only where
+/// it stays significant beside it at both. Of the pairs that explain it, the one that leaves
+/// the effect the least. A pair is never preferred to the effect (the search names what it
+/// finds): the two are "not told apart". Nor is the effect preferred to the pair where the pair
+/// holds nothing beside it: that case is symmetric (each explains all the other does), and the
+/// truth may be either — one effect concealed (the study's drifts 14, 27, 209) or two (pair 39).
 ///
 /// The lab writer's study pair 39 (`random --classes pair --hours 0.75,1.5`): a hysteresis and
 /// a slow warm-up concealed on a 1.04 h sensor-less run, named a bias step at the hysteresis's
