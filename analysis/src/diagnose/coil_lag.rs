@@ -639,8 +639,9 @@ pub(super) struct KinkRival {
 /// with columns `cols` (bin means at `model`'s lag): each knot of `knots` (°C) with the lag
 /// profiled along it (its hinge built at every lag tried: a kink is in the coil's
 /// temperature), the one of least residual kept; then the kink's Wald statistic there without
-/// the effect, and the effect's beside the kink at the refitted lag (`test` as in [`rival`]). `None` where the lag is not profiled, there is no knot, or the
-/// effect does not pass `thr_e` at the lag in use on the profile's bins (nothing to explain).
+/// the effect, and the effect's beside the kink at the refitted lag (`test` as in [`rival`]).
+/// `None` where the lag is not profiled, there is no knot, or the effect does not pass `thr_e`
+/// at the lag in use on the profile's bins (nothing to explain).
 ///
 /// A kink's passage on a gyro whose coil lags far more than the lab's model says reads, at the
 /// lag in use, as an effect of time: the lab writer's study (outside class, full length) seed 9,

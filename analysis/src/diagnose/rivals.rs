@@ -205,7 +205,7 @@ pub(super) fn judge_rivals(
         let there =
             if held { None } else { at_rivals_lag(ctx, (id, p, cols), (r, r_p, &r_cols), noise) };
         if !held && !beyond_search {
-            pool.push(Single { id: r, thr: thr_r });
+            pool.push(Single { id: r, cols: r_cols.clone(), thr: thr_r });
         }
         let alone = there.as_ref().map_or(t_r.wald, |a| a.rival.max(t_r.wald));
         if alone <= thr_r {
@@ -264,10 +264,11 @@ pub(super) fn judge_rivals(
     Some(RivalVerdict::NotToldApart(best))
 }
 
-/// A declared rival out of the model, as [`judge_rivals`] tried it: its search test's
-/// threshold.
+/// A declared rival out of the model, as [`judge_rivals`] fitted it against the rest of the
+/// model: its columns at its best value and its search test's threshold.
 struct Single {
     id: EffectId,
+    cols: Vec<Vec<f64>>,
     thr: f64,
 }
 
@@ -311,14 +312,10 @@ fn judge_pairs(
     let mut best: Option<NotToldApart> = None;
     for (i, a) in pool.iter().enumerate() {
         for b in &pool[i + 1..] {
-            // Their grid values chosen together: b beside a, then a beside b.
-            let Some((_, a0, _)) =
-                beside(&[]).and_then(|at| rival_columns(ctx, a.id, &at, y, noise))
-            else {
-                continue;
-            };
+            // Their grid values chosen together: b beside a (at its best without b), then a
+            // beside b.
             let Some((b_p, b_cols, false)) =
-                beside(&[&a0]).and_then(|at| rival_columns(ctx, b.id, &at, y, noise))
+                beside(&[&a.cols]).and_then(|at| rival_columns(ctx, b.id, &at, y, noise))
             else {
                 continue;
             };
